@@ -1,0 +1,24 @@
+// Counter-based random numbers (Random123 Philox4x32-10): every draw is a pure function of
+// (seed, stream, a, b, index), so threads share no generator state and a resumed run draws exactly
+// what an uninterrupted one would. Not a sampler of any particular distribution of errors: see sampling.hpp.
+#pragma once
+#include <cstdint>
+
+namespace hinf::kern {
+
+/// Independent streams of one run's seed; values are part of the file format (never renumber).
+enum RngStream : std::uint32_t {
+    RNG_STREAM_INIT = 1,       // network initialisation
+    RNG_STREAM_SAMPLES = 2,    // training samples around x~(t)      (a = time step)
+    RNG_STREAM_MINIBATCH = 3,  // minibatch choice                   (a = time step, b = Adam step)
+    RNG_STREAM_NOISE = 4,      // on-line disturbance and noise      (a = run, b = time step)
+};
+
+/// out[i] ~ N(0,1), i in [0, count), for the counter (seed, stream, a, b). Thread-count independent.
+void rng_normal(double* out, std::int64_t count, std::uint64_t seed, std::uint32_t stream, std::uint64_t a,
+                std::uint64_t b);
+/// out[i] ~ U(0,1] likewise.
+void rng_uniform(double* out, std::int64_t count, std::uint64_t seed, std::uint32_t stream, std::uint64_t a,
+                 std::uint64_t b);
+
+}  // namespace hinf::kern
