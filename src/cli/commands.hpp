@@ -5,5 +5,7 @@
 
 namespace hinf::cli {
 
+void add_train_commands(CLI::App& app);   // train, resume
+void add_operate_command(CLI::App& app);  // operate
 
 }  // namespace hinf::cli

@@ -1,0 +1,78 @@
+// Output heads (see head.hpp). Small dense loops over n <= 32; one sample per call.
+#include "head.hpp"
+
+#include <cassert>
+
+namespace hinf::kern {
+
+namespace {
+constexpr int kMaxStates = 32;
+
+// M = I + tril(o), row-major lower-triangular packing of o: (0,0), (1,0), (1,1), (2,0), ...
+template <typename T>
+void unpack_m(double* M, const T* o, int n) {
+    int k = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) M[a * n + b] = (a == b) ? 1.0 : 0.0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b) M[a * n + b] += double(o[k++]);
+}
+}  // namespace
+
+int head_outputs(Head kind, int n) { return kind == HEAD_GRADIENT ? n : n * (n + 1) / 2; }
+
+template <typename T>
+void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = hp.n;
+    assert(n <= kMaxStates);
+    if (hp.kind == HEAD_GRADIENT) {
+        for (int a = 0; a < n; ++a) p[a] = hp.scale * double(o[a]);
+        return;
+    }
+    double M[kMaxStates * kMaxStates];
+    unpack_m(M, o, n);
+    // P = c (M M^T + eps I)
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b) {
+            double s = 0;
+            for (int k = 0; k <= b; ++k) s += M[a * n + k] * M[b * n + k];  // both lower-triangular
+            s = hp.scale * (s + (a == b ? hp.eps : 0.0));
+            P[a * n + b] = s;
+            P[b * n + a] = s;
+        }
+    for (int a = 0; a < n; ++a) {
+        double s = 0;
+        for (int b = 0; b < n; ++b) s += P[a * n + b] * xt[b];
+        p[a] = s;
+    }
+}
+
+template <typename T>
+void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = hp.n;
+    if (hp.kind == HEAD_GRADIENT) {
+        for (int a = 0; a < n; ++a) d_o[a] = T(hp.scale * gp[a]);
+        return;
+    }
+    double M[kMaxStates * kMaxStates], G[kMaxStates * kMaxStates];
+    unpack_m(M, o, n);
+    // G = dL/dP (as a function of all n^2 entries): explicit gP plus p = P x~  =>  gp x~^T
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) G[a * n + b] = (gP ? gP[a * n + b] : 0.0) + gp[a] * xt[b];
+    // P = c M M^T  =>  dL/dM = c (G + G^T) M ; only the lower triangle of M is free
+    int k = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b) {
+            double s = 0;
+            for (int j = 0; j < n; ++j) s += (G[a * n + j] + G[j * n + a]) * M[j * n + b];
+            d_o[k++] = T(hp.scale * s);
+        }
+}
+
+template void head_forward<float>(double*, double*, const float*, const double*, const HeadParams&);
+template void head_forward<double>(double*, double*, const double*, const double*, const HeadParams&);
+template void head_backward<float>(float*, const double*, const double*, const float*, const double*, const HeadParams&);
+template void head_backward<double>(double*, const double*, const double*, const double*, const double*,
+                                    const HeadParams&);
+
+}  // namespace hinf::kern

@@ -1,0 +1,147 @@
+// HJIE terms, per-sample losses and their gradients with respect to p and P (see hjie.hpp).
+#include "hjie.hpp"
+
+#include <cassert>
+#include <cmath>
+
+namespace hinf::kern {
+
+namespace {
+constexpr int kMax = 32;
+
+// u = B^T p [nv]
+inline void bt_times(double* u, const double* B, const double* p, int n, int nv) {
+    for (int j = 0; j < nv; ++j) {
+        double s = 0;
+        for (int a = 0; a < n; ++a) s += B[a * nv + j] * p[a];
+        u[j] = s;
+    }
+}
+}  // namespace
+
+void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
+    const int n = s.n, nv = s.nv, m = s.m;
+    const double* dA = s.dA + i * n;
+    const double* B = s.Bm + i * n * nv;
+    const double* dC = s.dC + i * m;
+    double u[kMax];
+    bt_times(u, B, p, n, nv);
+    double pa = 0, bb = 0, cc = 0;
+    for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+    for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
+    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+    t[0] = s.q[i];
+    t[1] = pa;
+    t[2] = bb / (4.0 * rho);
+    t[3] = -rho * cc;
+}
+
+double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
+    const int n = s.n, nv = s.nv, m = s.m;
+    const double* B = s.Bm + i * n * nv;
+    const double* dC = s.dC + i * m;
+    double tr_bpb = 0;
+    for (int j = 0; j < nv; ++j)
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b) tr_bpb += B[a * nv + j] * P[a * n + b] * B[b * nv + j];
+    double cc = 0, pp = 0, pPp = 0;
+    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+    for (int a = 0; a < n; ++a) {
+        pp += p[a] * p[a];
+        double row = 0;
+        for (int b = 0; b < n; ++b) row += P[a * n + b] * p[b];
+        pPp += p[a] * row;
+    }
+    // tr(k^T P k) with k = 2 rho p dC^T/|p|^2  =  4 rho^2 |dC|^2 p^T P p / |p|^4
+    double tr_kpk = pp > 0 ? 4.0 * hp.rho * hp.rho * cc * pPp / (pp * pp) : 0.0;
+    return 0.5 * hp.disturbance_intensity * tr_bpb + 0.5 * hp.noise_intensity * tr_kpk;
+}
+
+HjieSampleValue hjie_sample_forward(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
+                                    const HjieParams& hp, HjieObjective obj) {
+    double t[4];
+    hjie_terms(t, p, s, i, hp.rho);
+    HjieSampleValue v;
+    v.residual = t[0] + t[1] + t[2] + t[3];
+    v.abs_sum = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]) + std::fabs(t[3]);
+    if (obj == HJIE_OBJECTIVE_PAPER) {
+        v.hinge = v.residual * v.residual;
+        return v;
+    }
+    if (v.abs_sum > 0) {
+        double u = v.residual / v.abs_sum + hp.margin;
+        v.hinge = u > 0 ? u * u : 0.0;
+    }
+    // H2 bound: V(x~) ~ p^T x~ / 2 (exact for constant P) plus horizon * rate; one constant for all samples
+    double px = 0;
+    for (int a = 0; a < s.n; ++a) px += p[a] * s.xt[i * s.n + a];
+    v.h2 = (0.5 * px + hp.horizon * hjie_h2_rate(p, P, s, i, hp)) / hp.h2_reference;
+    return v;
+}
+
+void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
+                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+    const int n = s.n, nv = s.nv, m = s.m;
+    const double* dA = s.dA + i * n;
+    const double* B = s.Bm + i * n * nv;
+    const double* dC = s.dC + i * m;
+    double u[kMax], bbp[kMax];  // u = B^T p, bbp = B B^T p / (2 rho) = d(|B^T p|^2/(4 rho))/dp
+    bt_times(u, B, p, n, nv);
+    for (int a = 0; a < n; ++a) {
+        double sum = 0;
+        for (int j = 0; j < nv; ++j) sum += B[a * nv + j] * u[j];
+        bbp[a] = sum / (2.0 * hp.rho);
+    }
+    double t[4];
+    hjie_terms(t, p, s, i, hp.rho);
+    const double eps = t[0] + t[1] + t[2] + t[3];
+    if (gP)
+        for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
+    if (obj == HJIE_OBJECTIVE_PAPER) {
+        // hinge = eps^2, d eps/dp = dA + B B^T p/(2 rho)
+        for (int a = 0; a < n; ++a) gp[a] = d_hinge * 2.0 * eps * (dA[a] + bbp[a]);
+        return;
+    }
+    for (int a = 0; a < n; ++a) gp[a] = 0.0;
+    const double S = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]) + std::fabs(t[3]);
+    if (S > 0) {
+        const double r = eps / S, uu = r + hp.margin;
+        if (uu > 0) {
+            // d r/dp = (d eps/dp - r dS/dp)/S,  dS/dp = sign(p^T dA) dA + B B^T p/(2 rho)
+            const double sg = t[1] >= 0 ? 1.0 : -1.0;
+            const double c = d_hinge * 2.0 * uu / S;
+            for (int a = 0; a < n; ++a) gp[a] += c * ((dA[a] + bbp[a]) - r * (sg * dA[a] + bbp[a]));
+        }
+    }
+    if (d_h2 == 0.0) return;
+    // h2 = [sv/2 tr(B^T P B) + sn/2 * 4 rho^2 |dC|^2 p^T P p / |p|^4] / w
+    double cc = 0, pp = 0, pPp = 0, Pp[kMax];
+    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+    for (int a = 0; a < n; ++a) {
+        pp += p[a] * p[a];
+        double row = 0;
+        for (int b = 0; b < n; ++b) row += P[a * n + b] * p[b];
+        Pp[a] = row;
+    }
+    for (int a = 0; a < n; ++a) pPp += p[a] * Pp[a];
+    const double* xt = s.xt + i * n;
+    for (int a = 0; a < n; ++a) gp[a] += d_h2 / hp.h2_reference * 0.5 * xt[a];
+    const double scale = d_h2 * hp.horizon / hp.h2_reference;
+    const double cn = 0.5 * hp.noise_intensity * 4.0 * hp.rho * hp.rho * cc;
+    if (pp > 0) {
+        const double p4 = pp * pp, p6 = p4 * pp;
+        for (int a = 0; a < n; ++a) gp[a] += scale * cn * (2.0 * Pp[a] / p4 - 4.0 * pPp * p[a] / p6);
+    }
+    if (gP) {
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b) {
+                double bb = 0;
+                for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[b * nv + j];
+                double g = 0.5 * hp.disturbance_intensity * bb;
+                if (pp > 0) g += cn * p[a] * p[b] / (pp * pp);
+                gP[a * n + b] = scale * g;
+            }
+    }
+}
+
+}  // namespace hinf::kern

@@ -1,0 +1,51 @@
+// Batched multilayer perceptron with LeakyReLU hidden layers and a linear output layer:
+// forward and backward on a chunk of samples, plus naive twins used as the reference in tests.
+// Not the training loop (train_step.hpp) and not what the outputs mean (head.hpp).
+//
+// Shape legend:  B = samples in the chunk,  L = layers,  D[0] = inputs,  D[l] = width of layer l,
+//                D[L] = outputs.  Parameters are one flat array: for l = 1..L, W_l [D[l] x D[l-1]]
+//                row-major, then b_l [D[l]].  Activations: for l = 1..L, H_l [B x D[l]] row-major
+//                (H_L is the network output, pre-activation).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+namespace hinf::kern {
+
+struct MlpShape {
+    std::vector<int> sizes;      // D[0..L]
+    double slope_positive = 1.0; // LeakyReLU alpha_1 (input > 0)
+    double slope_negative = 0.01;// LeakyReLU alpha_2 (input <= 0)
+
+    int layers() const { return static_cast<int>(sizes.size()) - 1; }
+    int inputs() const { return sizes.front(); }
+    int outputs() const { return sizes.back(); }
+    int max_width() const;
+    std::int64_t param_count() const;
+    /// Offset of W_l (l = 1..L) in the flat parameter array; b_l follows W_l.
+    std::int64_t weight_offset(int l) const;
+    /// Activation floats per sample (sum of D[1..L]).
+    std::int64_t act_per_sample() const;
+    /// Offset of H_l in a chunk's activation buffer with B samples.
+    std::int64_t act_offset(int l, int B) const;
+};
+
+// acts [B x act_per_sample] (layer-major: H_1 for all B, then H_2, ...), theta [param_count],
+// x [B x D0].  Output H_L at acts + act_offset(L, B).
+template <typename T>
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape);
+
+// Accumulates dL/dtheta into dtheta (caller zeroes it). dout [B x D_L] = dL/dH_L.
+// dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x max_width].
+template <typename T>
+void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,
+                  const MlpShape& shape, T* scratch);
+
+// Naive twins: plain loops, one sample at a time; the reference for the fast versions.
+template <typename T>
+void mlp_forward_naive(T* acts, const T* theta, const T* x, int B, const MlpShape& shape);
+template <typename T>
+void mlp_backward_naive(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,
+                        const MlpShape& shape);
+
+}  // namespace hinf::kern

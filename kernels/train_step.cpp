@@ -1,0 +1,151 @@
+// Chunked, thread-count-independent gradient of the HJIE loss (see train_step.hpp).
+#include "train_step.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace hinf::kern {
+
+namespace {
+constexpr int kMax = 32;
+
+template <typename T>
+void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t first, int B, int n, double scale) {
+    const double inv = 1.0 / scale;
+    for (int s = 0; s < B; ++s) {
+        std::int64_t i = idx ? idx[first + s] : first + s;
+        for (int a = 0; a < n; ++a) in[s * n + a] = T(xt[i * n + a] * inv);
+    }
+}
+}  // namespace
+
+template <typename T>
+void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
+    if (max_batch <= capacity) return;
+    const int n = cfg.head.n, C = cfg.chunk;
+    const int chunks = (max_batch + C - 1) / C;
+    const std::int64_t padded = std::int64_t(chunks) * C;
+    capacity = max_batch;
+    input.assign(padded * cfg.shape.inputs(), T(0));
+    acts.assign(padded * cfg.shape.act_per_sample(), T(0));
+    dout.assign(padded * cfg.shape.outputs(), T(0));
+    scratch.assign(std::int64_t(chunks) * 2 * C * cfg.shape.max_width(), T(0));
+    partial.clear();  // grown lazily by step_gradient (not needed for evaluation)
+    p.assign(padded * n, 0.0);
+    P.assign(padded * n * n, 0.0);
+    values.assign(padded, HjieSampleValue{});
+}
+
+template <typename T>
+StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const std::int64_t* idx, int M,
+                       const StepConfig& cfg, StepWorkspace<T>& ws) {
+    const MlpShape& sh = cfg.shape;
+    const int n = sys.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
+    const int chunks = (M + C - 1) / C;
+    const std::int64_t P = sh.param_count();
+    ws.reserve(cfg, M);
+    if (std::int64_t(ws.partial.size()) < chunks * P) ws.partial.assign(chunks * P, T(0));
+    const bool quad = cfg.head.kind == HEAD_QUADRATIC;
+
+    // pass 1: forward, head, per-sample loss pieces
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < chunks; ++c) {
+        const int b0 = c * C, B = std::min(C, M - b0);
+        T* in = ws.input.data() + std::int64_t(b0) * D0;
+        T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
+        load_inputs(in, sys.xt, idx, b0, B, n, cfg.input_scale);
+        mlp_forward(acts, theta, in, B, sh);
+        const T* out = acts + sh.act_offset(sh.layers(), B);
+        for (int s = 0; s < B; ++s) {
+            const std::int64_t i = idx[b0 + s];
+            double* p = ws.p.data() + std::int64_t(b0 + s) * n;
+            double* Pm = ws.P.data() + std::int64_t(b0 + s) * n * n;
+            head_forward(p, quad ? Pm : nullptr, out + std::int64_t(s) * O, sys.xt + i * n, cfg.head);
+            ws.values[b0 + s] = hjie_sample_forward(p, Pm, sys, i, cfg.hjie, cfg.objective);
+        }
+    }
+    // ordered reduction of the loss
+    double sum_hinge = 0, sum_h2 = 0;
+    for (int s = 0; s < M; ++s) {
+        sum_hinge += ws.values[s].hinge;
+        sum_h2 += ws.values[s].h2;
+    }
+    StepLoss loss;
+    const double eta = cfg.objective == HJIE_OBJECTIVE_DISSIPATIVE ? cfg.hjie.h2_weight : 0.0;
+    loss.hinge = std::sqrt(sum_hinge / M);
+    loss.h2 = sum_h2 / M;
+    loss.loss = loss.hinge + eta * loss.h2;
+    const double d_hinge = loss.hinge > 0 ? 1.0 / (2.0 * M * loss.hinge) : 0.0;
+    const double d_h2 = eta / M;
+
+    // pass 2: per-sample dL/dp -> dL/do -> partial dL/dtheta per chunk
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < chunks; ++c) {
+        const int b0 = c * C, B = std::min(C, M - b0);
+        const T* in = ws.input.data() + std::int64_t(b0) * D0;
+        const T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
+        const T* out = acts + sh.act_offset(sh.layers(), B);
+        T* dout = ws.dout.data() + std::int64_t(b0) * O;
+        double gp[kMax], gP[kMax * kMax];
+        for (int s = 0; s < B; ++s) {
+            const std::int64_t i = idx[b0 + s];
+            const double* p = ws.p.data() + std::int64_t(b0 + s) * n;
+            const double* Pm = ws.P.data() + std::int64_t(b0 + s) * n * n;
+            hjie_sample_backward(gp, quad ? gP : nullptr, p, Pm, sys, i, cfg.hjie, cfg.objective, d_hinge, d_h2);
+            head_backward(dout + std::int64_t(s) * O, gp, quad ? gP : nullptr, out + std::int64_t(s) * O,
+                          sys.xt + i * n, cfg.head);
+        }
+        T* part = ws.partial.data() + std::int64_t(c) * P;
+        std::fill(part, part + P, T(0));
+        T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
+        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch);
+    }
+    // partial gradients summed in chunk order
+#pragma omp parallel for schedule(static)
+    for (std::int64_t j = 0; j < P; ++j) {
+        T g = T(0);
+        for (int c = 0; c < chunks; ++c) g += ws.partial[std::int64_t(c) * P + j];
+        grad[j] = g;
+    }
+    return loss;
+}
+
+template <typename T>
+void network_eval(double* p, double* P, const T* theta, const double* xt, std::int64_t count, const StepConfig& cfg,
+                  StepWorkspace<T>& ws) {
+    const MlpShape& sh = cfg.shape;
+    const int n = cfg.head.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
+    ws.reserve(cfg, static_cast<int>(count));
+    const int chunks = static_cast<int>((count + C - 1) / C);
+    const bool quad = cfg.head.kind == HEAD_QUADRATIC;
+#pragma omp parallel for schedule(static) if (chunks > 1)
+    for (int c = 0; c < chunks; ++c) {
+        const std::int64_t b0 = std::int64_t(c) * C;
+        const int B = static_cast<int>(std::min<std::int64_t>(C, count - b0));
+        T* in = ws.input.data() + b0 * D0;
+        T* acts = ws.acts.data() + b0 * sh.act_per_sample();
+        load_inputs<T>(in, xt, nullptr, b0, B, n, cfg.input_scale);
+        mlp_forward(acts, theta, in, B, sh);
+        const T* out = acts + sh.act_offset(sh.layers(), B);
+        double Ptmp[kMax * kMax];
+        for (int s = 0; s < B; ++s) {
+            double* Pm = (quad && P) ? P + (b0 + s) * n * n : Ptmp;
+            head_forward(p + (b0 + s) * n, quad ? Pm : nullptr, out + std::int64_t(s) * O, xt + (b0 + s) * n,
+                         cfg.head);
+        }
+    }
+}
+
+template struct StepWorkspace<float>;
+template struct StepWorkspace<double>;
+template StepLoss step_gradient<float>(float*, const float*, const HjieSystemView&, const std::int64_t*, int,
+                                       const StepConfig&, StepWorkspace<float>&);
+template StepLoss step_gradient<double>(double*, const double*, const HjieSystemView&, const std::int64_t*, int,
+                                        const StepConfig&, StepWorkspace<double>&);
+template void network_eval<float>(double*, double*, const float*, const double*, std::int64_t, const StepConfig&,
+                                  StepWorkspace<float>&);
+template void network_eval<double>(double*, double*, const double*, const double*, std::int64_t, const StepConfig&,
+                                   StepWorkspace<double>&);
+
+}  // namespace hinf::kern

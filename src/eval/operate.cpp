@@ -1,0 +1,251 @@
+// On-line phase: true system with v, n ~ std * N(0,1), filter (19) with the frozen network's gain,
+// in `oracle` (true x~ and C(x), the paper's protocol) or `measured` (innovation only) mode.
+#include "eval/operate.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <omp.h>
+
+#include "hinf/error.hpp"
+#include "hinf/h5.hpp"
+#include "io/progress.hpp"
+#include "random.hpp"
+#include "train/filter_math.hpp"
+
+namespace hinf {
+
+namespace {
+
+struct RunResult {
+    double num = 0, den = 0, num_open = 0;
+    double diverged_at = -1;  // time [s] the estimate left every finite bound; < 0: did not diverge
+    std::vector<double> err_sum, err_sq, err_sum_open, err_sq_open;
+    std::vector<double> x, xhat, xhat_open;  // run 0 only: [steps x n]
+};
+
+// x~ estimated from the innovation e = y - C(x^): least squares through dC/dx at x^.
+void error_from_innovation(double* xt, const System& sys, const double* xhat, double t, const double* e) {
+    const int n = sys.state_dim(), m = sys.output_dim();
+    Eigen::MatrixXd H(m, n);
+    std::vector<double> Hrow(static_cast<std::size_t>(m) * n);
+    sys.measurement_jacobian(Hrow.data(), xhat, t);
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < n; ++j) H(i, j) = Hrow[i * n + j];
+    Eigen::VectorXd ev = Eigen::Map<const Eigen::VectorXd>(e, m);
+    Eigen::VectorXd sol = H.completeOrthogonalDecomposition().solve(ev);
+    for (int j = 0; j < n; ++j) xt[j] = sol[j];
+}
+
+RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::int64_t run, std::int64_t steps,
+                  bool keep_path) {
+    const System& sys = *cfg.system;
+    const int n = cfg.n, nv = cfg.nv, m = cfg.m;
+    RunResult r;
+    r.err_sum.assign(n, 0);
+    r.err_sq.assign(n, 0);
+    r.err_sum_open.assign(n, 0);
+    r.err_sq_open.assign(n, 0);
+    std::vector<double> x = cfg.x0, xhat = cfg.xhat0, xo = cfg.xhat0;  // xo: open-loop predictor
+    std::vector<double> noise(nv + m), a_x(n), a_h(n), a_o(n), B(n * nv), c_x(m), c_h(m), y(m), e(m), dc(m), p(n),
+        xt(n), xt_in(n);
+    for (std::int64_t s = 0; s < steps; ++s) {
+        const double t = double(s) * cfg.dt;
+        kern::rng_normal(noise.data(), nv + m, cfg.online_seed, kern::RNG_STREAM_NOISE, std::uint64_t(run),
+                         std::uint64_t(s));
+        const double* v = noise.data();
+        std::vector<double> nn(m);
+        for (int j = 0; j < nv; ++j) noise[j] *= cfg.disturbance_std;
+        for (int j = 0; j < m; ++j) nn[j] = noise[nv + j] * cfg.noise_std;
+        sys.drift(a_x.data(), x.data(), t, 1);
+        sys.drift(a_h.data(), xhat.data(), t, 1);
+        sys.drift(a_o.data(), xo.data(), t, 1);
+        sys.disturbance_gain(B.data(), x.data(), t, 1);
+        sys.measurement(c_x.data(), x.data(), t, 1);
+        sys.measurement(c_h.data(), xhat.data(), t, 1);
+        for (int j = 0; j < m; ++j) {
+            y[j] = c_x[j] + nn[j];
+            e[j] = y[j] - c_h[j];
+            dc[j] = c_x[j] - c_h[j];
+        }
+        for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+        // gain: oracle uses the true x~ and C(x) - C(x^) (seed 000); measured uses the innovation only
+        if (measured) error_from_innovation(xt_in.data(), sys, xhat.data(), t, e.data());
+        net.gradient(p.data(), measured ? xt_in.data() : xt.data(), 1);
+        WorstCase wc = worst_case(p.data(), B.data(), measured ? e.data() : dc.data(), n, nv, m, cfg.rho);
+        // attenuation integrals (rectangle rule on the sampled data)
+        double vv = 0, nsq = 0;
+        for (int j = 0; j < nv; ++j) vv += v[j] * v[j];
+        for (int j = 0; j < m; ++j) nsq += nn[j] * nn[j];
+        r.den += cfg.dt * (vv + nsq);
+        r.num += cfg.dt * quadratic_form(cfg.Q.data(), xt.data(), n);
+        std::vector<double> xto(n);
+        for (int i = 0; i < n; ++i) xto[i] = x[i] - xo[i];
+        r.num_open += cfg.dt * quadratic_form(cfg.Q.data(), xto.data(), n);
+        for (int i = 0; i < n; ++i) {
+            r.err_sum[i] += xt[i];
+            r.err_sq[i] += xt[i] * xt[i];
+            r.err_sum_open[i] += xto[i];
+            r.err_sq_open[i] += xto[i] * xto[i];
+        }
+        if (keep_path) {
+            r.x.insert(r.x.end(), x.begin(), x.end());
+            r.xhat.insert(r.xhat.end(), xhat.begin(), xhat.end());
+            r.xhat_open.insert(r.xhat_open.end(), xo.begin(), xo.end());
+        }
+        bool finite = true;
+        for (int i = 0; i < n; ++i) finite = finite && std::isfinite(xhat[i]) && std::fabs(xhat[i]) < 1e12;
+        for (double g : wc.gain) finite = finite && std::isfinite(g);
+        if (!finite && r.diverged_at < 0) r.diverged_at = t;
+        if (r.diverged_at >= 0) {
+            // a diverged filter stays diverged: its estimate is frozen at the last finite value
+            r.num = INFINITY;
+            std::fill(wc.gain.begin(), wc.gain.end(), 0.0);
+        }
+        // eqs. (18)-(19) with the real v, n
+        for (int i = 0; i < n; ++i) {
+            double bv = 0, ke = 0;
+            for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * v[j];
+            for (int j = 0; j < m; ++j) ke += wc.gain[i * m + j] * e[j];
+            x[i] += cfg.dt * (a_x[i] + bv);
+            if (r.diverged_at < 0) xhat[i] += cfg.dt * (a_h[i] + ke);
+            xo[i] += cfg.dt * a_o[i];
+        }
+    }
+    return r;
+}
+
+void mean_std(std::vector<double>* mean, std::vector<double>* sd, const std::vector<double>& sum,
+              const std::vector<double>& sq, double count) {
+    mean->resize(sum.size());
+    sd->resize(sum.size());
+    for (std::size_t i = 0; i < sum.size(); ++i) {
+        (*mean)[i] = sum[i] / count;
+        (*sd)[i] = std::sqrt(std::max(0.0, sq[i] / count - (*mean)[i] * (*mean)[i]));
+    }
+}
+
+}  // namespace
+
+OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const std::string& network_path,
+                           const OperateOptions& opt) {
+    HINF_CHECK(network.step_config().head.n == cfg.n,
+               "network '" + network_path + "' was trained for " + std::to_string(network.step_config().head.n) +
+                   " states, the config's system has " + std::to_string(cfg.n) + " (use the matching config)");
+    auto t0 = std::chrono::steady_clock::now();
+    OperateSummary sum;
+    sum.mode = opt.mode.empty() ? cfg.mode : opt.mode;
+    HINF_CHECK(sum.mode == "oracle" || sum.mode == "measured",
+               "--mode '" + sum.mode + "' is not one of: oracle, measured");
+    sum.runs = opt.runs > 0 ? opt.runs : cfg.runs;
+    const bool measured = sum.mode == "measured";
+    const double tf = opt.until >= 0 ? std::min(opt.until, cfg.t_final) : cfg.t_final;
+    const std::int64_t steps = static_cast<std::int64_t>(std::llround(tf / cfg.dt));
+    const int n = cfg.n;
+
+    std::vector<RunResult> results(static_cast<std::size_t>(sum.runs));
+    Progress progress("operate", 0, sum.runs, opt.quiet);
+    std::int64_t done = 0;
+#pragma omp parallel
+    {
+        std::unique_ptr<FrozenNetwork> local = network.clone();
+#pragma omp for schedule(dynamic)
+        for (std::int64_t r = 0; r < sum.runs; ++r) {
+            results[r] = one_run(cfg, *local, measured, r, steps, r == 0);
+#pragma omp critical
+            progress.update(++done, "runs |");
+        }
+    }
+    // V(x~(0)) along the segment (defined for the quadratic head: p^T x~ > 0 on every ray)
+    std::vector<double> xt0(n);
+    for (int i = 0; i < n; ++i) xt0[i] = cfg.x0[i] - cfg.xhat0[i];
+    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC;
+    sum.v0 = network.value(xt0.data(), n);
+
+    std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
+    for (std::int64_t r = 0; r < sum.runs; ++r) {
+        diverged_at[r] = results[r].diverged_at;
+        if (diverged_at[r] >= 0) {
+            ++sum.diverged_runs;
+            if (sum.first_divergence < 0 || diverged_at[r] < sum.first_divergence) sum.first_divergence = diverged_at[r];
+        }
+    }
+    std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0);
+    for (std::int64_t r = 0; r < sum.runs; ++r) {
+        const RunResult& R = results[r];
+        ratio[r] = R.num / R.den;
+        ratio_open[r] = R.num_open / R.den;
+        ratio_v0[r] = (R.num - sum.v0) / R.den;
+        sum.attenuation_ratio += ratio[r] / double(sum.runs);
+        sum.attenuation_ratio_open_loop += ratio_open[r] / double(sum.runs);
+        sum.attenuation_ratio_minus_v0 += ratio_v0[r] / double(sum.runs);
+        for (int i = 0; i < n; ++i) {
+            es[i] += R.err_sum[i];
+            eq[i] += R.err_sq[i];
+            eso[i] += R.err_sum_open[i];
+            eqo[i] += R.err_sq_open[i];
+        }
+    }
+    if (!v_defined) sum.attenuation_ratio_minus_v0 = NAN;
+    const double count = double(steps) * double(sum.runs);
+    mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
+    mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
+    for (int i = 0; i < std::min(3, n); ++i) {
+        sum.rmse_position += eq[i] / count;
+        sum.rmse_position_open_loop += eqo[i] / count;
+    }
+    sum.rmse_position = std::sqrt(sum.rmse_position);
+    sum.rmse_position_open_loop = std::sqrt(sum.rmse_position_open_loop);
+    sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    std::filesystem::create_directories(opt.out_dir);
+    const std::string path = opt.out_dir + "/operate.h5";
+    h5::Handle f = h5::create_file(path + ".tmp");
+    hid_t root = f.get();
+    h5::set_attr(root, "format", "hinf-operate");
+    h5::set_attr(root, "mode", sum.mode);
+    h5::set_attr(root, "network", network_path);
+    h5::set_attr(root, "variant", cfg.variant);
+    h5::set_attr(root, "runs", sum.runs);
+    h5::set_attr(root, "t_final", tf);
+    h5::set_attr(root, "attenuation_ratio", sum.attenuation_ratio);
+    h5::set_attr(root, "attenuation_ratio_open_loop", sum.attenuation_ratio_open_loop);
+    h5::set_attr(root, "attenuation_ratio_minus_v0", sum.attenuation_ratio_minus_v0);
+    h5::set_attr(root, "v0", sum.v0);
+    h5::set_attr(root, "diverged_runs", sum.diverged_runs);
+    h5::set_attr(root, "first_divergence_time", sum.first_divergence);
+    h5::set_attr(root, "v0_defined", std::int64_t(v_defined ? 1 : 0));
+    h5::set_attr(root, "error_mean", sum.error_mean);
+    h5::set_attr(root, "error_std", sum.error_std);
+    h5::set_attr(root, "error_mean_open_loop", sum.error_mean_open_loop);
+    h5::set_attr(root, "error_std_open_loop", sum.error_std_open_loop);
+    h5::set_attr(root, "rmse_position", sum.rmse_position);
+    h5::set_attr(root, "rmse_position_open_loop", sum.rmse_position_open_loop);
+    h5::set_attr(root, "meaning",
+                 "attenuation_ratio = int_0^T x~^T Q x~ dt / int_0^T (v^T v + n^T n) dt, mean over runs (seed 000 "
+                 "Section IV); _open_loop: the same noise with the gain set to zero; _minus_v0: numerator minus "
+                 "V(x~(0)); error_mean/std: per state, over time and runs, of x - x^ (mode says whether the "
+                 "filter used the true state: oracle, or only measurements: measured)");
+    h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
+    h5::write_doubles(root, "attenuation_ratio_per_run", ratio.data(), {hsize_t(sum.runs)}, "1", "per Monte Carlo run");
+    h5::write_doubles(root, "diverged_at", diverged_at.data(), {hsize_t(sum.runs)}, "s",
+                      "time the estimate became non-finite or left |x^| < 1e12 (-1: never); from then on it is frozen");
+    h5::write_doubles(root, "attenuation_ratio_open_loop_per_run", ratio_open.data(), {hsize_t(sum.runs)}, "1",
+                      "per Monte Carlo run, gain set to zero");
+    std::vector<double> tt(steps);
+    for (std::int64_t s = 0; s < steps; ++s) tt[s] = double(s) * cfg.dt;
+    h5::write_doubles(root, "t", tt.data(), {hsize_t(steps)}, "s", "time");
+    const RunResult& R0 = results[0];
+    h5::write_doubles(root, "x", R0.x.data(), {hsize_t(steps), hsize_t(n)}, "state units", "true state, run 0");
+    h5::write_doubles(root, "xhat", R0.xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
+                      "DNN filter estimate, run 0");
+    h5::write_doubles(root, "xhat_open_loop", R0.xhat_open.data(), {hsize_t(steps), hsize_t(n)}, "state units",
+                      "open-loop predictor, run 0");
+    f.reset();
+    std::filesystem::rename(path + ".tmp", path);
+    return sum;
+}
+
+}  // namespace hinf

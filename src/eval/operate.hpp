@@ -1,0 +1,40 @@
+// The on-line phase (seed 000 Fig. 3, Section IV): the frozen network drives the filter while the
+// true system runs with real disturbance and noise; attenuation ratios and error statistics.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "train/network.hpp"
+#include "train/run_config.hpp"
+
+namespace hinf {
+
+struct OperateOptions {
+    std::string out_dir = "runs/out/operate";
+    std::string mode;       // "oracle" | "measured"; empty: the config's [online] mode
+    std::int64_t runs = 0;  // 0: the config's [online] runs
+    double until = -1;      // < 0: t_final
+    bool quiet = false;
+};
+
+struct OperateSummary {
+    std::string mode;
+    std::int64_t runs = 0;
+    double attenuation_ratio = 0;            // mean over runs of int x~^TQx~ / int (v^Tv + n^Tn)
+    double attenuation_ratio_open_loop = 0;  // same noise, gain set to zero (the open-loop predictor)
+    double attenuation_ratio_minus_v0 = 0;   // (int x~^TQx~ - V(x~(0))) / int (...)   (NaN if V undefined)
+    double v0 = 0;                           // V(x~(0))
+    std::vector<double> error_mean, error_std;  // per state, time average over [0, T], mean over runs
+    std::vector<double> error_mean_open_loop, error_std_open_loop;
+    double rmse_position = 0, rmse_position_open_loop = 0;
+    std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
+    double first_divergence = -1;          // earliest divergence time [s], -1 if none
+    double wall_seconds = 0;
+};
+
+/// Runs the frozen network of `network` on the system of `cfg`; writes out_dir/operate.h5.
+OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const std::string& network_path,
+                           const OperateOptions& opt);
+
+}  // namespace hinf

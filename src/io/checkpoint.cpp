@@ -1,0 +1,178 @@
+// HDF5 checkpoints (see checkpoint.hpp and docs/formats.md).
+#include "io/checkpoint.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <type_traits>
+
+#include "hinf/error.hpp"
+#include "hinf/h5.hpp"
+
+namespace hinf {
+
+namespace {
+
+template <typename T>
+void write_array(hid_t loc, const std::string& name, const std::vector<T>& v, const std::vector<hsize_t>& dims,
+                 const std::string& meaning) {
+    if constexpr (std::is_same_v<T, float>)
+        h5::write_floats(loc, name, v.data(), dims, "", meaning, true);
+    else
+        h5::write_doubles(loc, name, v.data(), dims, "", meaning, true);
+}
+
+template <typename T>
+std::vector<T> read_array(hid_t loc, const std::string& name, std::vector<hsize_t>* dims) {
+    if constexpr (std::is_same_v<T, float>)
+        return h5::read_floats(loc, name, dims);
+    else
+        return h5::read_doubles(loc, name, dims);
+}
+
+std::string prev_name(const std::string& path) {
+    std::string base = path;
+    if (base.size() > 3 && base.compare(base.size() - 3, 3, ".h5") == 0) base.resize(base.size() - 3);
+    return base + ".prev.h5";
+}
+
+}  // namespace
+
+template <typename T>
+void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfig& cfg) {
+    const std::string tmp = path + ".tmp";
+    {
+        h5::Handle f = h5::create_file(tmp);
+        hid_t root = f.get();
+        h5::set_attr(root, "format", "hinf-checkpoint");
+        h5::set_attr(root, "format_version", kCheckpointFormatVersion);
+        h5::set_attr(root, "step", ck.state.step);
+        h5::set_attr(root, "time", double(ck.state.step) * cfg.dt);
+        h5::set_attr(root, "config_hash", config_hash(ck.config_text));
+        h5::set_attr(root, "precision", std::is_same_v<T, float> ? "float" : "double");
+        h5::set_attr(root, "variant", cfg.variant);
+        h5::write_string(root, "config", ck.config_text, "the effective TOML config of the run");
+
+        const kern::StepConfig& sc = ck.net.step;
+        h5::Handle net = h5::create_group(root, "network");
+        std::vector<double> sizes(sc.shape.sizes.begin(), sc.shape.sizes.end());
+        h5::set_attr(net.get(), "sizes", sizes);
+        h5::set_attr(net.get(), "slopes", std::vector<double>{sc.shape.slope_positive, sc.shape.slope_negative});
+        h5::set_attr(net.get(), "head", sc.head.kind == kern::HEAD_GRADIENT ? "gradient" : "quadratic");
+        h5::set_attr(net.get(), "input_scale", sc.input_scale);
+        h5::set_attr(net.get(), "output_scale", sc.head.scale);
+        h5::set_attr(net.get(), "eps", sc.head.eps);
+        h5::set_attr(net.get(), "meaning",
+                     "network input = x~ / input_scale; head gradient: dV/dx~ = output_scale * o; head quadratic: "
+                     "dV/dx~ = output_scale * (M M^T + eps I) x~, M = I + tril(o)");
+        for (int l = 1; l <= sc.shape.layers(); ++l) {
+            const int din = sc.shape.sizes[l - 1], dout = sc.shape.sizes[l];
+            h5::Handle g = h5::create_group(net.get(), "layer_" + std::to_string(l));
+            const T* W = ck.net.theta.data() + sc.shape.weight_offset(l);
+            std::vector<T> w(W, W + std::int64_t(din) * dout), b(W + std::int64_t(din) * dout, W + std::int64_t(din) * dout + dout);
+            write_array(g.get(), "W", w, {hsize_t(dout), hsize_t(din)}, "weights [out x in]");
+            write_array(g.get(), "b", b, {hsize_t(dout)}, "biases");
+        }
+        h5::Handle adam = h5::create_group(root, "adam");
+        h5::set_attr(adam.get(), "step", ck.state.adam_step);
+        write_array(adam.get(), "m", ck.adam_m, {hsize_t(ck.adam_m.size())}, "first-moment average m_k (eq. 15)");
+        write_array(adam.get(), "v", ck.adam_v, {hsize_t(ck.adam_v.size())}, "second-moment average v_k (eq. 15)");
+
+        h5::Handle st = h5::create_group(root, "state");
+        const hsize_t n = ck.state.x.size();
+        std::vector<double> xt(n);
+        for (hsize_t i = 0; i < n; ++i) xt[i] = ck.state.x[i] - ck.state.xhat[i];
+        h5::write_doubles(st.get(), "x", ck.state.x.data(), {n}, "state units", "true state x(t)", true);
+        h5::write_doubles(st.get(), "xhat", ck.state.xhat.data(), {n}, "state units", "estimate x^(t)", true);
+        h5::write_doubles(st.get(), "xtilde", xt.data(), {n}, "state units", "estimation error x - x^", true);
+        h5::set_attr(st.get(), "step", ck.state.step);
+
+        h5::Handle rng = h5::create_group(root, "rng");
+        h5::set_attr(rng.get(), "generator", "Philox4x32-10");
+        h5::set_attr(rng.get(), "seed", static_cast<std::int64_t>(cfg.seed));
+        h5::set_attr(rng.get(), "counter", ck.state.step);
+        h5::flush(root);
+    }
+    std::error_code ec;
+    if (std::filesystem::exists(path)) std::filesystem::rename(path, prev_name(path), ec);
+    std::filesystem::rename(tmp, path, ec);
+    HINF_CHECK(!ec, "cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
+}
+
+std::string ckpt_precision(const std::string& path) {
+    h5::Handle f = h5::open_file(path, false);
+    HINF_CHECK(h5::has_attr(f.get(), "format") && h5::get_attr_string(f.get(), "format") == "hinf-checkpoint",
+               "'" + path + "' is not a hinf checkpoint (pass DIR/checkpoint.h5 written by `hinf train`)");
+    std::int64_t version = h5::get_attr_int(f.get(), "format_version");
+    HINF_CHECK(version == kCheckpointFormatVersion,
+               "checkpoint '" + path + "' has format version " + std::to_string(version) + ", this hinf reads " +
+                   std::to_string(kCheckpointFormatVersion) + " (use the hinf that wrote it)");
+    return h5::get_attr_string(f.get(), "precision");
+}
+
+RunConfig ckpt_config(const std::string& path) {
+    ckpt_precision(path);
+    h5::Handle f = h5::open_file(path, false);
+    std::string text = h5::read_string(f.get(), "config");
+    HINF_CHECK(config_hash(text) == h5::get_attr_string(f.get(), "config_hash"),
+               "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
+    return load_run_config(ConfigDoc::from_text(text, path + ":/config"));
+}
+
+template <typename T>
+Checkpoint<T> ckpt_read(const std::string& path) {
+    std::string precision = ckpt_precision(path);
+    const char* want = std::is_same_v<T, float> ? "float" : "double";
+    HINF_CHECK(precision == want, "checkpoint '" + path + "' holds a " + precision + " network, expected " + want);
+    RunConfig cfg = ckpt_config(path);
+    h5::Handle f = h5::open_file(path, false);
+    Checkpoint<T> ck;
+    ck.config_text = h5::read_string(f.get(), "config");
+    ck.net = network_create<T>(cfg);  // shapes and scales from the config
+    const kern::StepConfig& sc = ck.net.step;
+    h5::Handle net = h5::open_group(f.get(), "network");
+    std::vector<double> sizes = h5::get_attr_doubles(net.get(), "sizes");
+    HINF_CHECK(sizes == std::vector<double>(sc.shape.sizes.begin(), sc.shape.sizes.end()),
+               "checkpoint '" + path + "': network sizes do not match its config (damaged file)");
+    HINF_CHECK(h5::get_attr_double(net.get(), "input_scale") == sc.input_scale &&
+                   h5::get_attr_double(net.get(), "output_scale") == sc.head.scale,
+               "checkpoint '" + path + "': scales do not match its config (damaged file)");
+    for (int l = 1; l <= sc.shape.layers(); ++l) {
+        const int din = sc.shape.sizes[l - 1], dout = sc.shape.sizes[l];
+        h5::Handle g = h5::open_group(net.get(), "layer_" + std::to_string(l));
+        std::vector<hsize_t> dw, db;
+        std::vector<T> w = read_array<T>(g.get(), "W", &dw), b = read_array<T>(g.get(), "b", &db);
+        HINF_CHECK((dw == std::vector<hsize_t>{hsize_t(dout), hsize_t(din)} && db == std::vector<hsize_t>{hsize_t(dout)}),
+                   "checkpoint '" + path + "': layer_" + std::to_string(l) + " has the wrong shape");
+        T* W = ck.net.theta.data() + sc.shape.weight_offset(l);
+        std::copy(w.begin(), w.end(), W);
+        std::copy(b.begin(), b.end(), W + std::int64_t(din) * dout);
+    }
+    h5::Handle adam = h5::open_group(f.get(), "adam");
+    ck.state.adam_step = h5::get_attr_int(adam.get(), "step");
+    ck.adam_m = read_array<T>(adam.get(), "m", nullptr);
+    ck.adam_v = read_array<T>(adam.get(), "v", nullptr);
+    HINF_CHECK(ck.adam_m.size() == ck.net.theta.size() && ck.adam_v.size() == ck.net.theta.size(),
+               "checkpoint '" + path + "': Adam moments have the wrong size");
+    h5::Handle st = h5::open_group(f.get(), "state");
+    ck.state.step = h5::get_attr_int(f.get(), "step");
+    ck.state.x = h5::read_doubles(st.get(), "x");
+    ck.state.xhat = h5::read_doubles(st.get(), "xhat");
+    HINF_CHECK(int(ck.state.x.size()) == cfg.n && int(ck.state.xhat.size()) == cfg.n,
+               "checkpoint '" + path + "': state has the wrong dimension");
+    HINF_CHECK(ck.state.step >= 0, "checkpoint '" + path + "': negative step");
+    return ck;
+}
+
+std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunConfig* cfg_out) {
+    std::string precision = ckpt_precision(path);
+    if (cfg_out) *cfg_out = ckpt_config(path);
+    if (precision == "float") return network_freeze(ckpt_read<float>(path).net);
+    return network_freeze(ckpt_read<double>(path).net);
+}
+
+template void ckpt_write<float>(const std::string&, const Checkpoint<float>&, const RunConfig&);
+template void ckpt_write<double>(const std::string&, const Checkpoint<double>&, const RunConfig&);
+template Checkpoint<float> ckpt_read<float>(const std::string&);
+template Checkpoint<double> ckpt_read<double>(const std::string&);
+
+}  // namespace hinf

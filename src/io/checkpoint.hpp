@@ -1,0 +1,47 @@
+// Checkpoint files: everything needed to continue a run bit-identically (network, Adam moments,
+// time step, x, x^, the config text, the seed, the standardisation constants), written to a
+// temporary name and renamed into place. Layout: docs/formats.md.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "train/network.hpp"
+
+namespace hinf {
+
+constexpr std::int64_t kCheckpointFormatVersion = 1;
+
+struct TrainState {
+    std::int64_t step = 0;          // time steps completed; the next one is at t = step * dt
+    std::vector<double> x, xhat;    // true state and estimate at t = step * dt
+    std::int64_t adam_step = 0;     // Adam steps taken in the current sequence (k of eq. (15))
+};
+
+template <typename T>
+struct Checkpoint {
+    Network<T> net;
+    std::vector<T> adam_m, adam_v;
+    TrainState state;
+    std::string config_text;
+};
+
+/// Writes path atomically: path.tmp is written, flushed and closed, the old file is kept as
+/// `<path minus .h5>.prev.h5`, then path.tmp is renamed to path.
+template <typename T>
+void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfig& cfg);
+
+/// The precision ("float"/"double") a checkpoint was written with; checks it is a hinf checkpoint.
+std::string ckpt_precision(const std::string& path);
+
+/// Reads a checkpoint; checks format version, shapes and the config hash.
+template <typename T>
+Checkpoint<T> ckpt_read(const std::string& path);
+
+/// Loads the config stored in a checkpoint.
+RunConfig ckpt_config(const std::string& path);
+
+/// Loads just the network, frozen, whatever its precision.
+std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunConfig* cfg_out = nullptr);
+
+}  // namespace hinf

@@ -1,0 +1,36 @@
+// The training trajectory file: one row per time step in extendible, chunked HDF5 datasets,
+// flushed at every checkpoint so a crash loses at most the rows since. Layout: docs/formats.md.
+#pragma once
+#include <map>
+#include <string>
+#include <vector>
+
+#include "hinf/h5.hpp"
+
+namespace hinf {
+
+struct TrajectoryColumn {
+    std::string name;
+    int width;
+    std::string units, meaning;
+};
+
+class TrajectoryWriter {
+public:
+    /// Creates `path` with the given columns; `attrs` become root attributes.
+    static TrajectoryWriter create(const std::string& path, const std::vector<TrajectoryColumn>& columns,
+                                   const std::map<std::string, std::string>& attrs);
+    /// Reopens `path` and cuts every column to `rows` rows (continuing after a checkpoint).
+    static TrajectoryWriter reopen(const std::string& path, const std::vector<TrajectoryColumn>& columns,
+                                   hsize_t rows);
+    /// Appends one row: values[name] must hold `width` numbers for every column.
+    void append(const std::map<std::string, std::vector<double>>& values);
+    void flush();
+
+private:
+    h5::Handle file_;
+    std::vector<TrajectoryColumn> columns_;
+    std::vector<h5::RowWriter> writers_;
+};
+
+}  // namespace hinf

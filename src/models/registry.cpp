@@ -1,0 +1,31 @@
+// make_system: builds the system named by [system] kind, reading and checking every key of [system].
+#include <algorithm>
+
+#include "hinf/config.hpp"
+#include "hinf/error.hpp"
+#include "models/missile.hpp"
+#include "models/system.hpp"
+
+namespace hinf {
+
+std::unique_ptr<System> make_system(const ConfigDoc& doc) {
+    ConfigSection s(doc, "system");
+    std::string kind = s.get_string("kind", "missile", {"missile"});
+    MissileParams p;
+    p.gravity = s.get_double("gravity", p.gravity, 0.0, 100.0);
+    p.ballistic = s.get_double("ballistic_coefficient", p.ballistic, 1e-6, 1e12);
+    std::vector<double> radar = s.get_doubles("radar", {p.radar[0], p.radar[1], p.radar[2]}, 3);
+    std::copy(radar.begin(), radar.end(), p.radar);
+    p.rho_high = s.get_double("density_high", p.rho_high, 0.0, 1e3);
+    p.alpha_high = s.get_double("decay_high", p.alpha_high, 0.0, 1.0);
+    p.rho_low = s.get_double("density_low", p.rho_low, 0.0, 1e3);
+    p.alpha_low = s.get_double("decay_low", p.alpha_low, 0.0, 1.0);
+    p.switch_altitude = s.get_double("switch_altitude", p.switch_altitude, -1e9, 1e9);
+    std::vector<double> kp = s.get_doubles("position_gain", {p.position_gain[0], p.position_gain[1], p.position_gain[2]}, 3);
+    std::copy(kp.begin(), kp.end(), p.position_gain);
+    p.velocity_damping = s.get_double("velocity_damping", p.velocity_damping, -1e3, 1e3);
+    s.finish();
+    return std::make_unique<MissileSystem>(p);
+}
+
+}  // namespace hinf

@@ -1,0 +1,41 @@
+// The system interface: x' = A(x,t) + B(x,t) v,  y = C(x,t) + n  (seed 000 eq. (1)), evaluated on a
+// batch of states at once, with Jacobians. Not the filters or the training: they only call this.
+//
+// Shape legend: count = states in the batch, n = states, nv = disturbance inputs, m = outputs.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hinf {
+
+class ConfigDoc;
+
+class System {
+public:
+    virtual ~System() = default;
+    virtual std::string name() const = 0;
+    virtual int state_dim() const = 0;        // n
+    virtual int disturbance_dim() const = 0;  // nv
+    virtual int output_dim() const = 0;       // m
+    /// a [count x n] = A(x, t) for x [count x n].
+    virtual void drift(double* a, const double* x, double t, std::int64_t count) const = 0;
+    /// B [count x n x nv] (row-major per state) = B(x, t).
+    virtual void disturbance_gain(double* B, const double* x, double t, std::int64_t count) const = 0;
+    /// c [count x m] = C(x, t).
+    virtual void measurement(double* c, const double* x, double t, std::int64_t count) const = 0;
+    /// J [n x n] = dA/dx at one state (analytic).
+    virtual void drift_jacobian(double* J, const double* x, double t) const = 0;
+    /// H [m x n] = dC/dx at one state (analytic).
+    virtual void measurement_jacobian(double* H, const double* x, double t) const = 0;
+    /// Names of the states, for files and tables ("x", "y", "z", "vx", ...).
+    virtual std::vector<std::string> state_names() const = 0;
+    /// Units of each state ("m", "m/s", ...).
+    virtual std::vector<std::string> state_units() const = 0;
+};
+
+/// Builds the system named by [system] kind in the config (checks every key of [system]).
+std::unique_ptr<System> make_system(const ConfigDoc& doc);
+
+}  // namespace hinf

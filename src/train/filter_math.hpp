@@ -1,0 +1,59 @@
+// Theorem 1 of seed 000 evaluated at one point: the gain k* (eq. (8)) and the worst-case v*, n*
+// (eqs. (6)-(7), with the sign of n* from the proof's completion of squares, docs/method.md).
+#pragma once
+#include <cmath>
+#include <vector>
+
+namespace hinf {
+
+inline double quadratic_form(const double* Q, const double* x, int n) {
+    double s = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) s += x[i] * Q[i * n + j] * x[j];
+    return s;
+}
+
+inline double cosine(const double* a, const double* b, int n) {
+    double ab = 0, aa = 0, bb = 0;
+    for (int i = 0; i < n; ++i) {
+        ab += a[i] * b[i];
+        aa += a[i] * a[i];
+        bb += b[i] * b[i];
+    }
+    return (aa > 0 && bb > 0) ? ab / std::sqrt(aa * bb) : 0.0;
+}
+
+struct WorstCase {
+    std::vector<double> gain;    // k* [n x m]
+    std::vector<double> v_star;  // [nv]
+    std::vector<double> n_star;  // [m]
+};
+
+/// p = dV/dx~ [n], B = B(x) [n x nv], dc = C(x) - C(x^) [m].
+/// k* = 2 rho p dc^T / |p|^2 (eq. (8)); v* = B^T p / (2 rho) (eq. (6)); n* = -k*^T p / (2 rho) = -dc.
+/// With p = 0 the gain is undefined: k* = 0 and n* = 0.
+inline WorstCase worst_case(const double* p, const double* B, const double* dc, int n, int nv, int m, double rho) {
+    WorstCase w;
+    w.gain.assign(static_cast<std::size_t>(n) * m, 0.0);
+    w.v_star.assign(nv, 0.0);
+    w.n_star.assign(m, 0.0);
+    double pp = 0;
+    for (int i = 0; i < n; ++i) pp += p[i] * p[i];
+    for (int j = 0; j < nv; ++j) {
+        double s = 0;
+        for (int i = 0; i < n; ++i) s += B[i * nv + j] * p[i];
+        w.v_star[j] = s / (2.0 * rho);
+    }
+    if (pp > 0) {
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < m; ++j) w.gain[i * m + j] = 2.0 * rho * p[i] * dc[j] / pp;
+        for (int j = 0; j < m; ++j) {
+            double s = 0;
+            for (int i = 0; i < n; ++i) s += w.gain[i * m + j] * p[i];
+            w.n_star[j] = -s / (2.0 * rho);
+        }
+    }
+    return w;
+}
+
+}  // namespace hinf

@@ -1,0 +1,45 @@
+// The trained object: an MLP plus its head and scales, i.e. one fixed function x~ -> dV/dx~
+// (seed 000 Remark 6: the standardisation constants are part of the network, stored with it).
+// Not the training loop (trainer.cpp) and not the file layout (io/checkpoint.cpp).
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "train/run_config.hpp"
+#include "train_step.hpp"
+
+namespace hinf {
+
+template <typename T>
+struct Network {
+    kern::StepConfig step;  // shape, head, HJIE parameters, input scale, chunk size
+    std::vector<T> theta;   // flat parameters (layout: kernels/mlp.hpp)
+};
+
+/// Shapes and scales from the config; weights drawn from (seed, RNG_STREAM_INIT) (He-uniform for
+/// LeakyReLU, last layer x0.1 so the quadratic head starts at P ~ c I).
+template <typename T>
+Network<T> network_create(const RunConfig& cfg);
+
+/// The same StepConfig a config implies (used to check a checkpoint against its config).
+kern::StepConfig network_step_config(const RunConfig& cfg);
+
+/// A frozen network as a function, whatever its precision: for the on-line phase.
+class FrozenNetwork {
+public:
+    virtual ~FrozenNetwork() = default;
+    /// p [count x n] = dV/dx~ at xt [count x n].
+    virtual void gradient(double* p, const double* xt, std::int64_t count) = 0;
+    /// V(x~) by Gauss-Legendre quadrature of p along the segment 0 -> x~ (exact for the gradient of a
+    /// quadratic V; for the `paper` head p need not be a gradient, so V is path-dependent).
+    double value(const double* xt, int n);
+    virtual const kern::StepConfig& step_config() const = 0;
+    /// An independent copy (own workspace), for use from another thread.
+    virtual std::unique_ptr<FrozenNetwork> clone() const = 0;
+};
+
+template <typename T>
+std::unique_ptr<FrozenNetwork> network_freeze(Network<T> net);
+
+}  // namespace hinf

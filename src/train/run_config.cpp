@@ -1,0 +1,140 @@
+// load_run_config: reads [filter], [network], [training], [sampling], [objective], [online].
+#include "train/run_config.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "hinf/error.hpp"
+
+namespace hinf {
+
+std::int64_t RunConfig::total_steps() const { return static_cast<std::int64_t>(std::llround(t_final / dt)); }
+
+double RunConfig::resolved_input_scale() const {
+    if (input_scale > 0) return input_scale;
+    // auto: RMS of the initial error's components (seed 000 Remark 6: standardise the inputs)
+    double s = 0;
+    for (int i = 0; i < n; ++i) s += (x0[i] - xhat0[i]) * (x0[i] - xhat0[i]);
+    s = std::sqrt(s / n);
+    return s > 0 ? s : 1.0;
+}
+
+double RunConfig::resolved_output_scale() const { return output_scale > 0 ? output_scale : 2.0 * rho; }
+
+double RunConfig::resolved_eps() const {
+    if (eps > 0) return eps;
+    // sampled-data cap: lambda_min(P) >= c eps >= 2 rho dt / kappa keeps dt |k dC| <= kappa |x~| (docs/method.md)
+    return 2.0 * rho * dt / (max_step_correction * resolved_output_scale());
+}
+
+double RunConfig::resolved_horizon() const { return horizon > 0 ? horizon : t_final; }
+
+std::string config_hash(const std::string& text) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (unsigned char c : text) {
+        h ^= c;
+        h *= 1099511628211ull;
+    }
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+}
+
+RunConfig load_run_config(ConfigDoc doc) {
+    config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online"});
+    RunConfig c;
+    c.system = make_system(doc);
+    c.n = c.system->state_dim();
+    c.nv = c.system->disturbance_dim();
+    c.m = c.system->output_dim();
+    const int n = c.n;
+    const double big = 1e15;
+
+    ConfigSection f(doc, "filter");
+    f.get_string("type", "hinf", {"hinf"});
+    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper"});
+    c.rho = f.get_double("rho", c.rho, 0.0, big);
+    if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
+    std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
+    for (int i = 0; i < n; ++i) qdef[i * n + i] = 1e-5;
+    c.Q = f.get_matrix("Q", qdef, n, n);
+    for (int i = 0; i < n; ++i) {
+        if (c.Q[i * n + i] < 0) f.reject("Q", "must be positive semidefinite (negative diagonal entry)");
+        for (int j = 0; j < n; ++j)
+            if (c.Q[i * n + j] != c.Q[j * n + i]) f.reject("Q", "must be symmetric");
+    }
+    c.x0 = f.get_doubles("x0", {150000, 210000, 120000, -2500, -2500, -2500}, n);
+    c.xhat0 = f.get_doubles("xhat0", {140000, 204000, 111000, -2200, -2800, -2100}, n);
+    c.dt = f.get_double("dt", c.dt, 0.0, 1e6);
+    if (c.dt <= 0) f.reject("dt", "must be > 0 (the sampling time in seconds, e.g. 0.01)");
+    c.t_final = f.get_double("t_final", c.t_final, 0.0, 1e9);
+    if (c.t_final <= 0) f.reject("t_final", "must be > 0");
+    if (c.t_final / c.dt > 1e9) f.reject("t_final", "gives more than 1e9 time steps (raise dt or lower t_final)");
+    f.finish();
+
+    ConfigSection net(doc, "network");
+    std::vector<std::int64_t> hidden = net.get_ints("hidden", {256, 128, 32}, 1, 65536);
+    c.hidden.assign(hidden.begin(), hidden.end());
+    std::vector<double> slopes = net.get_doubles("slopes", {1.0, 0.01}, 2);
+    if (slopes[0] <= 0 || slopes[1] <= 0)
+        net.reject("slopes", "LeakyReLU slopes [alpha_1, alpha_2] must both be > 0");
+    c.slope_positive = slopes[0];
+    c.slope_negative = slopes[1];
+    c.precision = net.get_string("precision", c.precision, {"float", "double"});
+    c.input_scale = net.get_double("input_scale", c.input_scale, 0.0, big);
+    c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
+    c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
+    c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
+    net.finish();
+
+    ConfigSection t(doc, "training");
+    c.samples = t.get_int("samples", c.samples, 1, 100000000);
+    c.batch = t.get_int("batch", c.batch, 1, 100000000);
+    if (c.batch > c.samples)
+        t.reject("batch", "= " + std::to_string(c.batch) + " exceeds training.samples = " + std::to_string(c.samples) +
+                              " (the minibatch M must be <= N)");
+    c.adam_steps = t.get_int("adam_steps", c.adam_steps, 1, 1000000);
+    c.learning_rate = t.get_double("learning_rate", c.learning_rate, 0.0, 1e3);
+    if (c.learning_rate <= 0) t.reject("learning_rate", "must be > 0");
+    c.beta1 = t.get_double("beta1", c.beta1, 0.0, 0.999999999);
+    c.beta2 = t.get_double("beta2", c.beta2, 0.0, 0.999999999);
+    c.tau = t.get_double("tau", c.tau, 0.0, 1.0);
+    c.reset_adam = t.get_bool("reset_adam_each_step", c.reset_adam);
+    c.seed = static_cast<std::uint64_t>(t.get_int("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
+    c.checkpoint_every = t.get_int("checkpoint_every", c.checkpoint_every, 1, 1000000000);
+    c.loss_limit = t.get_double("loss_limit", c.loss_limit, 0.0, 1e300);
+    t.finish();
+
+    ConfigSection s(doc, "sampling");
+    c.local_fraction = s.get_double("local_fraction", c.local_fraction, 0.0, 1.0);
+    c.local_spread = s.get_double("local_spread", c.local_spread, 0.0, 1e6);
+    c.radius_decades = s.get_double("radius_decades", c.radius_decades, 0.0, 30.0);
+    c.error_floor = s.get_doubles("error_floor", std::vector<double>(n, 20.0), n);
+    for (double v : c.error_floor)
+        if (v < 0) s.reject("error_floor", "entries must be >= 0");
+    s.finish();
+
+    ConfigSection o(doc, "objective");
+    c.margin = o.get_double("margin", c.margin, 0.0, 1.0);
+    c.h2_weight = o.get_double("h2_weight", c.h2_weight, 0.0, 1e9);
+    c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
+    c.noise_intensity = o.get_double("noise_intensity", c.noise_intensity, 0.0, 1e12);
+    c.horizon = o.get_double("horizon", c.horizon, 0.0, 1e12);
+    c.max_step_correction = o.get_double("max_step_correction", c.max_step_correction, 0.0, 2.0);
+    if (c.max_step_correction <= 0) o.reject("max_step_correction", "must be in (0, 2]");
+    o.finish();
+
+    ConfigSection on(doc, "online");
+    c.mode = on.get_string("mode", c.mode, {"oracle", "measured"});
+    c.disturbance_std = on.get_double("disturbance_std", c.disturbance_std, 0.0, 1e12);
+    c.noise_std = on.get_double("noise_std", c.noise_std, 0.0, 1e12);
+    c.runs = on.get_int("runs", c.runs, 1, 1000000);
+    c.online_seed = static_cast<std::uint64_t>(on.get_int("seed", 7, 0, std::numeric_limits<std::int64_t>::max()));
+    on.finish();
+
+    c.doc = std::move(doc);
+    return c;
+}
+
+}  // namespace hinf

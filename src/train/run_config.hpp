@@ -1,0 +1,72 @@
+// Everything a training or on-line run reads from its TOML config, checked once before any work.
+// Keys, defaults and units: docs/formats.md. Not the system's own keys ([system]: models/registry.cpp).
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hinf/config.hpp"
+#include "models/system.hpp"
+
+namespace hinf {
+
+struct RunConfig {
+    ConfigDoc doc;                    // the effective config (with --set applied)
+    std::shared_ptr<System> system;
+    int n = 0, nv = 0, m = 0;
+
+    // [filter]
+    std::string variant = "dissipative";  // "dissipative" (default) or "paper"
+    double rho = 0.03;
+    std::vector<double> Q;                 // n x n
+    std::vector<double> x0, xhat0;         // n
+    double dt = 0.01, t_final = 70.0;
+
+    // [network]
+    std::vector<int> hidden = {256, 128, 32};
+    double slope_positive = 1.0, slope_negative = 0.01;
+    std::string precision = "float";
+    double input_scale = 0.0;   // 0: auto
+    double output_scale = 0.0;  // 0: auto
+    double eps = 0.0;  // 0: auto from max_step_correction
+    int chunk = 100;
+
+    // [training]
+    std::int64_t samples = 2000, batch = 800, adam_steps = 30;
+    double learning_rate = 1e-3, beta1 = 0.9, beta2 = 0.999, tau = 1e-7;
+    bool reset_adam = true;
+    std::uint64_t seed = 1;
+    std::int64_t checkpoint_every = 100;
+    double loss_limit = 1e30;
+
+    // [sampling]
+    double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
+    std::vector<double> error_floor;  // n
+
+    // [objective] (dissipative variant)
+    double margin = 0.02, h2_weight = 0.1, disturbance_intensity = 4.0, noise_intensity = 4.0;
+    double horizon = 0.0;               // 0: t_final
+    double max_step_correction = 0.5;   // kappa: dt * |k dC| <= kappa |x~| (sets eps when eps = 0)
+
+    // [online]
+    std::string mode = "oracle";
+    double disturbance_std = 20.0, noise_std = 20.0;
+    std::int64_t runs = 1;
+    std::uint64_t online_seed = 7;
+
+    std::int64_t total_steps() const;
+    /// Resolved scales (auto values filled from x0, xhat0, rho).
+    double resolved_input_scale() const;
+    double resolved_output_scale() const;
+    double resolved_eps() const;
+    double resolved_horizon() const;
+};
+
+/// Parses and validates; throws hinf::Error naming the file, the key and the fix.
+RunConfig load_run_config(ConfigDoc doc);
+
+/// A short stable hash of the config text (FNV-1a 64, hex), stored in checkpoints.
+std::string config_hash(const std::string& text);
+
+}  // namespace hinf

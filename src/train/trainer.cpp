@@ -1,0 +1,329 @@
+// The offline training driver: per time step, N samples around x~(t), per-sample constants once,
+// K Adam steps on minibatches, then p at x~(t), gain k*, worst case v*, n* (seed 000 eqs. (6)-(8))
+// and the sampled-data updates (eqs. (18)-(20)). The numerics are in kernels/.
+#include "train/trainer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "adam.hpp"
+#include "hinf/error.hpp"
+#include "io/checkpoint.hpp"
+#include "io/progress.hpp"
+#include "io/trajectory.hpp"
+#include "sampling.hpp"
+#include "train/filter_math.hpp"
+
+namespace hinf {
+
+namespace {
+
+std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
+    const int n = c.n, m = c.m, nv = c.nv;
+    return {
+        {"t", 1, "s", "time of the row"},
+        {"x", n, "state units", "true state x(t) (training: driven by the worst-case v*)"},
+        {"xhat", n, "state units", "estimate x^(t)"},
+        {"xtilde", n, "state units", "estimation error x~(t) = x - x^"},
+        {"y", m, "output units", "measurement y(t) = C(x) + n*(t)"},
+        {"gain", n * m, "state/output per s", "filter gain k*(x^) of eq. (8), row-major n x m"},
+        {"v_star", nv, "disturbance units", "worst-case disturbance v* of eq. (6)"},
+        {"n_star", m, "output units", "worst-case noise n* = -k*^T p/(2 rho) (eq. (7), sign per Theorem 1's proof)"},
+        {"p", n, "V per state unit", "network output dV/dx~ at x~(t) after the K Adam steps"},
+        {"loss", 2, "1", "training loss at the first and the last Adam step of the time step"},
+        {"hjie_residual", 1, "V per s", "HJIE residual of eq. (16) at x~(t)"},
+        {"hjie_rel_residual_median", 1, "1", "median over the N samples of |eps_i| / S_i after the K steps"},
+        {"hjie_rel_residual_p95", 1, "1", "95th percentile of |eps_i| / S_i"},
+        {"hji_violation_fraction", 1, "1", "share of samples with HJIE_i > 0.01 S_i"},
+        {"hji_positive_fraction", 1, "1", "share of samples with HJIE_i > 0"},
+        {"cosine_mean", 1, "1", "mean over samples of p_i^T x~_i / (|p_i| |x~_i|)"},
+    };
+}
+
+double percentile(std::vector<double> v, double q) {
+    if (v.empty()) return 0;
+    std::size_t k = static_cast<std::size_t>(std::floor(q * double(v.size() - 1)));
+    std::nth_element(v.begin(), v.begin() + k, v.end());
+    return v[k];
+}
+
+bool all_finite(const std::vector<double>& v) {
+    for (double x : v)
+        if (!std::isfinite(x)) return false;
+    return true;
+}
+
+template <typename T>
+class Trainer {
+public:
+    Trainer(RunConfig cfg, std::string out_dir) : cfg_(std::move(cfg)), dir_(std::move(out_dir)) {}
+
+    void start_fresh() {
+        ck_.net = network_create<T>(cfg_);
+        ck_.adam_m.assign(ck_.net.theta.size(), T(0));
+        ck_.adam_v.assign(ck_.net.theta.size(), T(0));
+        ck_.state.step = 0;
+        ck_.state.x = cfg_.x0;
+        ck_.state.xhat = cfg_.xhat0;
+        ck_.config_text = cfg_.doc.text();
+        std::filesystem::create_directories(dir_);
+        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
+                                         {{"format", "hinf-trajectory"},
+                                          {"variant", cfg_.variant},
+                                          {"system", cfg_.system->name()},
+                                          {"config", ck_.config_text}});
+    }
+
+    void start_from(Checkpoint<T> ck) {
+        ck_ = std::move(ck);
+        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+    }
+
+    TrainSummary run(std::int64_t last_step, bool quiet) {
+        TrainSummary sum;
+        sum.first_step = ck_.state.step;
+        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
+        const std::int64_t N = cfg_.samples;
+        // per-time-step buffers, allocated once
+        xt_.resize(N * n);
+        dA_.resize(N * n);
+        Bm_.resize(N * n * nv);
+        dC_.resize(N * m);
+        q_.resize(N);
+        xs_.resize(N * n);
+        grad_.resize(ck_.net.theta.size());
+        idx_.resize(cfg_.batch);
+        work_.resize(std::max<std::int64_t>(N, cfg_.batch));
+        perm_.resize(N);
+        p_all_.resize(N * n);
+        P_all_.resize(N * n * n);
+        ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
+
+        Progress progress("train", ck_.state.step, last_step, quiet);
+        auto t0 = std::chrono::steady_clock::now();
+        std::vector<double> medians;
+        while (ck_.state.step < last_step) {
+            if (!time_step()) {
+                sum.status = 4;
+                break;
+            }
+            ++ck_.state.step;
+            medians.push_back(rec_rel_median_);
+            sum.fraction_steps_rel_ok += rec_rel_median_ <= 0.01 ? 1 : 0;
+            sum.fraction_steps_violation_ok += rec_violation_ <= 0.01 ? 1 : 0;
+            sum.mean_cosine += rec_cosine_;
+            sum.final_loss = rec_loss_last_;
+            if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) checkpoint();
+            char detail[160];
+            std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |", 
+                          double(ck_.state.step) * cfg_.dt, rec_loss_first_, rec_loss_last_, rec_rel_median_,
+                          rec_violation_);
+            progress.update(ck_.state.step, detail);
+        }
+        sum.last_step = ck_.state.step;
+        sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double cnt = double(std::max<std::size_t>(1, medians.size()));
+        sum.fraction_steps_rel_ok /= cnt;
+        sum.fraction_steps_violation_ok /= cnt;
+        sum.mean_cosine /= cnt;
+        sum.median_rel_residual = percentile(medians, 0.5);
+        traj_.flush();
+        return sum;
+    }
+
+private:
+    // One time step of the offline phase; false on numerical trouble (diagnostic printed).
+    bool time_step() {
+        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
+        const std::int64_t N = cfg_.samples, step = ck_.state.step;
+        const double t = double(step) * cfg_.dt;
+        const System& sys = *cfg_.system;
+        std::vector<double>& x = ck_.state.x;
+        std::vector<double>& xhat = ck_.state.xhat;
+        std::vector<double> xtilde(n);
+        for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
+
+        // N samples around x~(t), and their constants (independent of the weights: once per time step)
+        kern::SamplingParams sp{cfg_.local_fraction, cfg_.local_spread, cfg_.radius_decades};
+        kern::sample_errors(xt_.data(), xtilde.data(), cfg_.error_floor.data(), n, N, sp, cfg_.seed, step);
+        std::vector<double> a_hat(n), c_hat(m);
+        sys.drift(a_hat.data(), xhat.data(), t, 1);
+        sys.measurement(c_hat.data(), xhat.data(), t, 1);
+        for (std::int64_t i = 0; i < N; ++i)
+            for (int j = 0; j < n; ++j) xs_[i * n + j] = xhat[j] + xt_[i * n + j];
+        sys.drift(dA_.data(), xs_.data(), t, N);
+        sys.disturbance_gain(Bm_.data(), xs_.data(), t, N);
+        sys.measurement(dC_.data(), xs_.data(), t, N);
+        for (std::int64_t i = 0; i < N; ++i) {
+            for (int j = 0; j < n; ++j) dA_[i * n + j] -= a_hat[j];
+            for (int j = 0; j < m; ++j) dC_[i * m + j] -= c_hat[j];
+            q_[i] = quadratic_form(cfg_.Q.data(), xt_.data() + i * n, n);
+        }
+        kern::HjieSystemView view{n, nv, m, xt_.data(), dA_.data(), Bm_.data(), dC_.data(), q_.data()};
+
+        // K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
+        kern::AdamParams ap{cfg_.learning_rate, cfg_.beta1, cfg_.beta2, cfg_.tau};
+        if (cfg_.reset_adam) {
+            std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
+            std::fill(ck_.adam_v.begin(), ck_.adam_v.end(), T(0));
+            ck_.state.adam_step = 0;
+        }
+        for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
+            kern::sample_minibatch(idx_.data(), int(cfg_.batch), N, cfg_.seed, step, k, work_.data(), perm_.data());
+            kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
+                                                   int(cfg_.batch), ck_.net.step, ws_);
+            if (k == 1) rec_loss_first_ = L.loss;
+            if (!std::isfinite(L.loss) || L.loss > cfg_.loss_limit) {
+                diagnose(step, "training loss", L.loss);
+                return false;
+            }
+            ++ck_.state.adam_step;
+            kern::adam_update(ck_.net.theta.data(), ck_.adam_m.data(), ck_.adam_v.data(), grad_.data(),
+                              std::int64_t(grad_.size()), ck_.state.adam_step, ap);
+        }
+
+        // residual statistics over all N samples after the K steps
+        kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), xt_.data(), N, ck_.net.step, ws_);
+        std::vector<double> rel(N);
+        double viol = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
+        for (std::int64_t i = 0; i < N; ++i) {
+            kern::HjieSampleValue v = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n,
+                                                                view, i, ck_.net.step.hjie, ck_.net.step.objective);
+            rel[i] = v.abs_sum > 0 ? std::fabs(v.residual) / v.abs_sum : 0.0;
+            viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+            pos += v.residual > 0 ? 1 : 0;
+            cos_sum += cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
+            loss_hinge += v.hinge;
+            loss_h2 += v.h2;
+        }
+        rec_loss_last_ = std::sqrt(loss_hinge / double(N)) +
+                         (ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0) *
+                             loss_h2 / double(N);
+        rec_rel_median_ = percentile(rel, 0.5);
+        rec_violation_ = viol / double(N);
+        rec_cosine_ = cos_sum / double(N);
+
+        // p at x~(t), gain k*, worst case v*, n* (eqs. (6)-(8)), then eqs. (18)-(20)
+        std::vector<double> p(n), Pm(n * n);
+        kern::network_eval(p.data(), Pm.data(), ck_.net.theta.data(), xtilde.data(), 1, ck_.net.step, ws_);
+        std::vector<double> c_x(m), dc(m), a_x(n), B(n * nv);
+        sys.measurement(c_x.data(), x.data(), t, 1);
+        sys.drift(a_x.data(), x.data(), t, 1);
+        sys.disturbance_gain(B.data(), x.data(), t, 1);
+        for (int j = 0; j < m; ++j) dc[j] = c_x[j] - c_hat[j];
+        WorstCase wc = worst_case(p.data(), B.data(), dc.data(), n, nv, m, cfg_.rho);
+        std::vector<double> y(m);
+        for (int j = 0; j < m; ++j) y[j] = c_x[j] + wc.n_star[j];
+        // residual at x~(t)
+        double terms[4];
+        {
+            std::vector<double> xt1 = xtilde, dA1(n), q1(1, quadratic_form(cfg_.Q.data(), xtilde.data(), n));
+            for (int j = 0; j < n; ++j) dA1[j] = a_x[j] - a_hat[j];
+            kern::HjieSystemView v1{n, nv, m, xt1.data(), dA1.data(), B.data(), dc.data(), q1.data()};
+            kern::hjie_terms(terms, p.data(), v1, 0, cfg_.rho);
+        }
+        std::map<std::string, std::vector<double>> row;
+        row["t"] = {t};
+        row["x"] = x;
+        row["xhat"] = xhat;
+        row["xtilde"] = xtilde;
+        row["y"] = y;
+        row["gain"] = wc.gain;
+        row["v_star"] = wc.v_star;
+        row["n_star"] = wc.n_star;
+        row["p"] = p;
+        row["loss"] = {rec_loss_first_, rec_loss_last_};
+        row["hjie_residual"] = {terms[0] + terms[1] + terms[2] + terms[3]};
+        row["hjie_rel_residual_median"] = {rec_rel_median_};
+        row["hjie_rel_residual_p95"] = {percentile(rel, 0.95)};
+        row["hji_violation_fraction"] = {rec_violation_};
+        row["hji_positive_fraction"] = {pos / double(N)};
+        row["cosine_mean"] = {rec_cosine_};
+        traj_.append(row);
+
+        // sampled-data propagation: x by eq. (18) with v*, x^ by eq. (19) with y; x~ = x - x^ (eq. (20))
+        std::vector<double> x_next(n), xhat_next(n);
+        for (int i = 0; i < n; ++i) {
+            double bv = 0;
+            for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * wc.v_star[j];
+            x_next[i] = x[i] + cfg_.dt * (a_x[i] + bv);
+            double ky = 0;
+            for (int j = 0; j < m; ++j) ky += wc.gain[i * m + j] * (y[j] - c_hat[j]);
+            xhat_next[i] = xhat[i] + cfg_.dt * (a_hat[i] + ky);
+        }
+        if (!all_finite(x_next) || !all_finite(xhat_next) || !all_finite(p) || !all_finite(wc.gain)) {
+            diagnose(step, !all_finite(p) ? "network output p" : !all_finite(wc.gain) ? "gain" : "state", NAN);
+            return false;
+        }
+        x = x_next;
+        xhat = xhat_next;
+        return true;
+    }
+
+    void checkpoint() {
+        traj_.flush();
+        ckpt_write(dir_ + "/checkpoint.h5", ck_, cfg_);
+    }
+
+    void diagnose(std::int64_t step, const char* what, double value) {
+        std::fprintf(stderr,
+                     "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite loss "
+                     "%g. The last good checkpoint %s/checkpoint.h5 is kept (lower training.learning_rate and resume "
+                     "from it)\n",
+                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_last_, dir_.c_str());
+        traj_.flush();
+    }
+
+    RunConfig cfg_;
+    std::string dir_;
+    Checkpoint<T> ck_;
+    TrajectoryWriter traj_;
+    kern::StepWorkspace<T> ws_;
+    std::vector<double> xt_, dA_, Bm_, dC_, q_, xs_, work_, p_all_, P_all_;
+    std::vector<T> grad_;
+    std::vector<std::int64_t> idx_, perm_;
+    double rec_loss_first_ = 0, rec_loss_last_ = 0, rec_rel_median_ = 0, rec_violation_ = 0, rec_cosine_ = 0;
+};
+
+std::int64_t last_step_for(const RunConfig& cfg, double until) {
+    double tf = until >= 0 ? std::min(until, cfg.t_final) : cfg.t_final;
+    return static_cast<std::int64_t>(std::llround(tf / cfg.dt));
+}
+
+template <typename T>
+TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
+    Trainer<T> tr(cfg, opt.out_dir);
+    tr.start_fresh();
+    return tr.run(last_step_for(cfg, opt.until), opt.quiet);
+}
+
+template <typename T>
+TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
+    Checkpoint<T> ck = ckpt_read<T>(path);
+    RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
+    std::int64_t last = last_step_for(cfg, opt.until);
+    HINF_CHECK(last > ck.state.step || opt.until < 0 || last == ck.state.step,
+               "--until " + std::to_string(opt.until) + " is before the checkpoint's time " +
+                   std::to_string(double(ck.state.step) * cfg.dt) + " s (pass a later time)");
+    std::string dir = std::filesystem::path(path).parent_path().string();
+    if (dir.empty()) dir = ".";
+    Trainer<T> tr(cfg, dir);
+    tr.start_from(std::move(ck));
+    return tr.run(last, opt.quiet);
+}
+
+}  // namespace
+
+TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
+    return cfg.precision == "double" ? start_typed<double>(cfg, opt) : start_typed<float>(cfg, opt);
+}
+
+TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
+    return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
+                                                  : resume_typed<float>(checkpoint, opt);
+}
+
+}  // namespace hinf

@@ -1,0 +1,33 @@
+// The offline phase (seed 000 Fig. 3 / DESIGN.md "One time step"): the thin driver that chains
+// time steps, writes the trajectory as it goes and a checkpoint every S steps.
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "train/run_config.hpp"
+
+namespace hinf {
+
+struct TrainOptions {
+    std::string out_dir = "runs/out/train";
+    double until = -1;  // stop at this simulated time [s]; < 0: the config's t_final
+    bool quiet = false;
+};
+
+struct TrainSummary {
+    int status = 0;                 // 0 ok, 4 diverged (diagnostic already printed)
+    std::int64_t first_step = 0, last_step = 0;
+    double wall_seconds = 0;
+    double final_loss = 0;
+    double median_rel_residual = 0;       // median over time steps of hjie_rel_residual_median
+    double fraction_steps_rel_ok = 0;     // share of time steps with hjie_rel_residual_median <= 0.01
+    double fraction_steps_violation_ok = 0;  // share with hji_violation_fraction <= 0.01
+    double mean_cosine = 0;
+};
+
+/// Starts a run from the config (creates out_dir/trajectory.h5, out_dir/checkpoint.h5).
+TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt);
+/// Continues from a checkpoint into its directory (the trajectory is cut back to the checkpoint).
+TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt);
+
+}  // namespace hinf

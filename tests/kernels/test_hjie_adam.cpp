@@ -1,0 +1,117 @@
+// HJIE terms and output gradients against a hand-computed case; Adam against a hand-computed step;
+// the quadratic head's invariants.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "adam.hpp"
+#include "head.hpp"
+#include "hjie.hpp"
+
+using namespace hinf::kern;
+
+TEST_CASE("HJIE terms of eq. (16) on a hand-computed case", "[kernel][hjie]") {
+    // n = 2, nv = 1, m = 1: x~ = (1, 2), Q = I -> q = 5; dA = (-1, 0.5); B = (0, 1); dC = 3; rho = 0.5
+    // p = (2, -1): p^T dA = -2.5; |B^T p|^2 / (4 rho) = 1 / 2 = 0.5; -rho |dC|^2 = -4.5;  eps = 5 - 2.5 + 0.5 - 4.5 = -1.5
+    double xt[2] = {1, 2}, dA[2] = {-1, 0.5}, B[2] = {0, 1}, dC[1] = {3}, q[1] = {5}, p[2] = {2, -1};
+    HjieSystemView s{2, 1, 1, xt, dA, B, dC, q};
+    double t[4];
+    hjie_terms(t, p, s, 0, 0.5);
+    CHECK(t[0] == 5.0);
+    CHECK(t[1] == -2.5);
+    CHECK(t[2] == 0.5);
+    CHECK(t[3] == -4.5);
+    HjieParams hp;
+    hp.rho = 0.5;
+    HjieSampleValue v = hjie_sample_forward(p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER);
+    CHECK(v.residual == -1.5);
+    CHECK(v.abs_sum == 12.5);
+    CHECK(v.hinge == 2.25);
+    // d(eps^2)/dp = 2 eps (dA + B B^T p / (2 rho)) = -3 * ((-1, 0.5) + (0, -1)) = (3, 1.5)
+    double gp[2];
+    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0);
+    CHECK(gp[0] == Approx(3.0));
+    CHECK(gp[1] == Approx(1.5));
+}
+
+TEST_CASE("dissipative per-sample gradient matches central differences in p and P", "[kernel][hjie]") {
+    double xt[3] = {0.3, -1.2, 0.8}, dA[3] = {0.5, 0.1, -0.7}, B[6] = {0.2, 1.0, -0.4, 0.3, 0.9, 0.1};
+    double dC[2] = {1.1, -0.6}, q[1] = {0.05};
+    HjieSystemView s{3, 2, 2, xt, dA, B, dC, q};
+    HjieParams hp;
+    hp.rho = 0.3;
+    hp.margin = 0.5;
+    hp.horizon = 3.0;
+    hp.h2_reference = 2.0;
+    double p[3] = {0.4, -0.9, 0.7};
+    double P[9] = {1.0, 0.2, -0.1, 0.2, 0.8, 0.3, -0.1, 0.3, 1.5};
+    auto total = [&](const double* pp, const double* PP) {
+        HjieSampleValue v = hjie_sample_forward(pp, PP, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE);
+        return 0.7 * v.hinge + 1.9 * v.h2;
+    };
+    REQUIRE(hjie_sample_forward(p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE).hinge > 0);
+    double gp[3], gP[9];
+    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    const double h = 1e-6;
+    for (int a = 0; a < 3; ++a) {
+        double pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
+        pp[a] += h;
+        pm[a] -= h;
+        CHECK(gp[a] == Approx((total(pp, P) - total(pm, P)) / (2 * h)).epsilon(1e-6));
+    }
+    for (int a = 0; a < 9; ++a) {
+        double Pp[9], Pm[9];
+        for (int k = 0; k < 9; ++k) Pp[k] = Pm[k] = P[k];
+        Pp[a] += h;
+        Pm[a] -= h;
+        CHECK(gP[a] == Approx((total(p, Pp) - total(p, Pm)) / (2 * h)).epsilon(1e-6).margin(1e-9));
+    }
+}
+
+TEST_CASE("Adam step of eqs. (14)-(15) by hand", "[kernel][adam]") {
+    // theta = 1, g = 0.5, k = 1: m = 0.05, v = 0.00025, m^ = 0.5, v^ = 0.25,
+    // theta = 1 - 0.001 * 0.5 / sqrt(0.25 + 1e-7)
+    double theta = 1.0, m = 0.0, v = 0.0, g = 0.5;
+    AdamParams ap;
+    adam_update(&theta, &m, &v, &g, 1, 1, ap);
+    CHECK(m == Approx(0.05));
+    CHECK(v == Approx(0.00025));
+    CHECK(theta == Approx(1.0 - 0.001 * 0.5 / std::sqrt(0.25 + 1e-7)).epsilon(1e-14));
+    // second step, g = -1: m = 0.9*0.05 - 0.1 = -0.055, v = 0.999*0.00025 + 0.001 = 0.00124975
+    double g2 = -1.0, before = theta;
+    adam_update(&theta, &m, &v, &g2, 1, 2, ap);
+    double mh = -0.055 / (1 - 0.81), vh = 0.00124975 / (1 - 0.999 * 0.999);
+    CHECK(theta == Approx(before - 0.001 * mh / std::sqrt(vh + 1e-7)).epsilon(1e-12));
+}
+
+TEST_CASE("Adam matches its naive twin", "[kernel][adam]") {
+    std::vector<float> th(20000), m(20000, 0.f), v(20000, 0.f), g(20000), th2, m2, v2;
+    for (int i = 0; i < 20000; ++i) {
+        th[i] = 0.001f * float(i % 97);
+        g[i] = std::sin(0.01f * float(i));
+    }
+    th2 = th;
+    m2 = m;
+    v2 = v;
+    AdamParams ap;
+    for (int k = 1; k <= 3; ++k) {
+        adam_update(th.data(), m.data(), v.data(), g.data(), 20000, k, ap);
+        adam_update_naive(th2.data(), m2.data(), v2.data(), g.data(), 20000, k, ap);
+    }
+    for (int i = 0; i < 20000; i += 97) CHECK(th[i] == Approx(th2[i]).epsilon(1e-5));
+}
+
+TEST_CASE("quadratic head gives p^T x~ > 0 and P symmetric positive definite", "[kernel][head]") {
+    HeadParams hp;
+    hp.kind = HEAD_QUADRATIC;
+    hp.n = 3;
+    hp.scale = 0.06;
+    hp.eps = 0.01;
+    double o[6] = {-1.0, 2.0, -3.0, 0.5, 0.0, -1.0};  // M = I + tril(o) is singular-ish, P stays >= c eps I
+    double xt[3] = {1.0, -2.0, 0.5}, p[3], P[9];
+    head_forward(p, P, o, xt, hp);
+    double px = p[0] * xt[0] + p[1] * xt[1] + p[2] * xt[2];
+    CHECK(px > 0);
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) CHECK(P[a * 3 + b] == P[b * 3 + a]);
+    CHECK(px >= hp.scale * hp.eps * (1 + 4 + 0.25) * (1 - 1e-12));
+}

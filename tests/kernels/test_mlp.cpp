@@ -1,0 +1,53 @@
+// MLP kernels: the fast forward/backward agree with their naive twins for several shapes and both
+// precisions.
+#include <catch2/catch.hpp>
+#include <random>
+
+#include "helpers.hpp"
+#include "mlp.hpp"
+
+using namespace hinf::kern;
+
+template <typename T>
+static void check_against_naive(const std::vector<int>& sizes, int B, double tol) {
+    MlpShape sh;
+    sh.sizes = sizes;
+    sh.slope_positive = 0.9;
+    sh.slope_negative = 0.05;
+    std::mt19937 gen(12345);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::vector<T> theta(sh.param_count()), x(std::size_t(B) * sh.inputs()), dout(std::size_t(B) * sh.outputs());
+    for (auto& v : theta) v = T(u(gen));
+    for (auto& v : x) v = T(u(gen));
+    for (auto& v : dout) v = T(u(gen));
+    std::vector<T> acts(B * sh.act_per_sample()), acts_ref(acts.size());
+    mlp_forward(acts.data(), theta.data(), x.data(), B, sh);
+    mlp_forward_naive(acts_ref.data(), theta.data(), x.data(), B, sh);
+    CHECK(hinf::test::max_rel_diff(acts, acts_ref, 1e-3) < tol);
+    std::vector<T> g(theta.size(), T(0)), g_ref(theta.size(), T(0)), dx(x.size()), dx_ref(x.size());
+    std::vector<T> scratch(2 * std::size_t(B) * sh.max_width());
+    mlp_backward(g.data(), dx.data(), theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
+    mlp_backward_naive(g_ref.data(), dx_ref.data(), theta.data(), x.data(), acts_ref.data(), dout.data(), B, sh);
+    CHECK(hinf::test::max_rel_diff(g, g_ref, 1e-3) < tol);
+    CHECK(hinf::test::max_rel_diff(dx, dx_ref, 1e-3) < tol);
+}
+
+TEST_CASE("mlp forward/backward match the naive twins", "[kernel][mlp]") {
+    SECTION("double, paper shape") { check_against_naive<double>({6, 256, 128, 32, 6}, 37, 1e-10); }
+    SECTION("double, odd sizes") { check_against_naive<double>({3, 5, 7, 21}, 13, 1e-10); }
+    SECTION("float, paper shape") { check_against_naive<float>({6, 256, 128, 32, 21}, 50, 2e-3); }
+    SECTION("float, one hidden layer") { check_against_naive<float>({2, 9, 1}, 4, 1e-4); }
+}
+
+TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
+    MlpShape sh;
+    sh.sizes = {2, 4, 3};
+    std::vector<double> theta(sh.param_count(), 0.3), x = {0.5, -1.0, 2.0, 0.1}, dout(6, 1.0);
+    std::vector<double> acts(2 * sh.act_per_sample()), scratch(2 * 2 * sh.max_width());
+    mlp_forward(acts.data(), theta.data(), x.data(), 2, sh);
+    std::vector<double> g1(theta.size(), 0.0), g2(theta.size(), 0.0);
+    mlp_backward(g1.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
+    mlp_backward(g2.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
+    mlp_backward(g2.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
+    for (std::size_t i = 0; i < g1.size(); ++i) CHECK(g2[i] == Approx(2 * g1[i]));
+}

@@ -1,0 +1,148 @@
+// End-to-end training on a small configuration: 1 vs 2 threads bit-identical; train 2T vs train T +
+// resume + train T bit-identical (weights, Adam moments, states, trajectory); files read back.
+#include <omp.h>
+
+#include <catch2/catch.hpp>
+
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+#include "io/checkpoint.hpp"
+#include "train/trainer.hpp"
+
+using namespace hinf;
+
+namespace {
+
+const char* kSmall = R"(
+[system]
+kind = "missile"
+[filter]
+variant = "VARIANT"
+t_final = 0.12
+[network]
+hidden = [16, 8]
+precision = "PRECISION"
+chunk = 30
+[training]
+samples = 200
+batch = 80
+adam_steps = 3
+checkpoint_every = 4
+RESET
+)";
+
+RunConfig small_config(const std::string& variant, const std::string& precision, bool reset = true) {
+    std::string text = kSmall;
+    text.replace(text.find("VARIANT"), 7, variant);
+    text.replace(text.find("PRECISION"), 9, precision);
+    text.replace(text.find("RESET"), 5, reset ? "" : "reset_adam_each_step = false");
+    return load_run_config(ConfigDoc::from_text(text, "small.toml"));
+}
+
+TrainSummary train(const RunConfig& cfg, const std::string& dir, double until, int threads) {
+    omp_set_num_threads(threads);
+    TrainOptions opt;
+    opt.out_dir = dir;
+    opt.until = until;
+    opt.quiet = true;
+    TrainSummary s = train_start(cfg, opt);
+    omp_set_num_threads(2);
+    return s;
+}
+
+template <typename T>
+void require_same_checkpoint(const std::string& a, const std::string& b) {
+    Checkpoint<T> A = ckpt_read<T>(a), B = ckpt_read<T>(b);
+    CHECK(A.state.step == B.state.step);
+    CHECK(test::bitwise_equal(A.net.theta, B.net.theta));
+    CHECK(test::bitwise_equal(A.adam_m, B.adam_m));
+    CHECK(test::bitwise_equal(A.adam_v, B.adam_v));
+    CHECK(test::bitwise_equal(A.state.x, B.state.x));
+    CHECK(test::bitwise_equal(A.state.xhat, B.state.xhat));
+    CHECK(A.state.adam_step == B.state.adam_step);
+}
+
+void require_same_trajectory(const std::string& a, const std::string& b) {
+    h5::Handle fa = h5::open_file(a, false), fb = h5::open_file(b, false);
+    for (const char* name : {"t", "x", "xhat", "xtilde", "y", "gain", "v_star", "n_star", "p", "loss", "hjie_residual",
+                             "hjie_rel_residual_median", "hjie_rel_residual_p95", "hji_violation_fraction",
+                             "cosine_mean"}) {
+        INFO(name);
+        std::vector<hsize_t> da, db;
+        CHECK(test::bitwise_equal(h5::read_doubles(fa.get(), name, &da), h5::read_doubles(fb.get(), name, &db)));
+        CHECK(da == db);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("1 and 2 threads give bit-identical training", "[train][determinism]") {
+    for (const char* variant : {"dissipative", "paper"}) {
+        INFO(variant);
+        test::TempDir d1("thr1"), d2("thr2");
+        RunConfig cfg = small_config(variant, "float");
+        train(cfg, d1 / "run", -1, 1);
+        train(cfg, d2 / "run", -1, 2);
+        require_same_checkpoint<float>(d1 / "run/checkpoint.h5", d2 / "run/checkpoint.h5");
+        require_same_trajectory(d1 / "run/trajectory.h5", d2 / "run/trajectory.h5");
+    }
+}
+
+TEST_CASE("train 2T equals train T, resume, train T (bit-identical)", "[train][resume]") {
+    for (std::string precision : {"float", "double"}) {
+        for (bool reset : {true, false}) {
+            INFO(precision << " reset_adam " << reset);
+            test::TempDir d("resume");
+            RunConfig cfg = small_config("dissipative", precision, reset);
+            train(cfg, d / "full", -1, 2);
+            TrainSummary half = train(cfg, d / "split", 0.06, 2);
+            REQUIRE(half.last_step == 6);
+            TrainOptions opt;
+            opt.quiet = true;
+            TrainSummary rest = train_resume(d / "split/checkpoint.h5", opt);
+            CHECK(rest.first_step == 6);
+            CHECK(rest.last_step == 12);
+            if (precision == "float") require_same_checkpoint<float>(d / "full/checkpoint.h5", d / "split/checkpoint.h5");
+            else require_same_checkpoint<double>(d / "full/checkpoint.h5", d / "split/checkpoint.h5");
+            require_same_trajectory(d / "full/trajectory.h5", d / "split/trajectory.h5");
+        }
+    }
+}
+
+TEST_CASE("resuming from an older checkpoint cuts the trajectory back and matches", "[train][resume]") {
+    test::TempDir d("older");
+    RunConfig cfg = small_config("dissipative", "float");
+    train(cfg, d / "full", -1, 2);
+    train(cfg, d / "split", -1, 2);
+    // split/checkpoint.prev.h5 is the step-8 checkpoint; its trajectory already holds 12 rows
+    std::filesystem::rename(d / "split/checkpoint.prev.h5", d / "split/checkpoint.h5");
+    TrainOptions opt;
+    opt.quiet = true;
+    TrainSummary s = train_resume(d / "split/checkpoint.h5", opt);
+    CHECK(s.first_step == 8);
+    require_same_checkpoint<float>(d / "full/checkpoint.h5", d / "split/checkpoint.h5");
+    require_same_trajectory(d / "full/trajectory.h5", d / "split/trajectory.h5");
+}
+
+TEST_CASE("training files read back through the library", "[io][files]") {
+    test::TempDir d("files");
+    RunConfig cfg = small_config("dissipative", "float");
+    train(cfg, d / "run", -1, 2);
+    Checkpoint<float> ck = ckpt_read<float>(d / "run/checkpoint.h5");
+    CHECK(ck.state.step == 12);
+    CHECK(ck.net.theta.size() == std::size_t(ck.net.step.shape.param_count()));
+    CHECK(ck.net.step.shape.sizes == std::vector<int>{6, 16, 8, 21});
+    h5::Handle f = h5::open_file(d / "run/trajectory.h5", false);
+    std::vector<hsize_t> dims;
+    std::vector<double> x = h5::read_doubles(f.get(), "x", &dims);
+    CHECK(dims == std::vector<hsize_t>{12, 6});
+    CHECK(x[0] == 150000.0);  // X(0) of seed 000
+    std::vector<double> t = h5::read_doubles(f.get(), "t");
+    CHECK(t[11] == Approx(0.11));
+    h5::Handle ds(H5Dopen2(f.get(), "gain", H5P_DEFAULT));
+    CHECK(h5::get_attr_string(ds.get(), "units") == "state/output per s");
+    CHECK(h5::get_attr_string(f.get(), "format") == "hinf-trajectory");
+    // the frozen network reproduces the last row's p at x~
+    RunConfig stored = ckpt_config(d / "run/checkpoint.h5");
+    CHECK(stored.n == 6);
+}
