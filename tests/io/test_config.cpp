@@ -32,7 +32,7 @@ TEST_CASE("config rejects wrong types, ranges and syntax with the line", "[io][c
     CHECK_THROWS_WITH(ConfigDoc::from_text("[a\nx=1", "bad.toml"), Catch::Contains("bad.toml:1") && Catch::Contains("not valid TOML"));
 }
 
-TEST_CASE("--set overrides and creates keys", "[io][config]") {
+TEST_CASE("config set() overrides and creates keys", "[io][config]") {
     ConfigDoc doc = ConfigDoc::from_text("[training]\nK = 30\n", "t.toml");
     doc.set("training.K=5");
     doc.set("network.precision=double");
