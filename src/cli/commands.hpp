@@ -5,5 +5,7 @@
 
 namespace hinf::cli {
 
+/// `hinf lmi`: seed 002's LMI filter design (src/cli/lmi_cmd.cpp).
+void add_lmi_command(CLI::App& app);
 
 }  // namespace hinf::cli

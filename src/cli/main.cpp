@@ -9,6 +9,7 @@ int main(int argc, char** argv) {
     CLI::App app{"hinf: robust nonlinear filters by deep-network solutions of the Hamilton-Jacobi-Isaacs equation"};
     app.set_version_flag("--version", "hinf 0.1.0");
     app.require_subcommand(1);
+    hinf::cli::add_lmi_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
