@@ -42,6 +42,7 @@ struct SdpOptions {
 struct SdpResult {
     SdpStatus status = SDP_STATUS_NUMERICAL_TROUBLE;
     std::string solver_phase;  // the solver's own word for it (SDPA: pdOPT, pINF_dFEAS, ...)
+    std::string solver_remarks;  // anything the solver wrote to stdout while solving
     int iterations = 0;
     double primal_objective = 0;  // c' x at the returned x
     double dual_objective = 0;

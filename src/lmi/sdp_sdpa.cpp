@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <iostream>
+#include <sstream>
 
 #include "hinf/error.hpp"
 
@@ -41,7 +43,7 @@ SdpResult sdp_solve(const SdpProblem& problem, const SdpOptions& options) {
         }
     }
 
-    // SDPA's primal: minimise sum_k c_k x_k  s.t.  X = sum_k F_k x_k - F_0 >= 0. So F_0 = -(our F0).
+    // SDPA's x-problem: minimise sum_k c_k x_k  s.t.  X = sum_k F_k x_k - F_0 >= 0. So F_0 = -(our F0).
     SDPA solver;
     solver.setParameterType(SDPA::PARAMETER_STABLE_BUT_SLOW);
     solver.setParameterMaxIteration(options.max_iterations);
@@ -72,27 +74,35 @@ SdpResult sdp_solve(const SdpProblem& problem, const SdpOptions& options) {
                 for (int j = i; j < n; ++j)
                     if (t.second(i, j) != 0.0) solver.inputElement(t.first + 1, l + 1, i + 1, j + 1, t.second(i, j));
     }
+    // SDPA writes remarks ("Strange behavior : primal < dual") to std::cout: keep them in the result instead.
+    std::ostringstream remarks;
+    std::streambuf* saved = std::cout.rdbuf(remarks.rdbuf());
     solver.initializeUpperTriangle();
     solver.initializeSolve();
     solver.solve();
+    std::cout.rdbuf(saved);
 
     SdpResult r;
     char phase[64] = {0};
     solver.getPhaseString(phase);
     r.solver_phase = phase;
+    while (!r.solver_phase.empty() && r.solver_phase.back() == ' ') r.solver_phase.pop_back();
+    r.solver_remarks = remarks.str();
     r.iterations = solver.getIteration();
     r.primal_objective = solver.getPrimalObj();
     r.dual_objective = solver.getDualObj();
     const double* xv = solver.getResultXVec();
     r.x.assign(xv, xv + m);
-    // SDPA's primal is our problem: pINF = our LMIs infeasible, dINF = our objective unbounded below.
+    // SDPA 7 calls the problem in x the dual (its primal is  min F0.Y  s.t. F_k.Y = c_k, Y >= 0), so an
+    // infeasible set of our LMIs shows as dINF / pUNBD, and an objective unbounded below as pINF / dUNBD.
+    // (tests/lmi/test_sdp.cpp pins this down on a contradictory and an unbounded problem.)
     switch (solver.getPhaseValue()) {
         case SDPA::pdOPT: r.status = SDP_STATUS_OPTIMAL; break;
-        case SDPA::pINF_dFEAS:
-        case SDPA::dUNBD:
-        case SDPA::pdINF: r.status = SDP_STATUS_INFEASIBLE; break;
         case SDPA::pFEAS_dINF:
-        case SDPA::pUNBD: r.status = SDP_STATUS_UNBOUNDED; break;
+        case SDPA::pUNBD:
+        case SDPA::pdINF: r.status = SDP_STATUS_INFEASIBLE; break;
+        case SDPA::pINF_dFEAS:
+        case SDPA::dUNBD: r.status = SDP_STATUS_UNBOUNDED; break;
         case SDPA::pFEAS:
         case SDPA::dFEAS:
         case SDPA::pdFEAS: r.status = SDP_STATUS_NOT_CONVERGED; break;
