@@ -141,6 +141,7 @@ DelayConfig delay_config_read(const ConfigDoc& doc) {
     c.sim.disturbance.period = ss.get_double("disturbance_period", 2.0, 1e-9, 1e9);
     c.sim.disturbance.duty = ss.get_double("disturbance_duty", 0.5, 0.0, 1.0);
     c.sim.record_every = static_cast<int>(ss.get_int("record_every", 10, 1, 1000000));
+    c.use_paper_gains = ss.get_string("gains", "design", {"design", "paper_solution"}) == "paper_solution";
     ss.finish();
     c.sim.tau2 = tau2;
     c.sim.tau = tk;
@@ -188,6 +189,8 @@ DelayConfig delay_config_read(const ConfigDoc& doc) {
         ps.finish();
         c.has_paper_point = true;
     }
+    HINF_CHECK(!c.use_paper_gains || c.has_paper_point,
+               doc.source() + ": [simulation] gains = \"paper_solution\" needs a [paper_solution] section");
     config_check_sections(doc, sections);
     delay_lmi_check_spec(c.spec);
     if (c.bounds_source == "simulation") {
@@ -348,6 +351,9 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
                 << fmt(checks[b].max_eigenvalue, 5) << ((b % 3 == 2) ? "\n" : "");
         }
         if (checks.size() % 3) out << "\n";
+        const auto paper_gains = delay_lmi_gains(c.paper_point);
+        for (std::size_t j = 0; j < paper_gains.size(); ++j)
+            out << "  paper L" << j + 1 << " = P2^-1 Y" << j + 1 << " = " << matrix_text(paper_gains[j]) << "\n";
         out << "  " << violated << " of " << checks.size() << " blocks violated (largest eigenvalue " << fmt(worst, 5)
             << ")\n";
         h5::Handle g = h5::create_group(root, "paper_check");
@@ -367,10 +373,14 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
     if (runs <= 0) runs = c.runs;
     if (threads <= 0) threads = c.threads > 0 ? c.threads : omp_get_max_threads();
     HINF_CHECK(runs >= 2, "operate needs --runs >= 2 for a confidence interval");
-    const DelayLmiResult r = delay_lmi_solve(c.spec, c.sdp);
+    DelayLmiResult r = delay_lmi_solve(c.spec, c.sdp);
     if (!r.ok()) {
         std::fprintf(stderr, "hinf: the LMI design failed (status %s): nothing to operate\n", r.status_word().c_str());
         return 4;
+    }
+    if (c.use_paper_gains) {  // the published gains, to compare them with ours in the same simulation
+        r.gains = delay_lmi_gains(c.paper_point);
+        r.objective = delay_lmi_objective(c.spec, c.paper_point);
     }
     c.filter.gains = r.gains;
     const auto t0 = std::chrono::steady_clock::now();
@@ -391,6 +401,7 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
     h5::set_attr(root, "gamma2", c.spec.design == DELAY_DESIGN_HINF ? r.objective : c.spec.gamma2);
     if (c.spec.design == DELAY_DESIGN_H2HINF) h5::set_attr(root, "j2", r.objective);
     h5::set_attr(root, "mode", "measured");
+    h5::set_attr(root, "gains_source", c.use_paper_gains ? "paper_solution" : "design");
     h5::set_attr(root, "seed", static_cast<std::int64_t>(c.sim.seed));
     h5::set_attr(root, "dt", c.sim.dt);
     h5::set_attr(root, "final_time", c.sim.final_time);
@@ -403,6 +414,7 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
     h5::write_doubles(root, "mean_squared_error", mc.mean_squared_error.data(), {mc.mean_squared_error.size()},
                       "state^2", "E ||x(t) - xhat(t)||^2 over the runs (Figs. 9-10)");
     write_stack(root, "gains", r.gains, "1", "filter gains L_j used, vertices x states x outputs");
+    if (c.use_paper_gains) std::printf("operate: using the paper's gains P2^-1 Y_j from [paper_solution]\n");
     std::printf("operate: %s design, %d runs (%d threads), E int_0^%g ||e||^2 dt = %.5f, 95%% CI [%.5f, %.5f], "
                 "sd %.5f, %d diverged, %.2f s\nwrote %s\n",
                 design_name(c.spec), runs, threads, c.sim.final_time, mc.mean, mc.ci95_low, mc.ci95_high, mc.stddev,

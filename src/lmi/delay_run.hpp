@@ -21,6 +21,7 @@ struct DelayConfig {
     int bound_runs = 20;
     int runs = 100;
     int threads = 0;  // 0: all the OpenMP threads there are
+    bool use_paper_gains = false;  // [simulation] gains = "paper_solution": operate with P2^-1 Y_j of [paper_solution]
     bool has_paper_point = false;  // [paper_solution]: a published solution to evaluate in our LMIs
     DelayLmiPoint paper_point;
 };
