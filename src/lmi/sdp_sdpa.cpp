@@ -93,9 +93,10 @@ SdpResult sdp_solve(const SdpProblem& problem, const SdpOptions& options) {
     r.dual_objective = solver.getDualObj();
     const double* xv = solver.getResultXVec();
     r.x.assign(xv, xv + m);
-    // SDPA 7 calls the problem in x the dual (its primal is  min F0.Y  s.t. F_k.Y = c_k, Y >= 0), so an
-    // infeasible set of our LMIs shows as dINF / pUNBD, and an objective unbounded below as pINF / dUNBD.
-    // (tests/lmi/test_sdp.cpp pins this down on a contradictory and an unbounded problem.)
+    // SDPA 7's PhaseType enum calls the problem in x the dual (its primal is  max F0.Y  s.t. F_k.Y = c_k,
+    // Y >= 0), so infeasible LMIs show as dINF / pUNBD and an objective unbounded below as pINF / dUNBD.
+    // Its phase *string* (solver_phase) uses the opposite naming: for infeasible LMIs the enum is pUNBD and
+    // the string "dUNBD". We map from the enum; tests/lmi/test_sdp.cpp pins both cases down.
     switch (solver.getPhaseValue()) {
         case SDPA::pdOPT: r.status = SDP_STATUS_OPTIMAL; break;
         case SDPA::pFEAS_dINF:
