@@ -108,10 +108,11 @@ void delay_lmi_check_spec(const DelayLmiSpec& s) {
     }
 }
 
-MatrixXd delay_lmi_full_P(const DelayLmiPoint& p) {
+MatrixXd delay_lmi_full_P(const DelayLmiPoint& p, DelayPStructure structure) {
     const auto n = p.P1.rows();
+    const double sg = structure == DELAY_P_PAPER ? 1.0 : -1.0;
     MatrixXd P(2 * n, 2 * n);
-    P << p.P1, p.P2, p.P2, p.P2;  // (33)
+    P << p.P1, sg * p.P2, sg * p.P2, p.P2;  // (33), or the error-coordinate sign (choice C4)
     return P;
 }
 MatrixXd delay_lmi_full_Q(const DelayLmiPoint& p) {
@@ -147,11 +148,14 @@ MatrixXd delay_lmi_pi2(const DelayLmiSpec& s, const DelayLmiPoint& p, int i, int
     const int size = with_L ? oLk + n + l : oB + nv;
     MatrixXd M = MatrixXd::Zero(size, size);
 
-    // P Abar_0ijk and P Abar_1ijk with P = [P1 P2; P2 P2], P2 L_j = Y_j (Gamma_11..Gamma_24 of (34)).
+    // P Abar_0ijk and P Abar_1ijk with P = [P1 sg P2; sg P2 P2], P2 L_j = Y_j (Gamma_11..Gamma_24 of (34), sg = +1)
+    const double sg = s.p_structure == DELAY_P_PAPER ? 1.0 : -1.0;
     MatrixXd PA0(2 * n, 2 * n), PA1(2 * n, 2 * n);
-    PA0 << p.P1 * vi.A0 + Yj * vi.Q0, p.P2 * vj.A0 - Yj * vk.Q0, p.P2 * vi.A0 + Yj * vi.Q0, p.P2 * vj.A0 - Yj * vk.Q0;
-    PA1 << p.P1 * vi.A1 + Yj * vi.Q1, p.P2 * vj.A1 - Yj * vk.Q1, p.P2 * vi.A1 + Yj * vi.Q1, p.P2 * vj.A1 - Yj * vk.Q1;
-    const MatrixXd P = delay_lmi_full_P(p), Q = delay_lmi_full_Q(p), R = delay_lmi_full_R(p);
+    PA0 << p.P1 * vi.A0 + sg * Yj * vi.Q0, sg * (p.P2 * vj.A0 - Yj * vk.Q0), sg * p.P2 * vi.A0 + Yj * vi.Q0,
+        p.P2 * vj.A0 - Yj * vk.Q0;
+    PA1 << p.P1 * vi.A1 + sg * Yj * vi.Q1, sg * (p.P2 * vj.A1 - Yj * vk.Q1), sg * p.P2 * vi.A1 + Yj * vi.Q1,
+        p.P2 * vj.A1 - Yj * vk.Q1;
+    const MatrixXd P = delay_lmi_full_P(p, s.p_structure), Q = delay_lmi_full_Q(p), R = delay_lmi_full_R(p);
     const MatrixXd Gb = gbar_of(s);
     const double betas = p.beta[j] + p.beta[k];
     const double t22 = s.tau2 * s.tau2;
@@ -162,25 +166,25 @@ MatrixXd delay_lmi_pi2(const DelayLmiSpec& s, const DelayLmiPoint& p, int i, int
     put_sym(M, oxt, oxt, -(1.0 - s.tau_bar) * Q + sigma_block(s, n, betas));
     // Jensen block of the integral term: -tau2^2 R
     put_sym(M, oint, oint, -t22 * R);
-    // D~_ij' P (Gamma_17, 18, 37, 38): Dbar_0ij' P = [C0i' P1 + J0i' Yj', C0i' P2 + J0i' Yj'; 0 0]
+    // D~_ij' P (Gamma_17, 18, 37, 38): Dbar_0ij' P = [C0i' P1 + sg J0i' Yj', sg C0i' P2 + J0i' Yj'; 0 0]
     MatrixXd D0P = MatrixXd::Zero(2 * n, 2 * n), D1P = MatrixXd::Zero(2 * n, 2 * n);
-    D0P.topRows(n) << vi.C0.transpose() * p.P1 + vi.J0.transpose() * Yj.transpose(),
-        vi.C0.transpose() * p.P2 + vi.J0.transpose() * Yj.transpose();
-    D1P.topRows(n) << vi.C1.transpose() * p.P1 + vi.J1.transpose() * Yj.transpose(),
-        vi.C1.transpose() * p.P2 + vi.J1.transpose() * Yj.transpose();
+    D0P.topRows(n) << vi.C0.transpose() * p.P1 + sg * vi.J0.transpose() * Yj.transpose(),
+        sg * vi.C0.transpose() * p.P2 + vi.J0.transpose() * Yj.transpose();
+    D1P.topRows(n) << vi.C1.transpose() * p.P1 + sg * vi.J1.transpose() * Yj.transpose(),
+        sg * vi.C1.transpose() * p.P2 + vi.J1.transpose() * Yj.transpose();
     put_sym(M, 0, oD, D0P);
     put_sym(M, oxt, oD, D1P);
     put_sym(M, oD, oD, -0.5 * P);
     // P~ Bbar_ij (Gamma_19, Gamma_29)
     MatrixXd PB(2 * n, nv);
-    PB << p.P1 * vi.B + Yj * vi.K, p.P2 * vi.B + Yj * vi.K;
+    PB << p.P1 * vi.B + sg * Yj * vi.K, sg * p.P2 * vi.B + Yj * vi.K;
     put_sym(M, 0, oB, PB);
     put_sym(M, oB, oB, -cB * MatrixXd::Identity(nv, nv));
     if (with_L) {
-        // P~ Lbar_j = [P1 Y_j; P2 Y_j], P~ Lbar_k likewise
+        // P~ Lbar_j = [P1 sg Y_j; sg P2 Y_j], P~ Lbar_k likewise
         MatrixXd PLj(2 * n, n + l), PLk(2 * n, n + l);
-        PLj << p.P1, Yj, p.P2, Yj;
-        PLk << p.P1, Yk, p.P2, Yk;
+        PLj << p.P1, sg * Yj, sg * p.P2, Yj;
+        PLk << p.P1, sg * Yk, sg * p.P2, Yk;
         put_sym(M, 0, oLj, PLj);
         put_sym(M, 0, oLk, PLk);
         put_sym(M, oLj, oLj, -cL * MatrixXd::Identity(n + l, n + l));
@@ -193,11 +197,12 @@ MatrixXd delay_lmi_theta(const DelayLmiSpec& s, const DelayLmiPoint& p, int j) {
     const Dims d = dims_of(s);
     const int n = d.n, l = d.l;
     MatrixXd T = MatrixXd::Zero(3 * n + l, 3 * n + l);
-    MatrixXd LtP(n + l, 2 * n);  // Lbar_j' P = [P1 P2; Y_j' Y_j']
-    LtP << p.P1, p.P2, p.Y[j].transpose(), p.Y[j].transpose();
+    const double sg = s.p_structure == DELAY_P_PAPER ? 1.0 : -1.0;
+    MatrixXd LtP(n + l, 2 * n);  // Lbar_j' P = [P1 sg P2; sg Y_j' Y_j']
+    LtP << p.P1, sg * p.P2, sg * p.Y[j].transpose(), p.Y[j].transpose();
     put_sym(T, 0, 0, -p.beta[j] * MatrixXd::Identity(n + l, n + l));
     put_sym(T, 0, n + l, LtP);
-    put_sym(T, n + l, n + l, -delay_lmi_full_P(p));
+    put_sym(T, n + l, n + l, -delay_lmi_full_P(p, s.p_structure));
     return T;
 }
 
@@ -211,7 +216,7 @@ std::vector<LmiBlockValue> delay_lmi_blocks(const DelayLmiSpec& s, const DelayLm
                                    std::to_string(k + 1) + "]",
                                delay_lmi_pi2(s, p, i, j, k)});
     for (int j = 0; j < d.m; ++j) out.push_back({"Theta[" + std::to_string(j + 1) + "]", delay_lmi_theta(s, p, j)});
-    out.push_back({"-P", -delay_lmi_full_P(p)});
+    out.push_back({"-P", -delay_lmi_full_P(p, s.p_structure)});
     out.push_back({"-Q", -delay_lmi_full_Q(p)});
     out.push_back({"-R", -delay_lmi_full_R(p)});
     for (int j = 0; j < d.m; ++j)
@@ -313,7 +318,7 @@ MatrixXd delay_lmi_condition(const DelayLmiSpec& s, const MatrixXd& P, const Mat
 double delay_lmi_objective(const DelayLmiSpec& s, const DelayLmiPoint& p) {
     if (s.design == DELAY_DESIGN_HINF) return p.gamma2;
     // (46): tr(M P) + tr(N' Q N) + tr(L' (tau2 R) L) = tr(M P) + tr(Q N N') + tau2 tr(R L L')
-    return (s.M * delay_lmi_full_P(p)).trace() + (delay_lmi_full_Q(p) * s.NNt).trace() +
+    return (s.M * delay_lmi_full_P(p, s.p_structure)).trace() + (delay_lmi_full_Q(p) * s.NNt).trace() +
            s.tau2 * (delay_lmi_full_R(p) * s.LLt).trace();
 }
 

@@ -32,6 +32,13 @@ enum DelaySigmaPlacement {
     DELAY_SIGMA_STATE = 1,    // on x and x_t only: what the proof's ||zeta|| bound needs
 };
 
+/// Sign of the off-diagonal block of P (choice C4): (33) prints P = [P1 P2; P2 P2]; the error-coordinate
+/// form P = [P1 -P2; -P2 P2] makes xi'P xi = x'(P1 - P2)x + e'P2 e with e = x - xhat.
+enum DelayPStructure {
+    DELAY_P_PAPER = 0,  // P = [P1 P2; P2 P2]  (33) as printed
+    DELAY_P_ERROR = 1,  // P = [P1 -P2; -P2 P2]
+};
+
 struct DelayLmiSpec {
     std::vector<DelayVertex> vertices;
     Eigen::MatrixXd G;  // ns x n, s = G x (eq. 1)
@@ -44,6 +51,7 @@ struct DelayLmiSpec {
     Eigen::MatrixXd M, NNt, LLt;
     DelaySigmaPlacement sigma_placement = DELAY_SIGMA_THEOREM;
     double margin = 1e-6;  // strict LMI  X < 0  is posed as  X <= -margin I
+    DelayPStructure p_structure = DELAY_P_PAPER;
 };
 
 /// One point of the decision space, structured as in (33): P = [P1 P2; P2 P2], Q = [Q1 Q2; Q2' Q3],
@@ -81,8 +89,8 @@ Eigen::MatrixXd delay_lmi_condition(const DelayLmiSpec& spec, const Eigen::Matri
                                     const Eigen::MatrixXd& R, const std::vector<Eigen::MatrixXd>& L,
                                     const std::vector<double>& beta, double gamma2, int i, int j, int k);
 
-/// Full 2n x 2n P, Q, R of a structured point (33).
-Eigen::MatrixXd delay_lmi_full_P(const DelayLmiPoint& p);
+/// Full 2n x 2n P, Q, R of a structured point (33) (P with the spec's sign of P2 off the diagonal).
+Eigen::MatrixXd delay_lmi_full_P(const DelayLmiPoint& p, DelayPStructure structure = DELAY_P_PAPER);
 Eigen::MatrixXd delay_lmi_full_Q(const DelayLmiPoint& p);
 Eigen::MatrixXd delay_lmi_full_R(const DelayLmiPoint& p);
 /// L_j = P2^{-1} Y_j (Table 1 Step 4).

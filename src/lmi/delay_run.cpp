@@ -113,6 +113,8 @@ DelayConfig delay_config_read(const ConfigDoc& doc) {
     const std::string sp = ds.get_string("sigma_placement", "theorem", {"theorem", "state"});
     c.spec.sigma_placement = sp == "theorem" ? DELAY_SIGMA_THEOREM : DELAY_SIGMA_STATE;
     c.spec.margin = ds.get_double("margin", 1e-6, 1e-12, 1.0);
+    c.spec.p_structure =
+        ds.get_string("p_structure", "paper", {"paper", "error"}) == "paper" ? DELAY_P_PAPER : DELAY_P_ERROR;
     const MatrixXd M11 = read_matrix(ds, "initial_covariance", n, n, &I);
     ds.finish();
     Eigen::SelfAdjointEigenSolver<MatrixXd> es(0.5 * (M11 + M11.transpose()));
@@ -298,6 +300,7 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
     h5::set_attr(root, "worst_block", r.worst_block);
     h5::set_attr(root, "margin", c.spec.margin);
     h5::set_attr(root, "sigma_placement", c.spec.sigma_placement == DELAY_SIGMA_THEOREM ? "theorem" : "state");
+    h5::set_attr(root, "p_structure", c.spec.p_structure == DELAY_P_PAPER ? "paper" : "error");
     h5::set_attr(root, "wall_seconds", r.wall_seconds);
     write_bounds_attrs(root, c);
     h5::write_string(root, "config", doc.text(), "the effective configuration (TOML)");
@@ -309,8 +312,8 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
         if (!hinf) h5::set_attr(root, "j2", r.objective);
         write_stack(root, "gains", r.gains, "1", "filter gains L_j = P2^-1 Y_j (21), vertices x states x outputs");
         h5::Handle g = h5::create_group(root, "decision");
-        write_matrix(g.get(), "P1", r.point.P1, "P = [P1 P2; P2 P2] (33)");
-        write_matrix(g.get(), "P2", r.point.P2, "P = [P1 P2; P2 P2] (33)");
+        write_matrix(g.get(), "P1", r.point.P1, "P = [P1 P2; P2 P2] (33), or [P1 -P2; -P2 P2] (p_structure)");
+        write_matrix(g.get(), "P2", r.point.P2, "P = [P1 P2; P2 P2] (33), or [P1 -P2; -P2 P2] (p_structure)");
         write_matrix(g.get(), "Q1", r.point.Q1, "Q = [Q1 Q2; Q2' Q3] (33)");
         write_matrix(g.get(), "Q2", r.point.Q2, "Q = [Q1 Q2; Q2' Q3] (33)");
         write_matrix(g.get(), "Q3", r.point.Q3, "Q = [Q1 Q2; Q2' Q3] (33)");
@@ -334,8 +337,10 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
     if (c.has_paper_point) {
         // The published solution plugged into the LMIs assembled here: if a block is not < 0 there, the
         // published gamma^2 / J2 is not a value of these LMIs (docs/method_lmi.md, "paper check").
-        const auto checks = delay_lmi_verify(c.spec, c.paper_point);
-        const double obj = delay_lmi_objective(c.spec, c.paper_point);
+        DelayLmiSpec as_printed = c.spec;
+        as_printed.p_structure = DELAY_P_PAPER;  // the published P is structured as (33) prints it
+        const auto checks = delay_lmi_verify(as_printed, c.paper_point);
+        const double obj = delay_lmi_objective(as_printed, c.paper_point);
         std::vector<double> ev;
         std::string names;
         double worst = -INFINITY;

@@ -93,6 +93,14 @@ void delay_filter_step(const DelayFilter& fl, const double* xh, const double* xh
 
 namespace {
 
+// delay_em_step and delay_filter_step use fixed stack buffers (no allocation in the time loop).
+void check_sizes(const DelaySystem& sys, const DelayFilter& fl) {
+    HINF_CHECK(sys.n >= 1 && sys.n <= 16 && sys.l >= 1 && sys.l <= 16 && sys.n * sys.nv <= 64 && sys.l * sys.nv <= 64,
+               "delay simulation supports n, l <= 16 and n*nv, l*nv <= 64");
+    HINF_CHECK(!fl.vertices.empty() && fl.vertices.size() <= 64 && fl.points.size() == fl.vertices.size(),
+               "filter needs 1..64 vertices and one operating point per vertex");
+}
+
 std::int64_t steps_of(const DelaySimSpec& s) { return static_cast<std::int64_t>(std::llround(s.final_time / s.dt)); }
 
 // The run's random numbers: x(theta) = chol(M11) z (b = 0) and dW_k = sqrt(dt) N(0,1) (b = 1).
@@ -143,8 +151,8 @@ DelayRunResult delay_simulate(const DelaySystem& sys, const DelayFilter& fl, con
     const int n = sys.n;
     HINF_CHECK(s.dt > 0 && s.final_time > 0 && s.tau2 > 0, "simulation needs dt > 0, final_time > 0, tau2 > 0");
     HINF_CHECK(s.initial_covariance.rows() == n, "initial covariance must be n x n");
-    HINF_CHECK(fl.gains.size() == fl.vertices.size() && fl.points.size() == fl.vertices.size(),
-               "filter needs one gain and one operating point per vertex");
+    check_sizes(sys, fl);
+    HINF_CHECK(fl.gains.size() == fl.vertices.size(), "filter needs one gain per vertex");
     std::vector<double> x0, dW;
     draw_run(s, n, run, x0, dW);
     const std::int64_t N = steps_of(s);
@@ -224,6 +232,7 @@ DelayMonteCarlo delay_monte_carlo(const DelaySystem& sys, const DelayFilter& fl,
 DelayBounds delay_estimate_bounds(const DelaySystem& sys, const DelayFilter& fl, const DelaySimSpec& s, int runs,
                                   int threads) {
     HINF_CHECK(runs >= 1 && threads >= 1, "bound estimation needs runs >= 1 and threads >= 1");
+    check_sizes(sys, fl);
     const int n = sys.n, l = sys.l, nv = sys.nv, m = static_cast<int>(fl.vertices.size());
     std::vector<DelayBounds> per(runs);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)

@@ -62,9 +62,10 @@ TEST_CASE("delay LMI: expanded (34)/(45) equals the theorem form (27)/(38) with 
     INFO("random seed " << seed);
     std::mt19937 g(seed);
     for (const char* file : {"delay_hinf.toml", "delay_h2hinf.toml"}) {
-        for (auto placement : {DELAY_SIGMA_THEOREM, DELAY_SIGMA_STATE}) {
+        for (int variant = 0; variant < 4; ++variant) {
             DelayConfig c = example_config(file);
-            c.spec.sigma_placement = placement;
+            c.spec.sigma_placement = variant % 2 ? DELAY_SIGMA_STATE : DELAY_SIGMA_THEOREM;
+            c.spec.p_structure = variant / 2 ? DELAY_P_ERROR : DELAY_P_PAPER;
             c.spec.e1 = 0.3, c.spec.e2 = 0.2, c.spec.e3 = 0.4, c.spec.e4 = 0.1;  // make the sigma term visible
             const DelayLmiPoint p = random_point(g, 2, 1, 3);
             const auto L = delay_lmi_gains(p);
@@ -72,7 +73,7 @@ TEST_CASE("delay LMI: expanded (34)/(45) equals the theorem form (27)/(38) with 
                 for (int j = 0; j < 3; ++j)
                     for (int k = 0; k < 3; ++k) {
                         const MatrixXd a = delay_lmi_pi2(c.spec, p, i, j, k);
-                        const MatrixXd b = delay_lmi_pi1(c.spec, delay_lmi_full_P(p), delay_lmi_full_Q(p),
+                        const MatrixXd b = delay_lmi_pi1(c.spec, delay_lmi_full_P(p, c.spec.p_structure), delay_lmi_full_Q(p),
                                                          delay_lmi_full_R(p), L, p.beta,
                                                          c.spec.design == DELAY_DESIGN_HINF ? p.gamma2 : c.spec.gamma2,
                                                          i, j, k);
@@ -89,7 +90,7 @@ TEST_CASE("delay LMI: the Schur complement of (27)/(38) is (32)/(42)", "[lmi]") 
         DelayConfig c = example_config(file);
         const DelayLmiPoint p = random_point(g, 2, 1, 3);
         const auto L = delay_lmi_gains(p);
-        const MatrixXd P = delay_lmi_full_P(p), Q = delay_lmi_full_Q(p), R = delay_lmi_full_R(p);
+        const MatrixXd P = delay_lmi_full_P(p, c.spec.p_structure), Q = delay_lmi_full_Q(p), R = delay_lmi_full_R(p);
         const double g2 = c.spec.design == DELAY_DESIGN_HINF ? p.gamma2 : c.spec.gamma2;
         for (int i = 0; i < 3; ++i) {
             const int j = (i + 1) % 3, k = (i + 2) % 3;
@@ -167,10 +168,11 @@ TEST_CASE("delay LMI: Theta_j < 0 exactly when Lbar_j' P Lbar_j < beta_j I", "[l
     DelayConfig c = example_config("delay_hinf.toml");
     int agree = 0, both_signs = 0;
     for (int t = 0; t < 40; ++t) {
+        c.spec.p_structure = t % 2 ? DELAY_P_ERROR : DELAY_P_PAPER;
         DelayLmiPoint p = random_point(g, 2, 1, 3);
         p.P1 = p.P2 + rand_spd(g, 2);  // P > 0 needs P1 - P2 > 0
         p.beta[0] = 0.5 + 12.0 * t / 40;
-        const MatrixXd P = delay_lmi_full_P(p);
+        const MatrixXd P = delay_lmi_full_P(p, c.spec.p_structure);
         const MatrixXd Lj = delay_lmi_gains(p)[0];
         MatrixXd Lbar = MatrixXd::Zero(4, 3);
         Lbar.topLeftCorner(2, 2).setIdentity();

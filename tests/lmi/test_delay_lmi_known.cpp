@@ -62,4 +62,12 @@ TEST_CASE("delay LMI: scalar filtering problem with an independently known optim
     CHECK(r.objective == Approx(best).epsilon(1e-4));
     // and it is above the unstructured (full-P) bound 2 b^2 / a'^2 of e = x = b / (s - a') v
     CHECK(r.objective >= 2 * b * b / (ap * ap) * (1 - 1e-9));
+
+    // With P = [P1 -P2; -P2 P2] the same congruence gives xi'P xi = x'(P1 - P2)x + e'P2 e, e = x here:
+    // N = 2a' diag(s, p) + diag(0, 1) + (2 b^2/g) w w', feasible as s -> 0 iff 2a'p + 1 + 2 b^2 p^2 / g < 0,
+    // so the infimum is the unstructured bound 2 b^2 / a'^2 itself (approached as s -> 0).
+    s.p_structure = DELAY_P_ERROR;
+    const DelayLmiResult e = delay_lmi_solve(s);
+    REQUIRE(e.ok());
+    CHECK(e.objective == Approx(2 * b * b / (ap * ap)).epsilon(2e-3));
 }
