@@ -1,8 +1,6 @@
 // Assembly of seed 002's LMIs (34)/(45) over all vertex triples (i, j, k), their theorem forms (27)/(38)
 // and (32)/(42) for checking the Schur-complement derivation, and the solve + independent verification.
 // Not the solver (sdp_sdpa.cpp) and not the filter simulation (delay_sim.cpp).
-// GCC 12 reports a false -Wmaybe-uninitialized inside Eigen's AVX-512 GEMV kernels (Eigen issue 2506).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include "lmi/delay_lmi.hpp"
 
 #include <chrono>
