@@ -12,6 +12,7 @@ enum RngStream : std::uint32_t {
     RNG_STREAM_SAMPLES = 2,    // training samples around x~(t)      (a = time step)
     RNG_STREAM_MINIBATCH = 3,  // minibatch choice                   (a = time step, b = Adam step)
     RNG_STREAM_NOISE = 4,      // on-line disturbance and noise      (a = run, b = time step)
+    RNG_STREAM_WIENER = 5,     // seed 002 delay system: Wiener increments and initial function (a = run, b = 0: x(theta), 1: dW)
 };
 
 /// out[i] ~ N(0,1), i in [0, count), for the counter (seed, stream, a, b). Thread-count independent.
