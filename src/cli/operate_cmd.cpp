@@ -6,6 +6,7 @@
 #include "cli/common.hpp"
 #include "eval/operate.hpp"
 #include "io/checkpoint.hpp"
+#include "lmi/delay_run.hpp"
 
 namespace hinf::cli {
 
@@ -24,7 +25,9 @@ void add_operate_command(CLI::App& app) {
     auto a = std::make_shared<OperateArgs>();
     CLI::App* op = app.add_subcommand("operate", "Run a trained filter on-line against the simulated true system");
     op->add_option("config", a->config, "Scenario config (TOML): system, noise levels, rho, Q")->required();
-    op->add_option("--network", a->network, "Trained network: DIR/checkpoint.h5 from `hinf train`")->required();
+    op->add_option("--network", a->network,
+                   "Trained network: DIR/checkpoint.h5 from `hinf train` (not for [system] kind = \"ito_delay\", "
+                   "whose filter is designed by LMIs on the fly)");
     op->add_option("--mode", a->mode, "oracle (true x~ and C(x), the paper's protocol) or measured (y and x^ only)");
     op->add_option("--runs", a->runs, "Monte Carlo runs (default: [online] runs)");
     op->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
@@ -35,6 +38,20 @@ void add_operate_command(CLI::App& app) {
     op->callback([a]() {
         apply_threads(a->threads);
         HINF_CHECK(a->runs >= 0, "--runs must be >= 1");
+        {
+            // seed 002's delay systems: the global-linearization filter, designed by LMIs (src/lmi)
+            ConfigDoc doc = ConfigDoc::from_file(a->config);
+            for (const auto& s : a->sets) doc.set(s);
+            ConfigSection sys(doc, "system");
+            if (sys.has("kind") && sys.get_string("kind", "") == "ito_delay") {
+                int rc = lmi::delay_operate(doc, a->out.empty() ? default_out_dir(a->config, "") : a->out,
+                                            static_cast<int>(a->runs), a->threads);
+                if (rc != 0) std::exit(rc);
+                return;
+            }
+        }
+        HINF_CHECK(!a->network.empty(),
+                   "operate needs --network DIR/checkpoint.h5 (train one first: hinf train " + a->config + ")");
         RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(a->network);
         OperateOptions opt;
@@ -60,6 +77,10 @@ void add_operate_command(CLI::App& app) {
         std::printf("error x - x^ (mean, std) over time:");
         for (int i = 0; i < cfg.n; ++i)
             std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean[i], s.error_std[i]);
+        std::printf("\nerror after t = %g s (mean, std):", cfg.settle_time);
+        for (int i = 0; i < cfg.n; ++i)
+            std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean_settled[i], s.error_std_settled[i]);
+        std::printf("\nHJI inequality violated (> 1%% of S) at %.2f%% of the on-line steps", 100 * s.online_hji_violation_fraction);
         std::printf("\nposition RMSE %.4g m (open loop %.4g m); file: %s/operate.h5\n", s.rmse_position,
                     s.rmse_position_open_loop, opt.out_dir.c_str());
     });

@@ -12,6 +12,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/progress.hpp"
+#include "hjie.hpp"
 #include "random.hpp"
 #include "train/filter_math.hpp"
 
@@ -23,6 +24,9 @@ struct RunResult {
     double num = 0, den = 0, num_open = 0;
     double diverged_at = -1;  // time [s] the estimate left every finite bound; < 0: did not diverge
     std::vector<double> err_sum, err_sq, err_sum_open, err_sq_open;
+    std::vector<double> set_sum, set_sq;  // over t >= settle_time only
+    double set_count = 0;
+    double hji_violations = 0, hji_steps = 0;  // on-line: steps with HJIE(p at the true x~) > 0.01 S
     std::vector<double> x, xhat, xhat_open;  // run 0 only: [steps x n]
 };
 
@@ -48,6 +52,8 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
     r.err_sq.assign(n, 0);
     r.err_sum_open.assign(n, 0);
     r.err_sq_open.assign(n, 0);
+    r.set_sum.assign(n, 0);
+    r.set_sq.assign(n, 0);
     std::vector<double> x = cfg.x0, xhat = cfg.xhat0, xo = cfg.xhat0;  // xo: open-loop predictor
     std::vector<double> noise(nv + m), a_x(n), a_h(n), a_o(n), B(n * nv), c_x(m), c_h(m), y(m), e(m), dc(m), p(n),
         xt(n), xt_in(n);
@@ -74,6 +80,18 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
         // gain: oracle uses the true x~ and C(x) - C(x^) (seed 000); measured uses the innovation only
         if (measured) error_from_innovation(xt_in.data(), sys, xhat.data(), t, e.data());
         net.gradient(p.data(), measured ? xt_in.data() : xt.data(), 1);
+        {
+            // does the network satisfy the HJI inequality at the errors it meets on-line? (true x~ and x)
+            std::vector<double> pt(n), dA(n), q1(1, quadratic_form(cfg.Q.data(), xt.data(), n));
+            net.gradient(pt.data(), xt.data(), 1);
+            for (int i = 0; i < n; ++i) dA[i] = a_x[i] - a_h[i];
+            kern::HjieSystemView v1{n, nv, m, xt.data(), dA.data(), B.data(), dc.data(), q1.data()};
+            double terms[4];
+            kern::hjie_terms(terms, pt.data(), v1, 0, cfg.rho);
+            double S = std::fabs(terms[0]) + std::fabs(terms[1]) + std::fabs(terms[2]) + std::fabs(terms[3]);
+            r.hji_violations += (terms[0] + terms[1] + terms[2] + terms[3]) > 0.01 * S ? 1 : 0;
+            r.hji_steps += 1;
+        }
         WorstCase wc = worst_case(p.data(), B.data(), measured ? e.data() : dc.data(), n, nv, m, cfg.rho);
         // attenuation integrals (rectangle rule on the sampled data)
         double vv = 0, nsq = 0;
@@ -89,7 +107,12 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
             r.err_sq[i] += xt[i] * xt[i];
             r.err_sum_open[i] += xto[i];
             r.err_sq_open[i] += xto[i] * xto[i];
+            if (t >= cfg.settle_time) {
+                r.set_sum[i] += xt[i];
+                r.set_sq[i] += xt[i] * xt[i];
+            }
         }
+        if (t >= cfg.settle_time) r.set_count += 1;
         if (keep_path) {
             r.x.insert(r.x.end(), x.begin(), x.end());
             r.xhat.insert(r.xhat.end(), xhat.begin(), xhat.end());
@@ -172,7 +195,8 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
             if (sum.first_divergence < 0 || diverged_at[r] < sum.first_divergence) sum.first_divergence = diverged_at[r];
         }
     }
-    std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0);
+    std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0), ss(n, 0), sq(n, 0);
+    double set_count = 0, hji_v = 0, hji_n = 0;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         const RunResult& R = results[r];
         ratio[r] = R.num / R.den;
@@ -186,12 +210,20 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
             eq[i] += R.err_sq[i];
             eso[i] += R.err_sum_open[i];
             eqo[i] += R.err_sq_open[i];
+            ss[i] += R.set_sum[i];
+            sq[i] += R.set_sq[i];
         }
+        set_count += R.set_count;
+        hji_v += R.hji_violations;
+        hji_n += R.hji_steps;
     }
     if (!v_defined) sum.attenuation_ratio_minus_v0 = NAN;
     const double count = double(steps) * double(sum.runs);
     mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
     mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
+    sum.online_hji_violation_fraction = hji_n > 0 ? hji_v / hji_n : 0.0;
+    if (set_count > 0) mean_std(&sum.error_mean_settled, &sum.error_std_settled, ss, sq, set_count);
+    else sum.error_mean_settled = sum.error_std_settled = std::vector<double>(n, NAN);
     for (int i = 0; i < std::min(3, n); ++i) {
         sum.rmse_position += eq[i] / count;
         sum.rmse_position_open_loop += eqo[i] / count;
@@ -219,6 +251,10 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "v0_defined", std::int64_t(v_defined ? 1 : 0));
     h5::set_attr(root, "error_mean", sum.error_mean);
     h5::set_attr(root, "error_std", sum.error_std);
+    h5::set_attr(root, "settle_time", cfg.settle_time);
+    h5::set_attr(root, "online_hji_violation_fraction", sum.online_hji_violation_fraction);
+    h5::set_attr(root, "error_mean_settled", sum.error_mean_settled);
+    h5::set_attr(root, "error_std_settled", sum.error_std_settled);
     h5::set_attr(root, "error_mean_open_loop", sum.error_mean_open_loop);
     h5::set_attr(root, "error_std_open_loop", sum.error_std_open_loop);
     h5::set_attr(root, "rmse_position", sum.rmse_position);
@@ -226,7 +262,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "meaning",
                  "attenuation_ratio = int_0^T x~^T Q x~ dt / int_0^T (v^T v + n^T n) dt, mean over runs (seed 000 "
                  "Section IV); _open_loop: the same noise with the gain set to zero; _minus_v0: numerator minus "
-                 "V(x~(0)); error_mean/std: per state, over time and runs, of x - x^ (mode says whether the "
+                 "V(x~(0)); error_mean/std: per state, over time and runs, of x - x^; _settled: over t >= settle_time only (mode says whether the "
                  "filter used the true state: oracle, or only measurements: measured)");
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
     h5::write_doubles(root, "attenuation_ratio_per_run", ratio.data(), {hsize_t(sum.runs)}, "1", "per Monte Carlo run");

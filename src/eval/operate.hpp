@@ -26,8 +26,10 @@ struct OperateSummary {
     double attenuation_ratio_minus_v0 = 0;   // (int x~^TQx~ - V(x~(0))) / int (...)   (NaN if V undefined)
     double v0 = 0;                           // V(x~(0))
     std::vector<double> error_mean, error_std;  // per state, time average over [0, T], mean over runs
+    std::vector<double> error_mean_settled, error_std_settled;  // over t >= settle_time
     std::vector<double> error_mean_open_loop, error_std_open_loop;
     double rmse_position = 0, rmse_position_open_loop = 0;
+    double online_hji_violation_fraction = 0;  // share of on-line steps where HJIE(p(x~), x, x^) > 0.01 S
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none
     double wall_seconds = 0;

@@ -131,6 +131,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.noise_std = on.get_double("noise_std", c.noise_std, 0.0, 1e12);
     c.runs = on.get_int("runs", c.runs, 1, 1000000);
     c.online_seed = static_cast<std::uint64_t>(on.get_int("seed", 7, 0, std::numeric_limits<std::int64_t>::max()));
+    c.settle_time = on.get_double("settle_time", c.settle_time, 0.0, 1e12);
     on.finish();
 
     c.doc = std::move(doc);

@@ -54,6 +54,7 @@ struct RunConfig {
     double disturbance_std = 20.0, noise_std = 20.0;
     std::int64_t runs = 1;
     std::uint64_t online_seed = 7;
+    double settle_time = 5.0;  // error statistics are also reported over t >= settle_time [s]
 
     std::int64_t total_steps() const;
     /// Resolved scales (auto values filled from x0, xhat0, rho).
