@@ -16,6 +16,7 @@ struct TrainArgs {
     int threads = 0;
     std::vector<std::string> sets;
     bool quiet = false;
+    bool force = false;
 };
 
 void print_summary(const TrainSummary& s, const std::string& dir) {
@@ -40,11 +41,15 @@ void add_train_commands(CLI::App& app) {
     train->add_option("--threads", args->threads, "OpenMP threads (default: all cores); results do not depend on it");
     train->add_option("--set", args->sets, "Override a config key, e.g. --set training.adam_steps=10 (repeatable)");
     train->add_flag("--quiet", args->quiet, "No progress lines");
+    train->add_flag("--force", args->force, "Start afresh even if the output directory already holds a run");
     train->callback([args]() {
         apply_threads(args->threads);
         RunConfig cfg = load_config_with_overrides(args->config, args->sets);
         TrainOptions opt;
         opt.out_dir = args->out.empty() ? default_out_dir(args->config, "") : args->out;
+        HINF_CHECK(args->force || !std::filesystem::exists(opt.out_dir + "/checkpoint.h5"),
+                   opt.out_dir + " already holds a run (checkpoint.h5): continue it with `hinf resume " + opt.out_dir +
+                       "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
         TrainSummary s = train_start(cfg, opt);

@@ -100,4 +100,9 @@ TEST_CASE("bad inputs give one line and a non-zero exit", "[cli][errors]") {
     expect_error("resume " + good, "is not an HDF5 file");
     expect_error("operate " + good + " --network " + good, "is not an HDF5 file");
     expect_error("operate " + good + " --network " + (d / "none.h5"), "cannot open");
+    expect_error("operate " + good, "operate needs --network");
+    // an existing run is never overwritten silently
+    REQUIRE(run_hinf("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet").status == 0);
+    expect_error("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet", "already holds a run");
+    CHECK(run_hinf("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet --force").status == 0);
 }
