@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
     hinf::cli::add_train_commands(app);
     hinf::cli::add_operate_command(app);
+    hinf::cli::add_bench_command(app);
     hinf::cli::add_lmi_command(app);
     try {
         app.parse(argc, argv);

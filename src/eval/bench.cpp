@@ -1,0 +1,162 @@
+// The training-step benchmark (see bench.hpp). Timing is medians over repeats after warm-up; the
+// FLOP count is that of the GEMMs (2 flops per multiply-add), as in issue 8.
+#include "eval/bench.hpp"
+
+#include <omp.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "adam.hpp"
+#include "hinf/error.hpp"
+#include "hinf/h5.hpp"
+#include "peak.hpp"
+#include "sampling.hpp"
+#include "train/network.hpp"
+#include "train/samples.hpp"
+#include "train/trainer.hpp"
+
+namespace hinf {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+// GEMM flops of one training step: forward H_l = H_{l-1} W^T, backward dW and dH (no dH for the input).
+double step_flops(const kern::MlpShape& sh, int M) {
+    double macs = 0;
+    for (int l = 1; l <= sh.layers(); ++l) {
+        double lay = double(sh.sizes[l]) * sh.sizes[l - 1];
+        macs += (l == 1 ? 2 : 3) * lay;
+    }
+    return 2.0 * macs * M;
+}
+
+double measure_peak(int threads, bool dbl) {
+    omp_set_num_threads(threads);
+    const std::int64_t iters = 20000000;
+    kern::fma_peak_loop(iters / 10, dbl);  // warm-up (clocks up)
+    double best = 0;
+    for (int rep = 0; rep < 3; ++rep) {
+        double flops = 0;
+        auto t0 = Clock::now();
+#pragma omp parallel reduction(+ : flops)
+        flops += kern::fma_peak_loop(iters, dbl);
+        double s = std::chrono::duration<double>(Clock::now() - t0).count();
+        best = std::max(best, flops / s * 1e-9);
+    }
+    return best;
+}
+
+RunConfig bench_config(const BenchOptions& opt) {
+    std::string text = "[filter]\nvariant = \"" + opt.variant + "\"\n[training]\nbatch = " + std::to_string(opt.batch) +
+                       "\nsamples = " + std::to_string(std::max(2000, opt.batch)) + "\n";
+    return load_run_config(ConfigDoc::from_text(text, "bench"));
+}
+
+template <typename T>
+BenchRow time_step(const BenchOptions& opt, int threads) {
+    RunConfig cfg = bench_config(opt);
+    Network<T> net = network_create<T>(cfg);
+    TimeStepSamples s;
+    samples_build(&s, cfg, cfg.x0, cfg.xhat0, 0);
+    kern::HjieSystemView view = s.view();
+    std::vector<std::int64_t> idx(opt.batch), perm(cfg.samples);
+    std::vector<double> work(std::max<std::int64_t>(cfg.samples, opt.batch));
+    kern::sample_minibatch(idx.data(), opt.batch, cfg.samples, cfg.seed, 0, 1, work.data(), perm.data());
+    std::vector<T> grad(net.theta.size()), m(net.theta.size(), T(0)), v(net.theta.size(), T(0));
+    kern::StepWorkspace<T> ws;
+    kern::AdamParams ap{cfg.learning_rate, cfg.beta1, cfg.beta2, cfg.tau};
+    omp_set_num_threads(threads);
+    std::vector<double> ms;
+    for (int r = 0; r < opt.repeats + 5; ++r) {
+        auto t0 = Clock::now();
+        kern::step_gradient(grad.data(), net.theta.data(), view, idx.data(), opt.batch, net.step, ws);
+        kern::adam_update(net.theta.data(), m.data(), v.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1, ap);
+        double dt = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        if (r >= 5) ms.push_back(dt);  // the first five are warm-up
+    }
+    BenchRow row;
+    row.precision = sizeof(T) == 4 ? "f32" : "f64";
+    row.variant = opt.variant;
+    row.threads = threads;
+    row.median_ms = median(ms);
+    row.min_ms = *std::min_element(ms.begin(), ms.end());
+    row.max_ms = *std::max_element(ms.begin(), ms.end());
+    row.gflops = step_flops(net.step.shape, opt.batch) / (row.median_ms * 1e-3) * 1e-9;
+
+    // per-time-step work outside the Adam steps: a time step with K = 1, minus one step
+    std::string dir = opt.out_dir + "/bench-train-tmp";
+    RunConfig one = bench_config(opt);
+    one.adam_steps = 1;
+    one.checkpoint_every = 1000000000;
+    one.precision = sizeof(T) == 4 ? "float" : "double";
+    TrainOptions to;
+    to.out_dir = dir;
+    to.until = 20 * one.dt;
+    to.quiet = true;
+    TrainSummary ts = train_start(one, to);
+    std::filesystem::remove_all(dir);
+    row.outside_ms = std::max(0.0, 1e3 * ts.wall_seconds / double(ts.last_step - ts.first_step) - row.median_ms);
+    return row;
+}
+
+}  // namespace
+
+std::vector<BenchRow> bench_run(const BenchOptions& opt) {
+    HINF_CHECK(opt.batch >= 1 && opt.batch <= 1000000, "--batch must be between 1 and 1000000");
+    HINF_CHECK(opt.repeats >= 3, "--repeats must be >= 3");
+    for (int t : opt.threads) HINF_CHECK(t >= 1 && t <= 1024, "--threads entries must be between 1 and 1024");
+    for (const auto& p : opt.precisions)
+        HINF_CHECK(p == "f32" || p == "f64", "--precision '" + p + "' is not one of: f32, f64");
+    std::filesystem::create_directories(opt.out_dir);
+    std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, GEMMs by Eigen %d.%d.%d's own kernels (%s, "
+                "no BLAS), %d repeats after 5 warm-up steps\n",
+                opt.variant.c_str(), opt.batch, EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION,
+                kern::simd_name().c_str(), opt.repeats);
+    std::vector<BenchRow> rows;
+    for (const auto& p : opt.precisions)
+        for (int t : opt.threads) {
+            BenchRow r = p == "f32" ? time_step<float>(opt, t) : time_step<double>(opt, t);
+            r.peak_gflops = measure_peak(t, p == "f64");
+            rows.push_back(r);
+        }
+    std::printf("%-5s %-7s %10s %17s %9s %11s %9s %16s\n", "prec", "threads", "ms/step", "min-max", "GFLOP/s",
+                "peak GF/s", "of peak", "outside ms/tstep");
+    for (const auto& r : rows)
+        std::printf("%-5s %-7d %10.3f %8.3f-%-8.3f %9.1f %11.1f %8.1f%% %16.2f\n", r.precision.c_str(), r.threads,
+                    r.median_ms, r.min_ms, r.max_ms, r.gflops, r.peak_gflops, 100 * r.gflops / r.peak_gflops,
+                    r.outside_ms);
+    h5::Handle f = h5::create_file(opt.out_dir + "/bench.h5");
+    h5::set_attr(f.get(), "format", "hinf-bench");
+    h5::set_attr(f.get(), "variant", opt.variant);
+    h5::set_attr(f.get(), "batch", std::int64_t(opt.batch));
+    h5::set_attr(f.get(), "simd", kern::simd_name());
+    h5::set_attr(f.get(), "gemm", "Eigen " + std::to_string(EIGEN_WORLD_VERSION) + "." +
+                                      std::to_string(EIGEN_MAJOR_VERSION) + "." + std::to_string(EIGEN_MINOR_VERSION));
+    h5::set_attr(f.get(), "meaning",
+                 "step_ms_<prec>_<threads>t: median ms of one training step (forward, loss, backward, Adam) on M "
+                 "samples; peak_gflops_*: register-FMA loop; gflops_*: GEMM flops (2 per multiply-add) / median; "
+                 "outside_ms_*: per time step outside the Adam steps (sampling, constants, statistics, gain, "
+                 "propagation, HDF5 row)");
+    for (const auto& r : rows) {
+        std::string key = r.precision + "_" + std::to_string(r.threads) + "t";
+        h5::set_attr(f.get(), "step_ms_" + key, r.median_ms);
+        h5::set_attr(f.get(), "step_ms_min_" + key, r.min_ms);
+        h5::set_attr(f.get(), "step_ms_max_" + key, r.max_ms);
+        h5::set_attr(f.get(), "gflops_" + key, r.gflops);
+        h5::set_attr(f.get(), "peak_gflops_" + key, r.peak_gflops);
+        h5::set_attr(f.get(), "outside_ms_" + key, r.outside_ms);
+    }
+    return rows;
+}
+
+}  // namespace hinf

@@ -1,0 +1,29 @@
+// `hinf bench`: times the training step (forward, loss, backward, Adam on M samples) per precision
+// and thread count, the per-time-step work outside it, and this machine's register-FMA peak.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace hinf {
+
+struct BenchOptions {
+    std::vector<int> threads = {1, 2};
+    std::vector<std::string> precisions = {"f32", "f64"};
+    int batch = 800;
+    int repeats = 40;
+    std::string variant = "paper";  // "paper" (the paper's network and loss) or "dissipative"
+    std::string out_dir = "runs/out/bench";
+};
+
+struct BenchRow {
+    std::string precision, variant;
+    int threads = 1;
+    double median_ms = 0, min_ms = 0, max_ms = 0;
+    double gflops = 0, peak_gflops = 0;
+    double outside_ms = 0;  // per time step, outside the K Adam steps
+};
+
+/// Runs the benchmark, prints a table on stdout, writes out_dir/bench.h5. Returns the rows.
+std::vector<BenchRow> bench_run(const BenchOptions& opt);
+
+}  // namespace hinf
