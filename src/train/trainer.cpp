@@ -33,7 +33,7 @@ std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
         {"v_star", nv, "disturbance units", "worst-case disturbance v* of eq. (6)"},
         {"n_star", m, "output units", "worst-case noise n* = -k*^T p/(2 rho) (eq. (7), sign per Theorem 1's proof)"},
         {"p", n, "V per state unit", "network output dV/dx~ at x~(t) after the K Adam steps"},
-        {"loss", 2, "1", "training loss at the first and the last Adam step of the time step"},
+        {"loss", 2, "1", "minibatch loss at the first and the last (K-th) Adam step of the time step, before its update"},
         {"hjie_residual", 1, "V per s", "HJIE residual of eq. (16) at x~(t)"},
         {"hjie_rel_residual_median", 1, "1", "median over the N samples of |eps_i| / S_i after the K steps"},
         {"hjie_rel_residual_p95", 1, "1", "95th percentile of |eps_i| / S_i"},
@@ -176,6 +176,7 @@ private:
             kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
                                                    int(cfg_.batch), ck_.net.step, ws_);
             if (k == 1) rec_loss_first_ = L.loss;
+            if (k == cfg_.adam_steps) rec_loss_last_ = L.loss;
             if (!std::isfinite(L.loss) || L.loss > cfg_.loss_limit) {
                 diagnose(step, "training loss", L.loss);
                 return false;
@@ -188,7 +189,7 @@ private:
         // residual statistics over all N samples after the K steps
         kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), xt_.data(), N, ck_.net.step, ws_);
         std::vector<double> rel(N);
-        double viol = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
+        double viol = 0, pos = 0, cos_sum = 0;
         for (std::int64_t i = 0; i < N; ++i) {
             kern::HjieSampleValue v = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n,
                                                                 view, i, ck_.net.step.hjie, ck_.net.step.objective);
@@ -196,12 +197,7 @@ private:
             viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
             pos += v.residual > 0 ? 1 : 0;
             cos_sum += cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
-            loss_hinge += v.hinge;
-            loss_h2 += v.h2;
         }
-        rec_loss_last_ = std::sqrt(loss_hinge / double(N)) +
-                         (ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0) *
-                             loss_h2 / double(N);
         rec_rel_median_ = percentile(rel, 0.5);
         rec_violation_ = viol / double(N);
         rec_cosine_ = cos_sum / double(N);
