@@ -18,6 +18,11 @@ int main(int argc, char** argv) {
     CLI::App app{"hinf: robust nonlinear filters by deep-network solutions of the Hamilton-Jacobi-Isaacs equation"};
     app.set_version_flag("--version", "hinf 0.1.0");
     app.require_subcommand(1);
+    // argument errors follow the same one-line contract as every other error
+    const std::string sub = argc > 1 && argv[1][0] != '-' ? std::string(" ") + argv[1] : "";
+    app.failure_message([sub](const CLI::App*, const CLI::Error& e) {
+        return "hinf: error: " + std::string(e.what()) + " (see `hinf" + sub + " --help`)\n";
+    });
     hinf::cli::add_train_commands(app);
     hinf::cli::add_operate_command(app);
     hinf::cli::add_bench_command(app);
@@ -25,7 +30,8 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        int code = app.exit(e);
+        return code == 0 ? 0 : 2;
     } catch (const hinf::Error& e) {
         std::cerr << "hinf: error: " << e.what() << "\n";
         return 2;

@@ -81,6 +81,10 @@ TEST_CASE("bad inputs give one line and a non-zero exit", "[cli][errors]") {
     TempDir d("bad");
     std::string good = write(d, "good.toml", kTiny);
     expect_error("train " + (d / "missing.toml"), "cannot open config file");
+    expect_error("train", "config is required");
+    expect_error("", "A subcommand is required");
+    expect_error("trian x.toml", "trian");
+    expect_error("operate " + good + " --runs abc", "--runs");
     expect_error("train " + write(d, "empty.toml", ""), "is empty");
     expect_error("train " + write(d, "bin.toml", std::string("a\0b", 3)), "looks binary");
     expect_error("train " + write(d, "syntax.toml", "[training\nK=1\n"), "not valid TOML");
