@@ -9,5 +9,7 @@ void add_train_commands(CLI::App& app);   // train, resume
 void add_operate_command(CLI::App& app);  // operate
 /// `hinf lmi`: seed 002's LMI filter design (src/cli/lmi_cmd.cpp).
 void add_lmi_command(CLI::App& app);
+/// `hinf compare`: baseline and DNN filters side by side (src/cli/compare_cmd.cpp).
+void add_compare_command(CLI::App& app);
 
 }  // namespace hinf::cli

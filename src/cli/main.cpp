@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
     hinf::cli::add_train_commands(app);
     hinf::cli::add_operate_command(app);
     hinf::cli::add_lmi_command(app);
+    hinf::cli::add_compare_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
