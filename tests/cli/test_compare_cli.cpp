@@ -63,6 +63,24 @@ TEST_CASE("hinf compare: table, compare.h5 and compare.csv; bad input", "[cli][c
     CHECK(lines[1].rfind("nominal,dnn_dissipative_oracle,oracle,3,", 0) == 0);
     CHECK(lines[3].rfind("nominal,ekf,measured,3,", 0) == 0);
 
+    // --plot: PNGs drawn from compare.h5 alone (Debian's python3-h5py/-matplotlib, installed by scripts/setup);
+    // scripts/plot also draws the training figure from trajectory.h5
+    auto p = run_hinf("compare " + cfg + " --filters ekf,open_loop --runs 2 --quiet --plot --out " + (d / "plot"));
+    INFO(p.output);
+    REQUIRE(p.status == 0);
+    CHECK(p.output.find("PNGs in") != std::string::npos);
+    auto t2 = hinf::test::run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " +
+                                      (d / "run/trajectory.h5") + " --out " + (d / "plot"));
+    INFO(t2.output);
+    CHECK(t2.status == 0);
+    for (const char* png : {"compare_trajectories.png", "compare_errors.png", "compare_errors_zoom.png", "training.png"}) {
+        std::ifstream in(d / (std::string("plot/") + png), std::ios::binary);
+        char magic[4] = {0, 0, 0, 0};
+        in.read(magic, 4);
+        INFO(png);
+        CHECK(std::string(magic + 1, 3) == "PNG");
+    }
+
     expect_one_line_error("compare " + cfg + " --filters ekf,kf", "unknown filter 'kf'");
     expect_one_line_error("compare " + cfg + " --filters glf", "not implemented");
     expect_one_line_error("compare " + cfg + " --filters dnn", "needs --network");
