@@ -8,6 +8,7 @@
 #include "cli/common.hpp"
 #include "eval/compare.hpp"
 #include "filters/dnn.hpp"
+#include "filters/glf.hpp"
 #include "io/checkpoint.hpp"
 
 namespace hinf::cli {
@@ -17,6 +18,7 @@ struct CompareArgs {
     std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", scenario = "nominal";
     std::vector<std::string> networks, sets;
     std::int64_t runs = 50, particles = 2000;
+    int glf_vertices = 8;
     double until = -1;
     int threads = 0;
     bool quiet = false, plot = false;
@@ -43,6 +45,7 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
     c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
     c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
     c->add_option("--scenario", a->scenario,
                   "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances), student_t, "
                   "bias, energy_pulse (docs/compare.md)");
@@ -73,9 +76,16 @@ void add_compare_command(CLI::App& app) {
             else if (name == "ukf") owned.push_back(make_ukf(told));
             else if (name == "pf") owned.push_back(make_particle_filter(told, a->particles));
             else if (name == "open_loop") owned.push_back(make_open_loop_filter(exact));
-            else if (name == "glf")
-                HINF_FAIL("--filters glf: the 8-vertex global-linearization filter for this system is not implemented "
-                          "yet (issue 5 item 4); drop it from --filters");
+            else if (name == "glf") {
+                // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
+                GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, cfg.dt, cfg.t_final, a->glf_vertices, cfg.rho);
+                HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
+                                     " (try another --glf-vertices, or drop glf)");
+                std::printf("glf: %d vertices at t =", g.vertices);
+                for (double t : g.vertex_times) std::printf(" %.4g", t);
+                std::printf(" s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; %s\n", g.rho, g.status.c_str());
+                owned.push_back(make_glf_filter(exact, g));
+            }
             else if (name == "dnn") {
                 HINF_CHECK(!a->networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
                 for (const std::string& path : a->networks) {
@@ -96,7 +106,7 @@ void add_compare_command(CLI::App& app) {
                     nets.push_back(std::move(net));
                 }
             } else
-                HINF_FAIL("--filters: unknown filter '" + name + "' (use dnn, ekf, ukf, pf, open_loop)");
+                HINF_FAIL("--filters: unknown filter '" + name + "' (use dnn, ekf, ukf, pf, open_loop, glf)");
         }
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : owned) filters.push_back(o.get());

@@ -42,12 +42,12 @@ TEST_CASE("hinf compare: table, compare.h5 and compare.csv; bad input", "[cli][c
     REQUIRE(t.status == 0);
     const std::string net = d / "run/checkpoint.h5";
     auto r = run_hinf("compare " + cfg + " --network " + net +
-                      " --filters dnn,ekf,ukf,pf,open_loop --runs 3 --particles 50 --quiet --out " + (d / "cmp"));
+                      " --filters dnn,ekf,ukf,pf,open_loop,glf --runs 3 --particles 50 --quiet --out " + (d / "cmp"));
     INFO(r.output);
     REQUIRE(r.status == 0);
     CHECK(r.output.find("measurement streams identical for all filters: yes") != std::string::npos);
     const std::vector<std::string> names = {"dnn_dissipative_oracle", "dnn_dissipative_measured", "ekf", "ukf", "pf",
-                                            "open_loop"};
+                                            "open_loop", "glf"};
     hinf::h5::Handle f = hinf::h5::open_file(d / "cmp/compare.h5", false);
     for (const auto& n : names) {
         CHECK(r.output.find(n) != std::string::npos);
@@ -82,7 +82,7 @@ TEST_CASE("hinf compare: table, compare.h5 and compare.csv; bad input", "[cli][c
     }
 
     expect_one_line_error("compare " + cfg + " --filters ekf,kf", "unknown filter 'kf'");
-    expect_one_line_error("compare " + cfg + " --filters glf", "not implemented");
+    expect_one_line_error("compare " + cfg + " --filters glf --glf-vertices 0", "vertex count");
     expect_one_line_error("compare " + cfg + " --filters dnn", "needs --network");
     expect_one_line_error("compare " + cfg + " --filters ekf --scenario windy", "is not one of");
     expect_one_line_error("compare " + cfg + " --filters dnn --network " + net + " --mode both", "is not one of");
