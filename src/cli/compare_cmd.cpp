@@ -47,8 +47,8 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
     c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
     c->add_option("--scenario", a->scenario,
-                  "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances), student_t, "
-                  "bias, energy_pulse (docs/compare.md)");
+                  "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
+                  "only the disturbance's / the noise's), student_t, bias, energy_pulse (docs/compare.md)");
     c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/compare-<scenario>)");
     c->add_option("--threads", a->threads, "OpenMP threads (runs are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
@@ -66,8 +66,8 @@ void add_compare_command(CLI::App& app) {
         opt.quiet = a->quiet;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "compare-" + a->scenario) : a->out;
         // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
-        const double f = std::sqrt(opt.scenario.told_variance_factor);
-        FilterModel told{cfg.system.get(), cfg.dt, cfg.disturbance_std * f, cfg.noise_std * f};
+        FilterModel told{cfg.system.get(), cfg.dt, cfg.disturbance_std * std::sqrt(opt.scenario.told_disturbance_factor),
+                         cfg.noise_std * std::sqrt(opt.scenario.told_noise_factor)};
         FilterModel exact{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
         std::vector<std::unique_ptr<OnlineFilter>> owned;
         std::vector<std::unique_ptr<FrozenNetwork>> nets;

@@ -28,15 +28,20 @@ std::uint64_t compare_hash(std::uint64_t h, const void* data, std::size_t bytes)
 }
 
 std::vector<std::string> compare_scenario_names() {
-    return {"nominal", "cov_small", "cov_large", "student_t", "bias", "energy_pulse"};
+    return {"nominal",     "cov_small",   "cov_large", "v_cov_small", "v_cov_large",
+            "n_cov_small", "n_cov_large", "student_t", "bias",        "energy_pulse"};
 }
 
 CompareScenario compare_scenario(const std::string& name) {
     CompareScenario s;
     s.name = name;
     if (name == "nominal") return s;
-    if (name == "cov_small") s.told_variance_factor = 0.1;
-    else if (name == "cov_large") s.told_variance_factor = 10.0;
+    if (name == "cov_small") s.told_disturbance_factor = s.told_noise_factor = 0.1;
+    else if (name == "cov_large") s.told_disturbance_factor = s.told_noise_factor = 10.0;
+    else if (name == "v_cov_small") s.told_disturbance_factor = 0.1;
+    else if (name == "v_cov_large") s.told_disturbance_factor = 10.0;
+    else if (name == "n_cov_small") s.told_noise_factor = 0.1;
+    else if (name == "n_cov_large") s.told_noise_factor = 10.0;
     else if (name == "student_t") s.student_t = true;
     else if (name == "bias") s.noise_bias = 1.0;
     else if (name == "energy_pulse") s.energy_pulse = true;

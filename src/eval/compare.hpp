@@ -15,12 +15,14 @@ namespace hinf {
 /// What differs from the nominal protocol (seed 000 Section IV: v, n ~ std N(0, 1), statistics known).
 struct CompareScenario {
     std::string name = "nominal";
-    double told_variance_factor = 1.0;  // EKF/UKF/PF are told variances x this factor (cov_small 0.1, cov_large 10)
+    double told_disturbance_factor = 1.0;  // EKF/UKF/PF are told sv^2 x this (cov_small, v_cov_small: 0.1; *_large: 10)
+    double told_noise_factor = 1.0;        // ... and sn^2 x this (cov_small, n_cov_small: 0.1; *_large: 10)
     bool student_t = false;             // n = std * t_3 / sqrt(3): heavy tails, same variance
     double noise_bias = 0.0;            // n = std * (N(0,1) + noise_bias) on every channel
     bool energy_pulse = false;          // v = std sqrt(T / 5 s) on [20 s, 25 s), 0 elsewhere (same energy as white v)
 };
-/// nominal, cov_small, cov_large, student_t, bias, energy_pulse; throws on anything else.
+/// nominal, cov_small, cov_large, v_cov_small, v_cov_large, n_cov_small, n_cov_large, student_t, bias,
+/// energy_pulse; throws on anything else.
 CompareScenario compare_scenario(const std::string& name);
 std::vector<std::string> compare_scenario_names();
 
