@@ -33,7 +33,7 @@ void expect_one_line_error(const std::string& args, const std::string& fragment)
 }
 }  // namespace
 
-TEST_CASE("hinf compare: table, compare.h5 and compare.csv; bad input", "[cli][compare]") {
+TEST_CASE("hinf compare writes the table, compare.h5 and compare.csv and rejects bad input", "[cli][compare]") {
     TempDir d("cli-compare");
     const std::string cfg = d / "tiny.toml";
     std::ofstream(cfg) << kTinyCompare;

@@ -147,7 +147,7 @@ TEST_CASE("particle filter mean converges to the Kalman mean as particles grow",
     }
 }
 
-TEST_CASE("open-loop predictor ignores measurements; diverging estimates are reported", "[filters]") {
+TEST_CASE("open-loop predictor ignores measurements and a diverging EKF is reported", "[filters]") {
     Setup su(1.0, 1.0, 1.0, 3);
     auto ol = make_open_loop_filter(su.model);
     ol->reset(su.start);
@@ -189,7 +189,7 @@ TEST_CASE("DNN adapter: one step of eq. (19) with gain (8), oracle and measured"
         f->reset(su.start);
         REQUIRE(f->step(FilterInput{y.data(), 0.0, 0, x.data()}) == FILTER_OK);
         // oracle: network input x - x^, dC = H (x - x^); measured: x~ = least-squares H^+ e, dC = e
-        Eigen::Vector3d xt = measured ? Eigen::Vector3d(su.sys.H.completeOrthogonalDecomposition().solve(e))
+        Eigen::Vector3d xt = measured ? Eigen::Vector3d(Eigen::MatrixXd(su.sys.H).completeOrthogonalDecomposition().solve(Eigen::VectorXd(e)))
                                       : Eigen::Vector3d(x - xh);
         Eigen::Vector2d dc = measured ? e : Eigen::Vector2d(su.sys.H * (x - xh));
         Eigen::Matrix<double, 3, 2> k = 2.0 * rho * xt * dc.transpose() / xt.squaredNorm();
