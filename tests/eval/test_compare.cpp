@@ -1,6 +1,7 @@
 // The comparison harness: every filter is fed the identical measurement stream (checked by recording
 // and hashing it), results do not depend on the thread count, diverged filters are counted not dropped.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <omp.h>
 
 #include "eval/compare.hpp"
@@ -136,4 +137,44 @@ TEST_CASE("compare counts a diverging filter and keeps it in the results", "[eva
     std::vector<double> at = h5::read_doubles(g.get(), "diverged_at");
     REQUIRE(at.size() == 4u);
     for (double t : at) CHECK(t == Approx(3 * cfg.dt));
+}
+
+TEST_CASE("compare scenarios: Student-t and biased measurement noise have the stated law", "[eval][compare]") {
+    // n = y - C(x) from compare.h5 (run 0, 2000 steps x 6 channels). Median |n| / sigma_n: Gaussian 0.6745;
+    // t_3 scaled to unit variance 0.7649 / sqrt(3) = 0.4416. With 12000 draws the sample median's standard
+    // error is ~ 0.01, so the bands below are > 3 standard errors wide. Bias: mean n / sigma_n = 1 +- 0.03.
+    RunConfig cfg = missile_config();
+    TempDir d("compare-scen");
+    SpyFilter spy("spy", cfg.n, cfg.m);
+    for (const char* name : {"nominal", "student_t", "bias"}) {
+        CompareOptions opt;
+        opt.out_dir = d / name;
+        opt.runs = 1;
+        opt.until = 20.0;
+        opt.quiet = true;
+        opt.scenario = compare_scenario(name);
+        compare_run(cfg, {&spy}, opt);
+        h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+        std::vector<double> x = h5::read_doubles(f.get(), "x"), y = h5::read_doubles(f.get(), "y");
+        const std::size_t steps = x.size() / cfg.n;
+        std::vector<double> c(cfg.m), absn;
+        double mean = 0;
+        for (std::size_t s = 0; s < steps; ++s) {
+            cfg.system->measurement(c.data(), x.data() + s * cfg.n, 0.0, 1);
+            for (int j = 0; j < cfg.m; ++j) {
+                const double nn = (y[s * cfg.m + j] - c[j]) / cfg.noise_std;
+                absn.push_back(std::fabs(nn));
+                mean += nn;
+            }
+        }
+        mean /= double(absn.size());
+        std::nth_element(absn.begin(), absn.begin() + absn.size() / 2, absn.end());
+        const double med = absn[absn.size() / 2];
+        INFO(name << ": median |n|/sigma = " << med << ", mean n/sigma = " << mean);
+        if (std::string(name) == "student_t") CHECK((med > 0.40 && med < 0.48));
+        else if (std::string(name) == "nominal") CHECK((med > 0.64 && med < 0.71));
+        if (std::string(name) == "bias") CHECK(std::fabs(mean - 1.0) < 0.03);
+        else CHECK(std::fabs(mean) < 0.03);
+    }
+    CHECK_THROWS_WITH(compare_scenario("windy"), Catch::Contains("is not one of"));
 }
