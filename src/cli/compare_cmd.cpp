@@ -19,6 +19,7 @@ struct CompareArgs {
     std::vector<std::string> networks, sets;
     std::int64_t runs = 50, particles = 2000;
     int glf_vertices = 8;
+    double roughening = 0.0;
     double until = -1;
     int threads = 0;
     bool quiet = false, plot = false;
@@ -45,6 +46,8 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
     c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
     c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--pf-roughening", a->roughening,
+                  "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
     c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
     c->add_option("--scenario", a->scenario,
                   "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
@@ -74,7 +77,7 @@ void add_compare_command(CLI::App& app) {
         for (const std::string& name : split(a->filters)) {
             if (name == "ekf") owned.push_back(make_ekf(told));
             else if (name == "ukf") owned.push_back(make_ukf(told));
-            else if (name == "pf") owned.push_back(make_particle_filter(told, a->particles));
+            else if (name == "pf") owned.push_back(make_particle_filter(told, a->particles, 0.5, a->roughening));
             else if (name == "open_loop") owned.push_back(make_open_loop_filter(exact));
             else if (name == "glf") {
                 // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain

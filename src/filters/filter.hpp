@@ -74,8 +74,10 @@ std::unique_ptr<OnlineFilter> make_open_loop_filter(const FilterModel& model);
 std::unique_ptr<OnlineFilter> make_ekf(const FilterModel& model);
 /// Unscented Kalman filter (additive noise; alpha = 1, beta = 2, kappa = 0).
 std::unique_ptr<OnlineFilter> make_ukf(const FilterModel& model);
-/// Bootstrap particle filter: log-weights, systematic resampling when ESS < ess_fraction * particles.
+/// Bootstrap particle filter: log-weights, systematic resampling when ESS < ess_fraction * particles;
+/// roughening K > 0 jitters the resampled particles by K E_i N^(-1/n) N(0,1) per state (E_i: the cloud's
+/// range; Gordon, Salmond & Smith 1993), against sample impoverishment. K = 0: the plain bootstrap filter.
 std::unique_ptr<OnlineFilter> make_particle_filter(const FilterModel& model, std::int64_t particles,
-                                                   double ess_fraction = 0.5);
+                                                   double ess_fraction = 0.5, double roughening = 0.0);
 
 }  // namespace hinf

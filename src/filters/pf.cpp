@@ -15,12 +15,13 @@ namespace {
 
 class ParticleFilter final : public OnlineFilter {
 public:
-    ParticleFilter(const FilterModel& model, std::int64_t particles, double ess_fraction)
-        : model_(model), np_(particles), ess_fraction_(ess_fraction) {
+    ParticleFilter(const FilterModel& model, std::int64_t particles, double ess_fraction, double roughening)
+        : model_(model), np_(particles), ess_fraction_(ess_fraction), roughening_(roughening) {
+        HINF_CHECK(roughening >= 0, "particle filter: roughening must be >= 0");
         HINF_CHECK(particles >= 1, "particle filter: the particle count must be >= 1 (got " +
                                        std::to_string(particles) + ")");
     }
-    std::string name() const override { return "pf"; }
+    std::string name() const override { return roughening_ > 0 ? "pf_roughened" : "pf"; }
     void reset(const FilterStart& start) override {
         const int n = model_.system->state_dim();
         seed_ = start.seed;
@@ -84,6 +85,19 @@ public:
             X_.swap(Xr);
             std::fill(w_.begin(), w_.end(), 1.0 / double(np_));
             ++resamples_;
+            if (roughening_ > 0) {
+                // roughening: sigma_i = K E_i N^(-1/n), E_i = max - min of the resampled cloud in state i
+                std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size());
+                for (std::int64_t p = 1; p < np_; ++p)
+                    for (int i = 0; i < n; ++i) {
+                        lo[i] = std::min(lo[i], X_[p * n + i]);
+                        hi[i] = std::max(hi[i], X_[p * n + i]);
+                    }
+                kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_ROUGHEN, run_, std::uint64_t(in.step));
+                const double shrink = roughening_ * std::pow(double(np_), -1.0 / n);
+                for (std::int64_t p = 0; p < np_; ++p)
+                    for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
+            }
         }
         // propagate through the transition: x + dt (A(x) + B(x) v), v ~ sv N(0, I)
         std::vector<double> a(X_.size()), B(static_cast<std::size_t>(np_) * n * nv), v(static_cast<std::size_t>(np_) * nv);
@@ -116,7 +130,7 @@ private:
 
     FilterModel model_;
     std::int64_t np_;
-    double ess_fraction_;
+    double ess_fraction_, roughening_;
     std::uint64_t seed_ = 0, run_ = 0;
     std::int64_t resamples_ = 0;
     std::vector<double> X_, w_, xhat_;  // X_ [np x n], w_ [np] normalised
@@ -125,8 +139,8 @@ private:
 }  // namespace
 
 std::unique_ptr<OnlineFilter> make_particle_filter(const FilterModel& model, std::int64_t particles,
-                                                   double ess_fraction) {
-    return std::make_unique<ParticleFilter>(model, particles, ess_fraction);
+                                                   double ess_fraction, double roughening) {
+    return std::make_unique<ParticleFilter>(model, particles, ess_fraction, roughening);
 }
 
 }  // namespace hinf

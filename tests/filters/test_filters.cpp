@@ -128,9 +128,12 @@ TEST_CASE("particle filter mean converges to the Kalman mean as particles grow",
     // The Monte Carlo error of a weighted mean is ~ sqrt(P_ii / ESS); with ESS >= N/4 and resampling noise
     // the bound 6 sqrt(4 P_ii / N) holds with overwhelming probability (seed 11, fixed).
     const std::int64_t steps = 4;
+    // roughening (zero-mean jitter after resampling) must not bias the mean either
+    for (double K : {0.0, 0.2})
     for (std::int64_t N : {400, 40000}) {
         Setup su(2.0, 0.8, 0.5, steps);
-        auto pf = make_particle_filter(su.model, N);
+        auto pf = make_particle_filter(su.model, N, K > 0 ? 1.0 : 0.5, K);  // K > 0: resample (and roughen) every step
+        CHECK(pf->name() == (K > 0 ? "pf_roughened" : "pf"));
         pf->reset(su.start);
         double worst = 0;  // in units of the tolerance
         for (std::int64_t k = 0; k < steps; ++k) {
@@ -142,7 +145,7 @@ TEST_CASE("particle filter mean converges to the Kalman mean as particles grow",
                 worst = std::max(worst, std::fabs(pf->estimate()[i] - su.kf.x[i]) / tol);
             }
         }
-        INFO("N = " << N << ": worst |PF - KF| / tolerance = " << worst);
+        INFO("K = " << K << ", N = " << N << ": worst |PF - KF| / tolerance = " << worst);
         CHECK(worst < 1.0);  // the tolerance itself shrinks 10x from N = 400 to N = 40000
     }
 }
