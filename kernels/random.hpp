@@ -13,6 +13,10 @@ enum RngStream : std::uint32_t {
     RNG_STREAM_MINIBATCH = 3,  // minibatch choice                   (a = time step, b = Adam step)
     RNG_STREAM_NOISE = 4,      // on-line disturbance and noise      (a = run, b = time step)
     RNG_STREAM_WIENER = 5,     // seed 002 delay system: Wiener increments and initial function (a = run, b = 0: x(theta), 1: dW)
+    RNG_STREAM_PARTICLES = 6,  // particle filter: initial cloud and process noise (a = run, b = 0: init, k+1: step k)
+    RNG_STREAM_RESAMPLE = 7,   // particle filter: systematic resampling offset (a = run, b = step)
+    RNG_STREAM_HEAVY_TAIL = 8, // compare scenarios: chi-square draws of Student-t noise (a = run, b = time step)
+    RNG_STREAM_ROUGHEN = 9,    // particle filter roughening jitter after resampling (a = run, b = step)
 };
 
 /// out[i] ~ N(0,1), i in [0, count), for the counter (seed, stream, a, b). Thread-count independent.

@@ -10,5 +10,7 @@ void add_operate_command(CLI::App& app);  // operate
 void add_bench_command(CLI::App& app);    // bench
 /// `hinf lmi`: seed 002's LMI filter design (src/cli/lmi_cmd.cpp).
 void add_lmi_command(CLI::App& app);
+/// `hinf compare`: baseline and DNN filters side by side (src/cli/compare_cmd.cpp).
+void add_compare_command(CLI::App& app);
 
 }  // namespace hinf::cli

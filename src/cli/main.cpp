@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
     hinf::cli::add_operate_command(app);
     hinf::cli::add_bench_command(app);
     hinf::cli::add_lmi_command(app);
+    hinf::cli::add_compare_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

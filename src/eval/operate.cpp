@@ -14,6 +14,7 @@
 #include "io/progress.hpp"
 #include "hjie.hpp"
 #include "random.hpp"
+#include "filters/dnn.hpp"
 #include "train/filter_math.hpp"
 
 namespace hinf {
@@ -30,21 +31,8 @@ struct RunResult {
     std::vector<double> x, xhat, xhat_open;  // run 0 only: [steps x n]
 };
 
-// x~ estimated from the innovation e = y - C(x^): least squares through dC/dx at x^.
-void error_from_innovation(double* xt, const System& sys, const double* xhat, double t, const double* e) {
-    const int n = sys.state_dim(), m = sys.output_dim();
-    Eigen::MatrixXd H(m, n);
-    std::vector<double> Hrow(static_cast<std::size_t>(m) * n);
-    sys.measurement_jacobian(Hrow.data(), xhat, t);
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < n; ++j) H(i, j) = Hrow[i * n + j];
-    Eigen::VectorXd ev = Eigen::Map<const Eigen::VectorXd>(e, m);
-    Eigen::VectorXd sol = H.completeOrthogonalDecomposition().solve(ev);
-    for (int j = 0; j < n; ++j) xt[j] = sol[j];
-}
-
-RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::int64_t run, std::int64_t steps,
-                  bool keep_path) {
+RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, OnlineFilter& filter, std::int64_t run,
+                  std::int64_t steps, bool keep_path) {
     const System& sys = *cfg.system;
     const int n = cfg.n, nv = cfg.nv, m = cfg.m;
     RunResult r;
@@ -55,9 +43,14 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
     r.set_sum.assign(n, 0);
     r.set_sq.assign(n, 0);
     std::vector<double> x = cfg.x0, xhat = cfg.xhat0, xo = cfg.xhat0;  // xo: open-loop predictor
-    std::vector<double> noise(nv + m), a_x(n), a_h(n), a_o(n), B(n * nv), c_x(m), c_h(m), y(m), e(m), dc(m), p(n),
-        xt(n), xt_in(n);
+    std::vector<double> noise(nv + m), a_x(n), a_h(n), a_o(n), B(n * nv), c_x(m), c_h(m), y(m), e(m), dc(m), xt(n);
+    FilterStart start;
+    start.xhat0 = cfg.xhat0;
+    start.seed = cfg.online_seed;
+    start.run = std::uint64_t(run);
+    filter.reset(start);
     for (std::int64_t s = 0; s < steps; ++s) {
+        xhat.assign(filter.estimate(), filter.estimate() + n);
         const double t = double(s) * cfg.dt;
         kern::rng_normal(noise.data(), nv + m, cfg.online_seed, kern::RNG_STREAM_NOISE, std::uint64_t(run),
                          std::uint64_t(s));
@@ -77,9 +70,6 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
             dc[j] = c_x[j] - c_h[j];
         }
         for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
-        // gain: oracle uses the true x~ and C(x) - C(x^) (seed 000); measured uses the innovation only
-        if (measured) error_from_innovation(xt_in.data(), sys, xhat.data(), t, e.data());
-        net.gradient(p.data(), measured ? xt_in.data() : xt.data(), 1);
         {
             // does the network satisfy the HJI inequality at the errors it meets on-line? (true x~ and x)
             std::vector<double> pt(n), dA(n), q1(1, quadratic_form(cfg.Q.data(), xt.data(), n));
@@ -92,7 +82,6 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
             r.hji_violations += (terms[0] + terms[1] + terms[2] + terms[3]) > 0.01 * S ? 1 : 0;
             r.hji_steps += 1;
         }
-        WorstCase wc = worst_case(p.data(), B.data(), measured ? e.data() : dc.data(), n, nv, m, cfg.rho);
         // attenuation integrals (rectangle rule on the sampled data)
         double vv = 0, nsq = 0;
         for (int j = 0; j < nv; ++j) vv += v[j] * v[j];
@@ -118,22 +107,16 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, bool measured, std::
             r.xhat.insert(r.xhat.end(), xhat.begin(), xhat.end());
             r.xhat_open.insert(r.xhat_open.end(), xo.begin(), xo.end());
         }
-        bool finite = true;
-        for (int i = 0; i < n; ++i) finite = finite && std::isfinite(xhat[i]) && std::fabs(xhat[i]) < 1e12;
-        for (double g : wc.gain) finite = finite && std::isfinite(g);
-        if (!finite && r.diverged_at < 0) r.diverged_at = t;
-        if (r.diverged_at >= 0) {
-            // a diverged filter stays diverged: its estimate is frozen at the last finite value
-            r.num = INFINITY;
-            std::fill(wc.gain.begin(), wc.gain.end(), 0.0);
-        }
-        // eqs. (18)-(19) with the real v, n
+        // eq. (19): the DNN filter (gain (8), oracle or measured) through the adapter of src/filters;
+        // a diverged filter stays diverged: its estimate is frozen at the last finite value
+        if (r.diverged_at < 0 && filter.step(FilterInput{y.data(), t, s, x.data()}) == FILTER_DIVERGED)
+            r.diverged_at = t;
+        if (r.diverged_at >= 0) r.num = INFINITY;
+        // eq. (18) with the real v
         for (int i = 0; i < n; ++i) {
-            double bv = 0, ke = 0;
+            double bv = 0;
             for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * v[j];
-            for (int j = 0; j < m; ++j) ke += wc.gain[i * m + j] * e[j];
             x[i] += cfg.dt * (a_x[i] + bv);
-            if (r.diverged_at < 0) xhat[i] += cfg.dt * (a_h[i] + ke);
             xo[i] += cfg.dt * a_o[i];
         }
     }
@@ -174,9 +157,12 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
 #pragma omp parallel
     {
         std::unique_ptr<FrozenNetwork> local = network.clone();
+        FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+        std::unique_ptr<OnlineFilter> filter =
+            make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
 #pragma omp for schedule(dynamic)
         for (std::int64_t r = 0; r < sum.runs; ++r) {
-            results[r] = one_run(cfg, *local, measured, r, steps, r == 0);
+            results[r] = one_run(cfg, *local, *filter, r, steps, r == 0);
 #pragma omp critical
             progress.update(++done, "runs |");
         }

@@ -1,0 +1,155 @@
+// `hinf compare`: EKF, UKF, PF, the open-loop predictor and trained DNN filters side by side on the same
+// truth and measurements; prints the table, writes compare.h5 and compare.csv, optionally the plots.
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
+#include "eval/compare.hpp"
+#include "filters/dnn.hpp"
+#include "filters/glf.hpp"
+#include "io/checkpoint.hpp"
+
+namespace hinf::cli {
+
+namespace {
+struct CompareArgs {
+    std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", scenario = "nominal";
+    std::vector<std::string> networks, sets;
+    std::int64_t runs = 50, particles = 2000;
+    int glf_vertices = 8;
+    double roughening = 0.0;
+    double until = -1;
+    int threads = 0;
+    bool quiet = false, plot = false;
+};
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, ','))
+        if (!item.empty()) out.push_back(item);
+    return out;
+}
+}  // namespace
+
+void add_compare_command(CLI::App& app) {
+    auto a = std::make_shared<CompareArgs>();
+    CLI::App* c = app.add_subcommand("compare", "Compare filters (DNN, EKF, UKF, PF, open loop) on the same truth and noise");
+    c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, x^0, Q")->required();
+    c->add_option("--network", a->networks,
+                  "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable: one dnn filter per network and mode)");
+    c->add_option("--filters", a->filters, "Comma list of: dnn, ekf, ukf, pf, open_loop, glf (default dnn,ekf,ukf,pf,open_loop)");
+    c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
+    c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
+    c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
+    c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--pf-roughening", a->roughening,
+                  "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
+    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    c->add_option("--scenario", a->scenario,
+                  "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
+                  "only the disturbance's / the noise's), student_t, bias, energy_pulse (docs/compare.md)");
+    c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/compare-<scenario>)");
+    c->add_option("--threads", a->threads, "OpenMP threads (runs are split over them)");
+    c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
+    c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
+    c->add_flag("--quiet", a->quiet, "No progress lines");
+    c->callback([a]() {
+        apply_threads(a->threads);
+        HINF_CHECK(a->runs >= 1, "--runs must be >= 1");
+        HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        CompareOptions opt;
+        opt.scenario = compare_scenario(a->scenario);
+        opt.runs = a->runs;
+        opt.until = a->until;
+        opt.quiet = a->quiet;
+        opt.out_dir = a->out.empty() ? default_out_dir(a->config, "compare-" + a->scenario) : a->out;
+        // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
+        FilterModel told{cfg.system.get(), cfg.dt, cfg.disturbance_std * std::sqrt(opt.scenario.told_disturbance_factor),
+                         cfg.noise_std * std::sqrt(opt.scenario.told_noise_factor)};
+        FilterModel exact{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+        std::vector<std::unique_ptr<OnlineFilter>> owned;
+        std::vector<std::unique_ptr<FrozenNetwork>> nets;
+        for (const std::string& name : split(a->filters)) {
+            if (name == "ekf") owned.push_back(make_ekf(told));
+            else if (name == "ukf") owned.push_back(make_ukf(told));
+            else if (name == "pf") owned.push_back(make_particle_filter(told, a->particles, 0.5, a->roughening));
+            else if (name == "open_loop") owned.push_back(make_open_loop_filter(exact));
+            else if (name == "glf") {
+                // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
+                GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, cfg.dt, cfg.t_final, a->glf_vertices, cfg.rho);
+                HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
+                                     " (try another --glf-vertices, or drop glf)");
+                std::printf("glf: %d vertices at t =", g.vertices);
+                for (double t : g.vertex_times) std::printf(" %.4g", t);
+                std::printf(" s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; %s\n", g.rho, g.status.c_str());
+                owned.push_back(make_glf_filter(exact, g));
+            }
+            else if (name == "dnn") {
+                HINF_CHECK(!a->networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+                for (const std::string& path : a->networks) {
+                    RunConfig ncfg;
+                    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
+                    HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
+                                                    " states, the config's system has " + std::to_string(cfg.n));
+                    for (const std::string& mode : split(a->modes)) {
+                        HINF_CHECK(mode == "oracle" || mode == "measured",
+                                   "--mode '" + mode + "' is not one of: oracle, measured");
+                        std::string label = "dnn_" + ncfg.variant + "_" + mode;
+                        for (const auto& o : owned)
+                            HINF_CHECK(o->name() != label, "two --network files give the filter name '" + label +
+                                                               "' (same variant twice)");
+                        // the gain uses rho of the network's own training config
+                        owned.push_back(make_dnn_filter(exact, *net, *make_hinf_gain_law(ncfg.rho), mode == "measured", label));
+                    }
+                    nets.push_back(std::move(net));
+                }
+            } else
+                HINF_FAIL("--filters: unknown filter '" + name + "' (use dnn, ekf, ukf, pf, open_loop, glf)");
+        }
+        std::vector<const OnlineFilter*> filters;
+        for (const auto& o : owned) filters.push_back(o.get());
+        CompareSummary s = compare_run(cfg, filters, opt);
+
+        const auto names = cfg.system->state_names();
+        std::printf("compare: scenario %s, %lld run(s), %lld steps of %g s; errors x - x^ after t = %g s: per-run "
+                    "(mean, std) averaged over runs, +- 95%% CI\n",
+                    s.scenario.c_str(), static_cast<long long>(s.runs), static_cast<long long>(s.steps), cfg.dt,
+                    cfg.settle_time);
+        std::printf("%-26s %-8s %5s", "filter", "mode", "div");
+        for (int i = 0; i < std::min(cfg.n, 3); ++i) std::printf("  %-27s", (names[i] + " (mean, std)").c_str());
+        std::printf("  %10s %10s %10s %9s\n", "RMSEpos", "RMSEpos5", "ratio", "us/step");
+        for (const auto& fr : s.filters) {
+            std::printf("%-26s %-8s %5lld", fr.name.c_str(), fr.mode.c_str(), static_cast<long long>(fr.diverged_runs));
+            for (int i = 0; i < std::min(cfg.n, 3); ++i) {
+                char cell[64];
+                std::snprintf(cell, sizeof cell, "%.3g+-%.2g, %.3g+-%.2g", fr.mean_settled[i], fr.mean_settled_ci[i],
+                              fr.std_settled[i], fr.std_settled_ci[i]);
+                std::printf("  %-27s", cell);
+            }
+            std::printf("  %10.4g %10.4g %10.4g %9.2f\n", fr.rmse_position, fr.rmse_position_settled,
+                        fr.attenuation_ratio, fr.us_per_step);
+        }
+        bool same = true;
+        for (const auto& fr : s.filters) same = same && fr.stream_hash == s.truth_stream_hash;
+        std::printf("measurement streams identical for all filters: %s; wall %.1f s; files: %s/compare.h5, compare.csv\n",
+                    same ? "yes" : "NO", s.wall_seconds, opt.out_dir.c_str());
+        HINF_CHECK(same, "compare: a filter was fed a different measurement stream (bug)");
+        if (a->plot) {
+            const std::string script = std::string(HINF_SOURCE_DIR) + "/scripts/plot";
+            if (std::system("test -x /usr/bin/python3") != 0) {
+                std::printf("--plot: /usr/bin/python3 not found, no plots drawn\n");
+                return;
+            }
+            const std::string cmd = "/usr/bin/python3 " + script + " " + opt.out_dir + "/compare.h5 --out " + opt.out_dir;
+            int rc = std::system(cmd.c_str());
+            std::printf("--plot: %s\n", rc == 0 ? ("PNGs in " + opt.out_dir).c_str() : "scripts/plot failed (see above)");
+        }
+    });
+}
+
+}  // namespace hinf::cli

@@ -1,0 +1,100 @@
+// DNN filter adapter (seed 000 eq. (19), Fig. 3 on-line phase) over any frozen network and gain law.
+// The Euler step and the order of operations are those of eval/operate.cpp, which uses this adapter.
+#include "filters/dnn.hpp"
+
+#include <Eigen/Dense>
+
+#include "train/filter_math.hpp"
+
+namespace hinf {
+
+namespace {
+
+class HinfGainLaw final : public DnnGainLaw {
+public:
+    explicit HinfGainLaw(double rho) : rho_(rho) {}
+    void gain(double* k, const DnnGainInput& in) const override {
+        WorstCase wc = worst_case(in.p, in.B, in.dc, in.n, in.nv, in.m, rho_);
+        std::copy(wc.gain.begin(), wc.gain.end(), k);
+    }
+    std::unique_ptr<DnnGainLaw> clone() const override { return std::make_unique<HinfGainLaw>(*this); }
+
+private:
+    double rho_;
+};
+
+class DnnFilter final : public OnlineFilter {
+public:
+    DnnFilter(const FilterModel& model, std::unique_ptr<FrozenNetwork> net, std::unique_ptr<DnnGainLaw> law,
+              bool measured, std::string name)
+        : model_(model), net_(std::move(net)), law_(std::move(law)), measured_(measured), name_(std::move(name)) {}
+    std::string name() const override { return name_; }
+    void reset(const FilterStart& start) override { xhat_ = start.xhat0; }
+    bool uses_true_state() const override { return !measured_; }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+        std::vector<double> a(n), B(static_cast<std::size_t>(n) * nv), ch(m), e(m), dc(m), xt(n), p(n),
+            k(static_cast<std::size_t>(n) * m);
+        sys.drift(a.data(), xhat_.data(), in.t, 1);
+        sys.measurement(ch.data(), xhat_.data(), in.t, 1);
+        for (int j = 0; j < m; ++j) e[j] = in.y[j] - ch[j];
+        if (measured_) {
+            sys.disturbance_gain(B.data(), xhat_.data(), in.t, 1);
+            dnn_error_from_innovation(xt.data(), sys, xhat_.data(), in.t, e.data());
+            dc = e;
+        } else {
+            std::vector<double> cx(m);
+            sys.disturbance_gain(B.data(), in.x_true, in.t, 1);
+            sys.measurement(cx.data(), in.x_true, in.t, 1);
+            for (int j = 0; j < m; ++j) dc[j] = cx[j] - ch[j];
+            for (int i = 0; i < n; ++i) xt[i] = in.x_true[i] - xhat_[i];
+        }
+        net_->gradient(p.data(), xt.data(), 1);
+        law_->gain(k.data(), DnnGainInput{p.data(), B.data(), dc.data(), n, nv, m});
+        bool finite = filter_estimate_ok(xhat_.data(), n);
+        for (double g : k) finite = finite && std::isfinite(g);
+        if (!finite) return FILTER_DIVERGED;  // the estimate stays frozen at its last value
+        for (int i = 0; i < n; ++i) {
+            double ke = 0;
+            for (int j = 0; j < m; ++j) ke += k[i * m + j] * e[j];
+            xhat_[i] += model_.dt * (a[i] + ke);
+        }
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override {
+        return std::make_unique<DnnFilter>(model_, net_->clone(), law_->clone(), measured_, name_);
+    }
+
+private:
+    FilterModel model_;
+    std::unique_ptr<FrozenNetwork> net_;
+    std::unique_ptr<DnnGainLaw> law_;
+    bool measured_;
+    std::string name_;
+    std::vector<double> xhat_;
+};
+
+}  // namespace
+
+std::unique_ptr<DnnGainLaw> make_hinf_gain_law(double rho) { return std::make_unique<HinfGainLaw>(rho); }
+
+void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat, double t, const double* e) {
+    const int n = sys.state_dim(), m = sys.output_dim();
+    Eigen::MatrixXd H(m, n);
+    std::vector<double> Hrow(static_cast<std::size_t>(m) * n);
+    sys.measurement_jacobian(Hrow.data(), xhat, t);
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < n; ++j) H(i, j) = Hrow[i * n + j];
+    Eigen::VectorXd ev = Eigen::Map<const Eigen::VectorXd>(e, m);
+    Eigen::VectorXd sol = H.completeOrthogonalDecomposition().solve(ev);
+    for (int j = 0; j < n; ++j) xt[j] = sol[j];
+}
+
+std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
+                                              const DnnGainLaw& law, bool measured, const std::string& name) {
+    return std::make_unique<DnnFilter>(model, network.clone(), law.clone(), measured, name);
+}
+
+}  // namespace hinf

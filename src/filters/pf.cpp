@@ -1,0 +1,146 @@
+// Bootstrap particle filter (Gordon, Salmond & Smith 1993) on the discrete model of filter.hpp: the
+// transition prior as proposal, log-weights, systematic resampling when the effective sample size
+// drops below a fraction of the particle count. Draws keyed by (seed, run, step): thread-count independent.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "filters/filter.hpp"
+#include "hinf/error.hpp"
+#include "random.hpp"
+
+namespace hinf {
+
+namespace {
+
+class ParticleFilter final : public OnlineFilter {
+public:
+    ParticleFilter(const FilterModel& model, std::int64_t particles, double ess_fraction, double roughening)
+        : model_(model), np_(particles), ess_fraction_(ess_fraction), roughening_(roughening) {
+        HINF_CHECK(roughening >= 0, "particle filter: roughening must be >= 0");
+        HINF_CHECK(particles >= 1, "particle filter: the particle count must be >= 1 (got " +
+                                       std::to_string(particles) + ")");
+    }
+    std::string name() const override { return roughening_ > 0 ? "pf_roughened" : "pf"; }
+    void reset(const FilterStart& start) override {
+        const int n = model_.system->state_dim();
+        seed_ = start.seed;
+        run_ = start.run;
+        resamples_ = 0;
+        // initial cloud ~ N(x^0, P0)
+        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> P0(start.P0.data(), n, n);
+        const Eigen::MatrixXd P0d = P0;
+        Eigen::LLT<Eigen::MatrixXd> llt(P0d);
+        HINF_CHECK(llt.info() == Eigen::Success, "particle filter: the initial covariance is not positive definite");
+        Eigen::MatrixXd L = llt.matrixL();
+        X_.assign(static_cast<std::size_t>(np_) * n, 0.0);
+        std::vector<double> z(static_cast<std::size_t>(np_) * n);
+        kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_PARTICLES, run_, 0);
+        for (std::int64_t p = 0; p < np_; ++p)
+            for (int i = 0; i < n; ++i) {
+                double s = start.xhat0[i];
+                for (int j = 0; j <= i; ++j) s += L(i, j) * z[p * n + j];
+                X_[p * n + i] = s;
+            }
+        w_.assign(np_, 1.0 / double(np_));
+        mean(xhat_);
+    }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+        // weight update: log w += log N(y; C(x), sn^2 I), normalised with the max subtracted
+        std::vector<double> c(static_cast<std::size_t>(np_) * m), logw(np_);
+        sys.measurement(c.data(), X_.data(), in.t, np_);
+        const double inv_r = 1.0 / (model_.noise_std * model_.noise_std);
+        double top = -INFINITY;
+        for (std::int64_t p = 0; p < np_; ++p) {
+            double q = 0;
+            for (int j = 0; j < m; ++j) {
+                const double e = in.y[j] - c[p * m + j];
+                q += e * e;
+            }
+            logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
+            top = std::max(top, logw[p]);
+        }
+        if (!std::isfinite(top)) return FILTER_DIVERGED;
+        double total = 0;
+        for (std::int64_t p = 0; p < np_; ++p) total += (w_[p] = std::exp(logw[p] - top));
+        double sq = 0;
+        for (std::int64_t p = 0; p < np_; ++p) {
+            w_[p] /= total;
+            sq += w_[p] * w_[p];
+        }
+        // systematic resampling when ESS = 1 / sum w^2 < fraction * N
+        if (1.0 / sq < ess_fraction_ * double(np_)) {
+            double u0;
+            kern::rng_uniform(&u0, 1, seed_, kern::RNG_STREAM_RESAMPLE, run_, std::uint64_t(in.step));
+            std::vector<double> Xr(X_.size());
+            double cum = w_[0];
+            std::int64_t src = 0;
+            for (std::int64_t p = 0; p < np_; ++p) {
+                const double u = (double(p) + (1.0 - u0)) / double(np_);  // u0 in (0, 1]: offset in [0, 1)
+                while (cum < u && src < np_ - 1) cum += w_[++src];
+                std::copy(X_.begin() + src * n, X_.begin() + (src + 1) * n, Xr.begin() + p * n);
+            }
+            X_.swap(Xr);
+            std::fill(w_.begin(), w_.end(), 1.0 / double(np_));
+            ++resamples_;
+            if (roughening_ > 0) {
+                // roughening: sigma_i = K E_i N^(-1/n), E_i = max - min of the resampled cloud in state i
+                std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size());
+                for (std::int64_t p = 1; p < np_; ++p)
+                    for (int i = 0; i < n; ++i) {
+                        lo[i] = std::min(lo[i], X_[p * n + i]);
+                        hi[i] = std::max(hi[i], X_[p * n + i]);
+                    }
+                kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_ROUGHEN, run_, std::uint64_t(in.step));
+                const double shrink = roughening_ * std::pow(double(np_), -1.0 / n);
+                for (std::int64_t p = 0; p < np_; ++p)
+                    for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
+            }
+        }
+        // propagate through the transition: x + dt (A(x) + B(x) v), v ~ sv N(0, I)
+        std::vector<double> a(X_.size()), B(static_cast<std::size_t>(np_) * n * nv), v(static_cast<std::size_t>(np_) * nv);
+        sys.drift(a.data(), X_.data(), in.t, np_);
+        sys.disturbance_gain(B.data(), X_.data(), in.t, np_);
+        kern::rng_normal(v.data(), np_ * nv, seed_, kern::RNG_STREAM_PARTICLES, run_, std::uint64_t(in.step) + 1);
+        for (std::int64_t p = 0; p < np_; ++p)
+            for (int i = 0; i < n; ++i) {
+                double bv = 0;
+                for (int j = 0; j < nv; ++j) bv += B[(p * n + i) * nv + j] * model_.disturbance_std * v[p * nv + j];
+                X_[p * n + i] += model_.dt * (a[p * n + i] + bv);
+            }
+        std::vector<double> xn(n);
+        mean(xn);
+        if (!filter_estimate_ok(xn.data(), n)) return FILTER_DIVERGED;
+        xhat_ = xn;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ParticleFilter>(*this); }
+    std::int64_t resamples() const { return resamples_; }
+
+private:
+    void mean(std::vector<double>& out) const {
+        const int n = model_.system->state_dim();
+        out.assign(n, 0.0);
+        for (std::int64_t p = 0; p < np_; ++p)
+            for (int i = 0; i < n; ++i) out[i] += w_[p] * X_[p * n + i];
+    }
+
+    FilterModel model_;
+    std::int64_t np_;
+    double ess_fraction_, roughening_;
+    std::uint64_t seed_ = 0, run_ = 0;
+    std::int64_t resamples_ = 0;
+    std::vector<double> X_, w_, xhat_;  // X_ [np x n], w_ [np] normalised
+};
+
+}  // namespace
+
+std::unique_ptr<OnlineFilter> make_particle_filter(const FilterModel& model, std::int64_t particles,
+                                                   double ess_fraction, double roughening) {
+    return std::make_unique<ParticleFilter>(model, particles, ess_fraction, roughening);
+}
+
+}  // namespace hinf

@@ -1,0 +1,180 @@
+// The comparison harness: every filter is fed the identical measurement stream (checked by recording
+// and hashing it), results do not depend on the thread count, diverged filters are counted not dropped.
+#include <catch2/catch.hpp>
+#include <algorithm>
+#include <omp.h>
+
+#include "eval/compare.hpp"
+#include "filters/dnn.hpp"
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+#include "train/network.hpp"
+
+using namespace hinf;
+using hinf::test::TempDir;
+
+namespace {
+
+RunConfig missile_config() {
+    ConfigDoc doc = ConfigDoc::from_file(hinf::test::source_path("runs/missile_hinf.toml"));
+    doc.set("network.hidden=[8]");
+    return load_run_config(std::move(doc));
+}
+
+// Records every y it is given (and can be told to diverge at a step).
+class SpyFilter final : public OnlineFilter {
+public:
+    SpyFilter(std::string name, int n, int m, std::int64_t diverge_at = -1)
+        : name_(std::move(name)), n_(n), m_(m), diverge_at_(diverge_at) {}
+    std::string name() const override { return name_; }
+    void reset(const FilterStart& s) override {
+        xhat_ = s.xhat0;
+        seen->clear();
+    }
+    FilterStatus step(const FilterInput& in) override {
+        seen->insert(seen->end(), in.y, in.y + m_);
+        if (in.step == diverge_at_) return FILTER_DIVERGED;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<SpyFilter>(*this); }
+    std::shared_ptr<std::vector<double>> seen = std::make_shared<std::vector<double>>();  // shared by clones
+
+private:
+    std::string name_;
+    int n_, m_;
+    std::int64_t diverge_at_;
+    std::vector<double> xhat_;
+};
+
+}  // namespace
+
+TEST_CASE("compare feeds every filter the identical measurement stream", "[eval][compare]") {
+    RunConfig cfg = missile_config();
+    TempDir d("compare-stream");
+    FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    auto ekf = make_ekf(model), pf = make_particle_filter(model, 50), ol = make_open_loop_filter(model);
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 3;
+    opt.until = 0.2;
+    opt.quiet = true;
+    CompareSummary s = compare_run(cfg, {ekf.get(), pf.get(), ol.get()}, opt);
+    REQUIRE(s.filters.size() == 3);
+    for (const auto& f : s.filters) CHECK(f.stream_hash == s.truth_stream_hash);
+    // the hash sees the noise: another online seed gives another stream
+    RunConfig cfg2 = missile_config();
+    cfg2.online_seed = 8;
+    CompareSummary s2 = compare_run(cfg2, {ekf.get()}, opt);
+    CHECK(s2.truth_stream_hash != s.truth_stream_hash);
+
+    // independently of the harness's own hash: two spies record what they were fed (one run, so the one
+    // clone of each spy sees the whole stream); it must be the measurements of run 0 stored in compare.h5
+    SpyFilter a("spy_a", cfg.n, cfg.m), b("spy_b", cfg.n, cfg.m);
+    opt.runs = 1;
+    CompareSummary s1 = compare_run(cfg, {&a, &b}, opt);
+    h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+    std::vector<double> y = h5::read_doubles(f.get(), "y");
+    REQUIRE(y.size() == 20u * cfg.m);
+    CHECK(hinf::test::bitwise_equal(*a.seen, y));
+    CHECK(hinf::test::bitwise_equal(*b.seen, y));
+    const std::uint64_t hy = compare_hash(compare_hash_start, y.data(), y.size() * sizeof(double));
+    CHECK(s1.truth_stream_hash == compare_hash(compare_hash_start, &hy, 8));
+    CHECK(s1.filters[0].stream_hash == s1.truth_stream_hash);
+}
+
+TEST_CASE("compare results do not depend on the thread count", "[eval][compare][threads]") {
+    RunConfig cfg = missile_config();
+    TempDir d("compare-threads");
+    FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    std::unique_ptr<FrozenNetwork> net = network_freeze(network_create<float>(cfg));
+    auto ekf = make_ekf(model), ukf = make_ukf(model), pf = make_particle_filter(model, 200),
+         dnn_o = make_dnn_filter(model, *net, *make_hinf_gain_law(cfg.rho), false, "dnn_o"),
+         dnn_m = make_dnn_filter(model, *net, *make_hinf_gain_law(cfg.rho), true, "dnn_m");
+    std::vector<const OnlineFilter*> filters = {ekf.get(), ukf.get(), pf.get(), dnn_o.get(), dnn_m.get()};
+    CompareOptions opt;
+    opt.runs = 5;
+    opt.until = 0.3;
+    opt.quiet = true;
+    std::vector<std::vector<double>> got[2];
+    for (int threads : {1, 2}) {
+        omp_set_num_threads(threads);
+        opt.out_dir = d / ("t" + std::to_string(threads));
+        CompareSummary s = compare_run(cfg, filters, opt);
+        h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+        for (const auto& fr : s.filters) {
+            h5::Handle g = h5::open_group(f.get(), fr.name);
+            for (const char* ds : {"error_mean", "error_std", "error_mean_t", "error_std_t", "xhat",
+                                   "attenuation_ratio_per_run"})
+                got[threads - 1].push_back(h5::read_doubles(g.get(), ds));
+            got[threads - 1].push_back({fr.rmse_position, fr.attenuation_ratio, fr.mean_ci[0], fr.std_ci[5]});
+        }
+    }
+    omp_set_num_threads(omp_get_num_procs());
+    REQUIRE(got[0].size() == got[1].size());
+    for (std::size_t i = 0; i < got[0].size(); ++i) {
+        INFO("item " << i);
+        CHECK(hinf::test::bitwise_equal(got[0][i], got[1][i]));
+    }
+}
+
+TEST_CASE("compare counts a diverging filter and keeps it in the results", "[eval][compare]") {
+    RunConfig cfg = missile_config();
+    TempDir d("compare-div");
+    SpyFilter ok("steady", cfg.n, cfg.m), bad("diverges", cfg.n, cfg.m, 3);
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 4;
+    opt.until = 0.1;
+    opt.quiet = true;
+    CompareSummary s = compare_run(cfg, {&ok, &bad}, opt);
+    REQUIRE(s.filters.size() == 2);
+    CHECK(s.filters[0].diverged_runs == 0);
+    CHECK(s.filters[1].diverged_runs == 4);
+    CHECK(std::isnan(s.filters[1].rmse_position));  // no kept run: no statistics, not a made-up number
+    h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+    h5::Handle g = h5::open_group(f.get(), "diverges");
+    std::vector<double> at = h5::read_doubles(g.get(), "diverged_at");
+    REQUIRE(at.size() == 4u);
+    for (double t : at) CHECK(t == Approx(3 * cfg.dt));
+}
+
+TEST_CASE("compare scenarios: Student-t and biased measurement noise have the stated law", "[eval][compare]") {
+    // n = y - C(x) from compare.h5 (run 0, 2000 steps x 6 channels). Median |n| / sigma_n: Gaussian 0.6745;
+    // t_3 scaled to unit variance 0.7649 / sqrt(3) = 0.4416. With 12000 draws the sample median's standard
+    // error is ~ 0.01, so the bands below are > 3 standard errors wide. Bias: mean n / sigma_n = 1 +- 0.03.
+    RunConfig cfg = missile_config();
+    TempDir d("compare-scen");
+    SpyFilter spy("spy", cfg.n, cfg.m);
+    for (const char* name : {"nominal", "student_t", "bias"}) {
+        CompareOptions opt;
+        opt.out_dir = d / name;
+        opt.runs = 1;
+        opt.until = 20.0;
+        opt.quiet = true;
+        opt.scenario = compare_scenario(name);
+        compare_run(cfg, {&spy}, opt);
+        h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+        std::vector<double> x = h5::read_doubles(f.get(), "x"), y = h5::read_doubles(f.get(), "y");
+        const std::size_t steps = x.size() / cfg.n;
+        std::vector<double> c(cfg.m), absn;
+        double mean = 0;
+        for (std::size_t s = 0; s < steps; ++s) {
+            cfg.system->measurement(c.data(), x.data() + s * cfg.n, 0.0, 1);
+            for (int j = 0; j < cfg.m; ++j) {
+                const double nn = (y[s * cfg.m + j] - c[j]) / cfg.noise_std;
+                absn.push_back(std::fabs(nn));
+                mean += nn;
+            }
+        }
+        mean /= double(absn.size());
+        std::nth_element(absn.begin(), absn.begin() + absn.size() / 2, absn.end());
+        const double med = absn[absn.size() / 2];
+        INFO(name << ": median |n|/sigma = " << med << ", mean n/sigma = " << mean);
+        if (std::string(name) == "student_t") CHECK((med > 0.40 && med < 0.48));
+        else if (std::string(name) == "nominal") CHECK((med > 0.64 && med < 0.71));
+        if (std::string(name) == "bias") CHECK(std::fabs(mean - 1.0) < 0.03);
+        else CHECK(std::fabs(mean) < 0.03);
+    }
+    CHECK_THROWS_WITH(compare_scenario("windy"), Catch::Contains("is not one of"));
+}
