@@ -30,6 +30,8 @@ int main(int argc, char** argv) {
     hinf::cli::add_compare_command(app);
     try {
         app.parse(argc, argv);
+    } catch (const CLI::RuntimeError& e) {
+        return e.get_exit_code();  // a subcommand's own status (e.g. 4: design failed, diverged)
     } catch (const CLI::ParseError& e) {
         int code = app.exit(e);
         return code == 0 ? 0 : 2;
