@@ -61,6 +61,28 @@ TEST_CASE("two coupled residuals of seed 001 eqs. (19)-(20) on a hand-computed c
     CHECK(v1.residual2 == 0.0);
 }
 
+TEST_CASE("an inactive second hinge leaves the dissipative loss and gradient bit-identical", "[kernel][hjie][mixed]") {
+    // the hand case with margin 0.2: eps1/S1 + m = -0.12 + 0.2 > 0 (active), eps2/S2 + m = -5.5/17.5 + 0.2 < 0
+    double xt[2] = {1, 2}, dA[2] = {-1, 0.5}, B[2] = {0, 1}, dC[1] = {3}, q[1] = {5}, p[2] = {2, -1};
+    double P[4] = {1.5, 0.25, 0.25, 0.75};
+    HjieSystemView s{2, 1, 1, xt, dA, B, dC, q};
+    HjieParams hinf_p, mixed_p;
+    hinf_p.rho = mixed_p.rho = 0.5;
+    hinf_p.margin = mixed_p.margin = 0.2;
+    mixed_p.game = HJIE_GAME_MIXED;
+    HjieSampleValue a = hjie_sample_forward(p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE);
+    HjieSampleValue b = hjie_sample_forward(p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE);
+    REQUIRE(a.hinge > 0);
+    REQUIRE(b.residual2 / b.abs_sum2 + 0.2 < 0);
+    CHECK(a.hinge == b.hinge);
+    CHECK(a.h2 == b.h2);
+    double ga[2], gb[2], gPa[4], gPb[4];
+    hjie_sample_backward(ga, gPa, p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    hjie_sample_backward(gb, gPb, p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    for (int k = 0; k < 2; ++k) CHECK(ga[k] == gb[k]);
+    for (int k = 0; k < 4; ++k) CHECK(gPa[k] == gPb[k]);
+}
+
 TEST_CASE("mixed dissipative per-sample gradient matches central differences in p and P", "[kernel][hjie][mixed]") {
     // nv = n = 3 (a square g as in seed 001); margin large enough that both hinges are active
     double xt[3] = {0.3, -1.2, 0.8}, dA[3] = {0.5, 0.1, -0.7};
