@@ -8,11 +8,11 @@
 namespace hinf {
 
 struct ManeuverParams {
-    MissileParams base;               // drag, atmosphere, gravity, position gains 0.1/0.1/0.08, damping 0.01
-    double amplitude = 15000.0;       // A of a(t) = A e^{-decay t} (4/pi) sin(omega_a t)  [m/s]
-    double decay = 0.1;               // the e^{-0.1 t} of a(t) and of the x4 term [1/s]
-    double wave_frequency = 1.0;      // sin(t) in a(t) [rad/s]
-    double maneuver_frequency = 10.0; // -e^{-0.1 t} sin(10 t) x4 in row 4 [rad/s]
+    MissileParams base;                // drag, atmosphere, gravity, position gains 0.1/0.1/0.08, damping 0.01
+    double amplitude = 15000.0;        // A of a(t) = A e^{-decay t} (4/pi) sin(omega_a t)  [m/s]
+    double decay = 0.1;                // the e^{-0.1 t} of a(t) and of the x4 term [1/s]
+    double wave_frequency = 1.0;       // sin(t) in a(t) [rad/s]
+    double maneuver_frequency = 10.0;  // -e^{-0.1 t} sin(10 t) x4 in row 4 [rad/s]
     ManeuverParams() {
         base.radar[0] = 300.0;
         base.radar[1] = 300.0;
@@ -21,7 +21,7 @@ struct ManeuverParams {
 };
 
 class ManeuveringMissileSystem : public System {
-public:
+  public:
     explicit ManeuveringMissileSystem(const ManeuverParams& p) : p_(p), drag_(p.base) {}
     std::string name() const override { return "maneuvering_missile"; }
     int state_dim() const override { return 6; }
@@ -39,7 +39,7 @@ public:
     double maneuver_coefficient(double t) const;
     const ManeuverParams& params() const { return p_; }
 
-private:
+  private:
     ManeuverParams p_;
     MissileSystem drag_;  // density(z) only
 };

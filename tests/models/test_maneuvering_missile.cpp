@@ -19,9 +19,9 @@ TEST_CASE("maneuvering missile drift by hand at t = 0, high altitude", "[model][
     CHECK(A[0] == -15000.0);
     CHECK(A[1] == -21000.0);
     CHECK(A[2] == -9600.0);
-    CHECK(A[3] == Approx(3.9890766132e-5).epsilon(1e-9));          // no damping on row 4 at t = 0
-    CHECK(A[4] == Approx(25.000039890766132).epsilon(1e-14));      // 2500 drag + 0.01 * 2500
-    CHECK(A[5] == Approx(15.190039890766132).epsilon(1e-14));      // ... - g
+    CHECK(A[3] == Approx(3.9890766132e-5).epsilon(1e-9));      // no damping on row 4 at t = 0
+    CHECK(A[4] == Approx(25.000039890766132).epsilon(1e-14));  // 2500 drag + 0.01 * 2500
+    CHECK(A[5] == Approx(15.190039890766132).epsilon(1e-14));  // ... - g
 }
 
 TEST_CASE("maneuvering missile drift by hand at t = 1.3, low altitude", "[model][maneuver]") {
@@ -77,7 +77,8 @@ TEST_CASE("maneuvering missile Jacobian matches central differences", "[model][m
 }
 
 TEST_CASE("[system] kind = maneuvering_missile is built from the config", "[model][maneuver][config]") {
-    auto doc = hinf::ConfigDoc::from_text("[system]\nkind = \"maneuvering_missile\"\nmaneuver_amplitude = 0.0\n", "m.toml");
+    auto doc =
+        hinf::ConfigDoc::from_text("[system]\nkind = \"maneuvering_missile\"\nmaneuver_amplitude = 0.0\n", "m.toml");
     std::unique_ptr<hinf::System> sys = hinf::make_system(doc);
     CHECK(sys->name() == "maneuvering_missile");
     CHECK(sys->disturbance_dim() == 6);
