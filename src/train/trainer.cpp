@@ -1,6 +1,8 @@
 // The offline training driver: per time step, N samples around x~(t), per-sample constants once,
 // K Adam steps on minibatches, then p at x~(t), gain k*, worst case v*, n* (seed 000 eqs. (6)-(8))
-// and the sampled-data updates (eqs. (18)-(20)). The numerics are in kernels/.
+// and the sampled-data updates (eqs. (18)-(20)); for [filter] type = "h2hinf" the same loop serves seed 001
+// (l*, v*, n* of eqs. (9)-(11), (21)-(23)) and also logs the second residual and the consistency of (23).
+// The numerics are in kernels/.
 #include "train/trainer.hpp"
 
 #include <algorithm>
