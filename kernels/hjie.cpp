@@ -62,16 +62,26 @@ HjieSampleValue hjie_sample_forward(const double* p, const double* P, const Hjie
     double t[4];
     hjie_terms(t, p, s, i, hp.rho);
     HjieSampleValue v;
-    v.residual = t[0] + t[1] + t[2] + t[3];
-    v.abs_sum = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]) + std::fabs(t[3]);
-    if (obj == HJIE_OBJECTIVE_PAPER) {
-        v.hinge = v.residual * v.residual;
-        return v;
+    const int R = hjie_residual_count(hp.game);
+    double eps[2], S[2];
+    for (int k = 0; k < R; ++k) {
+        const double c = kHjieCoupling[k];
+        eps[k] = t[0] + t[1] + c * t[2] + c * t[3];  // c = 1: same bits as seed 000's sum
+        S[k] = std::fabs(t[0]) + std::fabs(t[1]) + c * std::fabs(t[2]) + c * std::fabs(t[3]);
+        if (obj == HJIE_OBJECTIVE_PAPER) {
+            v.hinge += eps[k] * eps[k];
+        } else if (S[k] > 0) {
+            double u = eps[k] / S[k] + hp.margin;
+            v.hinge += u > 0 ? u * u : 0.0;
+        }
     }
-    if (v.abs_sum > 0) {
-        double u = v.residual / v.abs_sum + hp.margin;
-        v.hinge = u > 0 ? u * u : 0.0;
+    v.residual = eps[0];
+    v.abs_sum = S[0];
+    if (R == 2) {
+        v.residual2 = eps[1];
+        v.abs_sum2 = S[1];
     }
+    if (obj == HJIE_OBJECTIVE_PAPER) return v;
     // H2 bound: V(x~) ~ p^T x~ / 2 (exact for constant P) plus horizon * rate; one constant for all samples
     double px = 0;
     for (int a = 0; a < s.n; ++a) px += p[a] * s.xt[i * s.n + a];
@@ -94,25 +104,29 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
     }
     double t[4];
     hjie_terms(t, p, s, i, hp.rho);
-    const double eps = t[0] + t[1] + t[2] + t[3];
     if (gP)
         for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
-    if (obj == HJIE_OBJECTIVE_PAPER) {
-        // hinge = eps^2, d eps/dp = dA + B B^T p/(2 rho)
-        for (int a = 0; a < n; ++a) gp[a] = d_hinge * 2.0 * eps * (dA[a] + bbp[a]);
-        return;
-    }
     for (int a = 0; a < n; ++a) gp[a] = 0.0;
-    const double S = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]) + std::fabs(t[3]);
-    if (S > 0) {
-        const double r = eps / S, uu = r + hp.margin;
-        if (uu > 0) {
-            // d r/dp = (d eps/dp - r dS/dp)/S,  dS/dp = sign(p^T dA) dA + B B^T p/(2 rho)
-            const double sg = t[1] >= 0 ? 1.0 : -1.0;
-            const double c = d_hinge * 2.0 * uu / S;
-            for (int a = 0; a < n; ++a) gp[a] += c * ((dA[a] + bbp[a]) - r * (sg * dA[a] + bbp[a]));
+    const int R = hjie_residual_count(hp.game);
+    const double sg = t[1] >= 0 ? 1.0 : -1.0;
+    for (int k = 0; k < R; ++k) {
+        // eps_k = t0 + t1 + c (t2 + t3):  d eps_k/dp = dA + c B B^T p/(2 rho)
+        const double c = kHjieCoupling[k];
+        const double eps = t[0] + t[1] + c * t[2] + c * t[3];
+        if (obj == HJIE_OBJECTIVE_PAPER) {
+            // hinge term eps_k^2
+            for (int a = 0; a < n; ++a) gp[a] += d_hinge * 2.0 * eps * (dA[a] + c * bbp[a]);
+            continue;
         }
+        const double S = std::fabs(t[0]) + std::fabs(t[1]) + c * std::fabs(t[2]) + c * std::fabs(t[3]);
+        if (S <= 0) continue;
+        const double r = eps / S, uu = r + hp.margin;
+        if (uu <= 0) continue;
+        // d r/dp = (d eps/dp - r dS/dp)/S,  dS/dp = sign(p^T dA) dA + c B B^T p/(2 rho)
+        const double f = d_hinge * 2.0 * uu / S;
+        for (int a = 0; a < n; ++a) gp[a] += f * ((dA[a] + c * bbp[a]) - r * (sg * dA[a] + c * bbp[a]));
     }
+    if (obj == HJIE_OBJECTIVE_PAPER) return;
     if (d_h2 == 0.0) return;
     // h2 = [sv/2 tr(B^T P B) + sn/2 * 4 rho^2 |dC|^2 p^T P p / |p|^4] / w
     double cc = 0, pp = 0, pPp = 0, Pp[kMax];

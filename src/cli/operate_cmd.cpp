@@ -62,8 +62,8 @@ void add_operate_command(CLI::App& app) {
         std::string mode = a->mode.empty() ? cfg.mode : a->mode;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "operate-" + mode) : a->out;
         OperateSummary s = operate_run(cfg, *net, a->network, opt);
-        std::printf("on-line phase: %s mode, %lld run(s), variant %s\n", s.mode.c_str(), static_cast<long long>(s.runs),
-                    cfg.variant.c_str());
+        std::printf("on-line phase: %s mode, %lld run(s), filter %s, variant %s\n", s.mode.c_str(),
+                    static_cast<long long>(s.runs), cfg.type.c_str(), cfg.variant.c_str());
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",
                         static_cast<long long>(s.diverged_runs), static_cast<long long>(s.runs), s.first_divergence);

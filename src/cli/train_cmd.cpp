@@ -27,6 +27,12 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
                 "steps with <= 1%% of samples violating HJIE <= 0: %.1f%%; mean cos(p, x~) %.3f\n",
                 s.final_loss, s.median_rel_residual, 100 * s.fraction_steps_rel_ok,
                 100 * s.fraction_steps_violation_ok, s.mean_cosine);
+    if (s.mixed)
+        std::printf("second HJIE (seed 001 eq. (20)): median relative residual %.3g; steps with <= 1%% of samples "
+                    "violating HJIE2 <= 0: %.1f%%; largest gap x^ + x~ vs x: %.3g (with eqs. (11), (23) as printed: "
+                    "%.3g)\n",
+                    s.median_rel_residual2, 100 * s.fraction_steps_violation2_ok, s.max_consistency_gap,
+                    s.max_consistency_gap_printed);
     std::printf("files: %s/trajectory.h5 %s/checkpoint.h5\n", dir.c_str(), dir.c_str());
 }
 

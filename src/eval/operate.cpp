@@ -225,6 +225,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "format", "hinf-operate");
     h5::set_attr(root, "mode", sum.mode);
     h5::set_attr(root, "network", network_path);
+    h5::set_attr(root, "filter_type", cfg.type);
     h5::set_attr(root, "variant", cfg.variant);
     h5::set_attr(root, "runs", sum.runs);
     h5::set_attr(root, "t_final", tf);

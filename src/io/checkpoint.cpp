@@ -49,6 +49,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         h5::set_attr(root, "time", double(ck.state.step) * cfg.dt);
         h5::set_attr(root, "config_hash", config_hash(ck.config_text));
         h5::set_attr(root, "precision", std::is_same_v<T, float> ? "float" : "double");
+        h5::set_attr(root, "filter_type", cfg.type);
         h5::set_attr(root, "variant", cfg.variant);
         h5::write_string(root, "config", ck.config_text, "the effective TOML config of the run");
 

@@ -3,6 +3,7 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
+#include "models/maneuvering_missile.hpp"
 #include "models/missile.hpp"
 #include "models/system.hpp"
 
@@ -10,8 +11,10 @@ namespace hinf {
 
 std::unique_ptr<System> make_system(const ConfigDoc& doc) {
     ConfigSection s(doc, "system");
-    std::string kind = s.get_string("kind", "missile", {"missile"});
-    MissileParams p;
+    std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile"});
+    const bool maneuver = kind == "maneuvering_missile";
+    ManeuverParams mp;
+    MissileParams p = maneuver ? mp.base : MissileParams{};
     p.gravity = s.get_double("gravity", p.gravity, 0.0, 100.0);
     p.ballistic = s.get_double("ballistic_coefficient", p.ballistic, 1e-6, 1e12);
     std::vector<double> radar = s.get_doubles("radar", {p.radar[0], p.radar[1], p.radar[2]}, 3);
@@ -24,7 +27,13 @@ std::unique_ptr<System> make_system(const ConfigDoc& doc) {
     std::vector<double> kp = s.get_doubles("position_gain", {p.position_gain[0], p.position_gain[1], p.position_gain[2]}, 3);
     std::copy(kp.begin(), kp.end(), p.position_gain);
     p.velocity_damping = s.get_double("velocity_damping", p.velocity_damping, -1e3, 1e3);
+    if (maneuver) {
+        mp.base = p;
+        mp.amplitude = s.get_double("maneuver_amplitude", mp.amplitude, -1e9, 1e9);
+        mp.decay = s.get_double("maneuver_decay", mp.decay, 0.0, 1e3);
+    }
     s.finish();
+    if (maneuver) return std::make_unique<ManeuveringMissileSystem>(mp);
     return std::make_unique<MissileSystem>(p);
 }
 

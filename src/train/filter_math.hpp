@@ -1,5 +1,6 @@
 // Theorem 1 of seed 000 evaluated at one point: the gain k* (eq. (8)) and the worst-case v*, n*
-// (eqs. (6)-(7), with the sign of n* from the proof's completion of squares, docs/method.md).
+// (eqs. (6)-(7), with the sign of n* from the proof's completion of squares, docs/method.md). Seed 001's
+// l*, v*, n* (eqs. (9)-(11)) are the same formulas with rho = r^2 (n* sign: method.md section 10.2).
 #pragma once
 #include <cmath>
 #include <vector>

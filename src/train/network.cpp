@@ -23,6 +23,7 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     sc.shape.slope_negative = cfg.slope_negative;
     sc.objective = paper ? kern::HJIE_OBJECTIVE_PAPER : kern::HJIE_OBJECTIVE_DISSIPATIVE;
     sc.hjie.rho = cfg.rho;
+    sc.hjie.game = cfg.type == "h2hinf" ? kern::HJIE_GAME_MIXED : kern::HJIE_GAME_HINF;
     sc.hjie.margin = cfg.margin;
     sc.hjie.h2_weight = cfg.h2_weight;
     sc.hjie.disturbance_intensity = cfg.disturbance_intensity;

@@ -52,7 +52,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     const double big = 1e15;
 
     ConfigSection f(doc, "filter");
-    f.get_string("type", "hinf", {"hinf"});
+    c.type = f.get_string("type", c.type, {"hinf", "h2hinf"});
     c.variant = f.get_string("variant", c.variant, {"dissipative", "paper"});
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");

@@ -17,8 +17,9 @@ struct RunConfig {
     int n = 0, nv = 0, m = 0;
 
     // [filter]
+    std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
     std::string variant = "dissipative";  // "dissipative" (default) or "paper"
-    double rho = 0.03;
+    double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
     double dt = 0.01, t_final = 70.0;

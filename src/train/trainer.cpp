@@ -1,6 +1,8 @@
 // The offline training driver: per time step, N samples around x~(t), per-sample constants once,
 // K Adam steps on minibatches, then p at x~(t), gain k*, worst case v*, n* (seed 000 eqs. (6)-(8))
-// and the sampled-data updates (eqs. (18)-(20)). The numerics are in kernels/.
+// and the sampled-data updates (eqs. (18)-(20)); for [filter] type = "h2hinf" the same loop serves seed 001
+// (l*, v*, n* of eqs. (9)-(11), (21)-(23)) and also logs the second residual and the consistency of (23).
+// The numerics are in kernels/.
 #include "train/trainer.hpp"
 
 #include <algorithm>
@@ -43,6 +45,35 @@ std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
     };
 }
 
+// The mixed H2/H-infinity filter (seed 001) adds its second residual and the consistency check of
+// eqs. (21)-(23): x~ propagated by (23) against x - x^ propagated by (21) and (22).
+std::vector<TrajectoryColumn> mixed_columns() {
+    return {
+        {"hjie2_residual", 1, "V per s", "second coupled HJIE residual of seed 001 eq. (20) at x~(t)"},
+        {"hjie2_rel_residual_median", 1, "1", "median over the N samples of |eps2_i| / S2_i after the K steps"},
+        {"hjie2_rel_residual_p95", 1, "1", "95th percentile of |eps2_i| / S2_i"},
+        {"hji2_violation_fraction", 1, "1", "share of samples with HJIE2_i > 0.01 S2_i"},
+        {"consistency_gap", 1, "state units",
+         "max_j |x~(t+h) by eq. (23) - (x(t+h) by (21) - x^(t+h) by (22))|, signs of n* and (23) per Theorem 1's proof"},
+        {"consistency_gap_printed", 1, "state units",
+         "the same gap with n* = +l*^T p/(2 r^2) (eq. (11)) and +h l (h(x)-h(x^)) in eq. (23) as printed"},
+    };
+}
+
+std::vector<TrajectoryColumn> all_columns(const RunConfig& c) {
+    std::vector<TrajectoryColumn> cols = trajectory_columns(c);
+    if (c.type == "h2hinf")
+        for (const TrajectoryColumn& col : mixed_columns()) cols.push_back(col);
+    return cols;
+}
+
+// max_j |a_j - b_j|
+double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) {
+    double g = 0;
+    for (std::size_t j = 0; j < a.size(); ++j) g = std::max(g, std::fabs(a[j] - b[j]));
+    return g;
+}
+
 double percentile(std::vector<double> v, double q) {
     if (v.empty()) return 0;
     std::size_t k = static_cast<std::size_t>(std::floor(q * double(v.size() - 1)));
@@ -70,8 +101,9 @@ public:
         ck_.state.xhat = cfg_.xhat0;
         ck_.config_text = cfg_.doc.text();
         std::filesystem::create_directories(dir_);
-        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
+        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", all_columns(cfg_),
                                          {{"format", "hinf-trajectory"},
+                                          {"filter_type", cfg_.type},
                                           {"variant", cfg_.variant},
                                           {"system", cfg_.system->name()},
                                           {"config", ck_.config_text}});
@@ -79,7 +111,7 @@ public:
 
     void start_from(Checkpoint<T> ck) {
         ck_ = std::move(ck);
-        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", all_columns(cfg_), hsize_t(ck_.state.step));
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -104,7 +136,8 @@ public:
 
         Progress progress("train", ck_.state.step, last_step, quiet);
         auto t0 = std::chrono::steady_clock::now();
-        std::vector<double> medians;
+        std::vector<double> medians, medians2;
+        sum.mixed = cfg_.type == "h2hinf";
         while (ck_.state.step < last_step) {
             if (!time_step()) {
                 sum.status = 4;
@@ -115,6 +148,10 @@ public:
             sum.fraction_steps_rel_ok += rec_rel_median_ <= 0.01 ? 1 : 0;
             sum.fraction_steps_violation_ok += rec_violation_ <= 0.01 ? 1 : 0;
             sum.mean_cosine += rec_cosine_;
+            medians2.push_back(rec_rel_median2_);
+            sum.fraction_steps_violation2_ok += rec_violation2_ <= 0.01 ? 1 : 0;
+            sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec_gap_);
+            sum.max_consistency_gap_printed = std::max(sum.max_consistency_gap_printed, rec_gap_printed_);
             sum.final_loss = rec_loss_last_;
             if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) checkpoint();
             char detail[160];
@@ -130,6 +167,8 @@ public:
         sum.fraction_steps_violation_ok /= cnt;
         sum.mean_cosine /= cnt;
         sum.median_rel_residual = percentile(medians, 0.5);
+        sum.median_rel_residual2 = percentile(medians2, 0.5);
+        sum.fraction_steps_violation2_ok /= cnt;
         traj_.flush();
         return sum;
     }
@@ -188,19 +227,24 @@ private:
 
         // residual statistics over all N samples after the K steps
         kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), xt_.data(), N, ck_.net.step, ws_);
-        std::vector<double> rel(N);
+        std::vector<double> rel(N), rel2(N);
+        double viol2 = 0;
         double viol = 0, pos = 0, cos_sum = 0;
         for (std::int64_t i = 0; i < N; ++i) {
             kern::HjieSampleValue v = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n,
                                                                 view, i, ck_.net.step.hjie, ck_.net.step.objective);
             rel[i] = v.abs_sum > 0 ? std::fabs(v.residual) / v.abs_sum : 0.0;
             viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+            rel2[i] = v.abs_sum2 > 0 ? std::fabs(v.residual2) / v.abs_sum2 : 0.0;
+            viol2 += v.residual2 > 0.01 * v.abs_sum2 ? 1 : 0;
             pos += v.residual > 0 ? 1 : 0;
             cos_sum += cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
         }
         rec_rel_median_ = percentile(rel, 0.5);
         rec_violation_ = viol / double(N);
         rec_cosine_ = cos_sum / double(N);
+        rec_rel_median2_ = percentile(rel2, 0.5);
+        rec_violation2_ = viol2 / double(N);
 
         // p at x~(t), gain k*, worst case v*, n* (eqs. (6)-(8)), then eqs. (18)-(20)
         std::vector<double> p(n), Pm(n * n);
@@ -238,7 +282,6 @@ private:
         row["hji_violation_fraction"] = {rec_violation_};
         row["hji_positive_fraction"] = {pos / double(N)};
         row["cosine_mean"] = {rec_cosine_};
-        traj_.append(row);
 
         // sampled-data propagation: x by eq. (18) with v*, x^ by eq. (19) with y; x~ = x - x^ (eq. (20))
         std::vector<double> x_next(n), xhat_next(n);
@@ -250,6 +293,18 @@ private:
             for (int j = 0; j < m; ++j) ky += wc.gain[i * m + j] * (y[j] - c_hat[j]);
             xhat_next[i] = xhat[i] + cfg_.dt * (a_hat[i] + ky);
         }
+        if (cfg_.type == "h2hinf") {
+            // seed 001: second residual (20) at x~(t) and the consistency of eqs. (21)-(23)
+            row["hjie2_residual"] = {terms[0] + terms[1] + kern::kHjieCoupling[1] * terms[2] +
+                                     kern::kHjieCoupling[1] * terms[3]};
+            row["hjie2_rel_residual_median"] = {rec_rel_median2_};
+            row["hjie2_rel_residual_p95"] = {percentile(rel2, 0.95)};
+            row["hji2_violation_fraction"] = {rec_violation2_};
+            consistency(xtilde, x_next, xhat_next, a_x, a_hat, B, wc, dc);
+            row["consistency_gap"] = {rec_gap_};
+            row["consistency_gap_printed"] = {rec_gap_printed_};
+        }
+        traj_.append(row);
         if (!all_finite(x_next) || !all_finite(xhat_next) || !all_finite(p) || !all_finite(wc.gain)) {
             diagnose(step, !all_finite(p) ? "network output p" : !all_finite(wc.gain) ? "gain" : "state", NAN);
             return false;
@@ -257,6 +312,34 @@ private:
         x = x_next;
         xhat = xhat_next;
         return true;
+    }
+
+    // x~(t+h) by eq. (23) against x(t+h) - x^(t+h) by (21)-(22): with n* = -l^T p/(2 r^2) and -h l dC in (23)
+    // (Theorem 1's proof) the gap is round-off; with (11) and (23) as printed it is 2 h |l dC|.
+    void consistency(const std::vector<double>& xtilde, const std::vector<double>& x_next,
+                     const std::vector<double>& xhat_next, const std::vector<double>& a_x,
+                     const std::vector<double>& a_hat, const std::vector<double>& B, const WorstCase& wc,
+                     const std::vector<double>& dc) {
+        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
+        const double h = cfg_.dt;
+        std::vector<double> diff(n), xt23(n), xt23p(n), diffp(n);
+        for (int i = 0; i < n; ++i) {
+            double bv = 0, ldc = 0, ln = 0;
+            for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * wc.v_star[j];
+            for (int j = 0; j < m; ++j) {
+                ldc += wc.gain[i * m + j] * dc[j];
+                ln += wc.gain[i * m + j] * wc.n_star[j];
+            }
+            const double common = xtilde[i] + h * (a_x[i] - a_hat[i]) + h * bv;
+            xt23[i] = common - h * ldc - h * ln;
+            diff[i] = x_next[i] - xhat_next[i];
+            // printed: n*_p = +l^T p/(2 r^2) = -n*, so y_p - h(x^) = dC - n*; (23) with +h l dC
+            xt23p[i] = common + h * ldc + h * ln;
+            const double xhat_p = xhat_next[i] - h * ln - h * ln;  // l (y_p - y) = -2 l n*
+            diffp[i] = x_next[i] - xhat_p;
+        }
+        rec_gap_ = max_abs_diff(xt23, diff);
+        rec_gap_printed_ = max_abs_diff(xt23p, diffp);
     }
 
     void checkpoint() {
@@ -282,6 +365,7 @@ private:
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
     double rec_loss_first_ = 0, rec_loss_last_ = 0, rec_rel_median_ = 0, rec_violation_ = 0, rec_cosine_ = 0;
+    double rec_rel_median2_ = 0, rec_violation2_ = 0, rec_gap_ = 0, rec_gap_printed_ = 0;
 };
 
 std::int64_t last_step_for(const RunConfig& cfg, double until) {

@@ -23,6 +23,12 @@ struct TrainSummary {
     double fraction_steps_rel_ok = 0;     // share of time steps with hjie_rel_residual_median <= 0.01
     double fraction_steps_violation_ok = 0;  // share with hji_violation_fraction <= 0.01
     double mean_cosine = 0;
+    // mixed H2/H-infinity filter (seed 001) only
+    bool mixed = false;
+    double median_rel_residual2 = 0;           // as median_rel_residual, for the second residual (eq. (20))
+    double fraction_steps_violation2_ok = 0;   // share with hji2_violation_fraction <= 0.01
+    double max_consistency_gap = 0;            // largest consistency_gap over the run [state units]
+    double max_consistency_gap_printed = 0;    // the same with eqs. (11) and (23) as printed
 };
 
 /// Starts a run from the config (creates out_dir/trajectory.h5, out_dir/checkpoint.h5).

@@ -96,6 +96,9 @@ TEST_CASE("bad inputs give one line and a non-zero exit", "[cli][errors]") {
     expect_error("train " + write(d, "rhoneg.toml", "[filter]\nrho = -1.0\n"), "out of range");
     expect_error("train " + write(d, "dim.toml", "[filter]\nx0 = [1.0, 2.0]\n"), "expected 6");
     expect_error("train " + write(d, "variant.toml", "[filter]\nvariant = \"magic\"\n"), "is not one of");
+    expect_error("train " + write(d, "ftype.toml", "[filter]\ntype = \"h2\"\n"), "is not one of");
+    expect_error("train " + write(d, "mkey.toml", "[system]\nkind = \"missile\"\nmaneuver_amplitude = 1.0\n"),
+                 "maneuver_amplitude");
     expect_error("train " + write(d, "slopes.toml", "[network]\nslopes = [1.0, -0.1]\n"), "slopes");
     expect_error("train " + good + " --set training.batch=5000", "must be <= N");
     expect_error("train " + good + " --set novalue", "--set 'novalue'");

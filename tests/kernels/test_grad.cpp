@@ -1,5 +1,6 @@
 // The whole training loss's gradient with respect to every weight and bias, against central finite
-// differences in double precision, for both heads/objectives (paper and dissipative).
+// differences in double precision, for both heads/objectives (paper and dissipative) and both games
+// (seed 000's one HJIE, seed 001's two coupled HJIEs).
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
@@ -34,10 +35,18 @@ Problem make_problem(unsigned seed) {
     return p;
 }
 
-void check_gradient(Head head, HjieObjective obj) {
+void check_gradient(Head head, HjieObjective obj, HjieGame game = HJIE_GAME_HINF) {
     const unsigned seed = 2024;
     INFO("seed " << seed);
     Problem pr = make_problem(seed);
+    if (game == HJIE_GAME_MIXED) {
+        // seed 001's g is square (nv = n): a full disturbance matrix per sample
+        pr.nv = pr.n;
+        std::mt19937 g2(seed + 7);
+        std::uniform_real_distribution<double> u2(-1, 1);
+        pr.Bm.resize(std::size_t(pr.N) * pr.n * pr.nv);
+        for (auto& x : pr.Bm) x = u2(g2);
+    }
     StepConfig cfg;
     cfg.head.kind = head;
     cfg.head.n = pr.n;
@@ -48,6 +57,7 @@ void check_gradient(Head head, HjieObjective obj) {
     cfg.shape.slope_negative = 0.1;
     cfg.objective = obj;
     cfg.hjie.rho = 0.4;
+    cfg.hjie.game = game;
     cfg.hjie.margin = 0.3;  // keeps part of the samples inside the hinge
     cfg.hjie.h2_weight = 0.5;
     cfg.hjie.horizon = 2.0;
@@ -90,4 +100,12 @@ TEST_CASE("loss gradient matches central differences: paper variant", "[kernel][
 
 TEST_CASE("loss gradient matches central differences: dissipative variant", "[kernel][grad]") {
     check_gradient(HEAD_QUADRATIC, HJIE_OBJECTIVE_DISSIPATIVE);
+}
+
+TEST_CASE("two-residual loss gradient matches central differences: paper variant", "[kernel][grad][mixed]") {
+    check_gradient(HEAD_GRADIENT, HJIE_OBJECTIVE_PAPER, HJIE_GAME_MIXED);
+}
+
+TEST_CASE("two-residual loss gradient matches central differences: dissipative variant", "[kernel][grad][mixed]") {
+    check_gradient(HEAD_QUADRATIC, HJIE_OBJECTIVE_DISSIPATIVE, HJIE_GAME_MIXED);
 }

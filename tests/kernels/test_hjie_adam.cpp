@@ -33,6 +33,95 @@ TEST_CASE("HJIE terms of eq. (16) on a hand-computed case", "[kernel][hjie]") {
     CHECK(gp[1] == Approx(1.5));
 }
 
+TEST_CASE("two coupled residuals of seed 001 eqs. (19)-(20) on a hand-computed case", "[kernel][hjie][mixed]") {
+    // the case above with r^2 = 0.5: terms [5, -2.5, 0.5, -4.5]
+    // eps1 = 5 - 2.5 + 0.5 - 4.5 = -1.5;  eps2 = 5 - 2.5 + |B^T p|^2/(2 r^2) - 2 r^2 |dC|^2 = 5 - 2.5 + 1 - 9 = -5.5
+    // S1 = 5 + 2.5 + 0.5 + 4.5 = 12.5;  S2 = 5 + 2.5 + 1 + 9 = 17.5;  hinge = 2.25 + 30.25 = 32.5
+    double xt[2] = {1, 2}, dA[2] = {-1, 0.5}, B[2] = {0, 1}, dC[1] = {3}, q[1] = {5}, p[2] = {2, -1};
+    HjieSystemView s{2, 1, 1, xt, dA, B, dC, q};
+    HjieParams hp;
+    hp.rho = 0.5;
+    hp.game = HJIE_GAME_MIXED;
+    HjieSampleValue v = hjie_sample_forward(p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER);
+    CHECK(v.residual == -1.5);
+    CHECK(v.residual2 == -5.5);
+    CHECK(v.abs_sum == 12.5);
+    CHECK(v.abs_sum2 == 17.5);
+    CHECK(v.hinge == 32.5);
+    // d/dp (eps1^2 + eps2^2) = 2 eps1 (dA + B B^T p/(2 r^2)) + 2 eps2 (dA + B B^T p/r^2)
+    //   = -3 ((-1, 0.5) + (0, -1)) - 11 ((-1, 0.5) + (0, -2)) = (3, 1.5) + (11, 16.5) = (14, 18)
+    double gp[2];
+    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0);
+    CHECK(gp[0] == Approx(14.0));
+    CHECK(gp[1] == Approx(18.0));
+    // the one-residual game is unchanged by the second residual's machinery
+    hp.game = HJIE_GAME_HINF;
+    HjieSampleValue v1 = hjie_sample_forward(p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER);
+    CHECK(v1.hinge == 2.25);
+    CHECK(v1.residual2 == 0.0);
+}
+
+TEST_CASE("an inactive second hinge leaves the dissipative loss and gradient bit-identical", "[kernel][hjie][mixed]") {
+    // the hand case with margin 0.2: eps1/S1 + m = -0.12 + 0.2 > 0 (active), eps2/S2 + m = -5.5/17.5 + 0.2 < 0
+    double xt[2] = {1, 2}, dA[2] = {-1, 0.5}, B[2] = {0, 1}, dC[1] = {3}, q[1] = {5}, p[2] = {2, -1};
+    double P[4] = {1.5, 0.25, 0.25, 0.75};
+    HjieSystemView s{2, 1, 1, xt, dA, B, dC, q};
+    HjieParams hinf_p, mixed_p;
+    hinf_p.rho = mixed_p.rho = 0.5;
+    hinf_p.margin = mixed_p.margin = 0.2;
+    mixed_p.game = HJIE_GAME_MIXED;
+    HjieSampleValue a = hjie_sample_forward(p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE);
+    HjieSampleValue b = hjie_sample_forward(p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE);
+    REQUIRE(a.hinge > 0);
+    REQUIRE(b.residual2 / b.abs_sum2 + 0.2 < 0);
+    CHECK(a.hinge == b.hinge);
+    CHECK(a.h2 == b.h2);
+    double ga[2], gb[2], gPa[4], gPb[4];
+    hjie_sample_backward(ga, gPa, p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    hjie_sample_backward(gb, gPb, p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    for (int k = 0; k < 2; ++k) CHECK(ga[k] == gb[k]);
+    for (int k = 0; k < 4; ++k) CHECK(gPa[k] == gPb[k]);
+}
+
+TEST_CASE("mixed dissipative per-sample gradient matches central differences in p and P", "[kernel][hjie][mixed]") {
+    // nv = n = 3 (a square g as in seed 001); margin large enough that both hinges are active
+    double xt[3] = {0.3, -1.2, 0.8}, dA[3] = {0.5, 0.1, -0.7};
+    double B[9] = {0.2, 1.0, -0.4, 0.3, 0.9, 0.1, -0.5, 0.0, 0.7};
+    double dC[2] = {1.1, -0.6}, q[1] = {0.05};
+    HjieSystemView s{3, 3, 2, xt, dA, B, dC, q};
+    HjieParams hp;
+    hp.rho = 0.3;
+    hp.margin = 0.6;
+    hp.horizon = 3.0;
+    hp.h2_reference = 2.0;
+    hp.game = HJIE_GAME_MIXED;
+    double p[3] = {0.4, -0.9, 0.7};
+    double P[9] = {1.0, 0.2, -0.1, 0.2, 0.8, 0.3, -0.1, 0.3, 1.5};
+    auto total = [&](const double* pp, const double* PP) {
+        HjieSampleValue v = hjie_sample_forward(pp, PP, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE);
+        return 0.7 * v.hinge + 1.9 * v.h2;
+    };
+    HjieSampleValue v0 = hjie_sample_forward(p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE);
+    REQUIRE(v0.residual / v0.abs_sum + hp.margin > 0);
+    REQUIRE(v0.residual2 / v0.abs_sum2 + hp.margin > 0);
+    double gp[3], gP[9];
+    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    const double h = 1e-6;
+    for (int a = 0; a < 3; ++a) {
+        double pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
+        pp[a] += h;
+        pm[a] -= h;
+        CHECK(gp[a] == Approx((total(pp, P) - total(pm, P)) / (2 * h)).epsilon(1e-6));
+    }
+    for (int a = 0; a < 9; ++a) {
+        double Pp[9], Pm[9];
+        for (int k = 0; k < 9; ++k) Pp[k] = Pm[k] = P[k];
+        Pp[a] += h;
+        Pm[a] -= h;
+        CHECK(gP[a] == Approx((total(p, Pp) - total(p, Pm)) / (2 * h)).epsilon(1e-6).margin(1e-9));
+    }
+}
+
 TEST_CASE("dissipative per-sample gradient matches central differences in p and P", "[kernel][hjie]") {
     double xt[3] = {0.3, -1.2, 0.8}, dA[3] = {0.5, 0.1, -0.7}, B[6] = {0.2, 1.0, -0.4, 0.3, 0.9, 0.1};
     double dC[2] = {1.1, -0.6}, q[1] = {0.05};

@@ -15,8 +15,9 @@ namespace {
 
 const char* kSmall = R"(
 [system]
-kind = "missile"
+kind = "KIND"
 [filter]
+type = "TYPE"
 variant = "VARIANT"
 t_final = 0.12
 [network]
@@ -31,8 +32,12 @@ checkpoint_every = 4
 RESET
 )";
 
-RunConfig small_config(const std::string& variant, const std::string& precision, bool reset = true) {
+// type "h2hinf" runs seed 001's mixed filter on its maneuvering missile (time-varying, nv = 6)
+RunConfig small_config(const std::string& variant, const std::string& precision, bool reset = true,
+                       const std::string& type = "hinf") {
     std::string text = kSmall;
+    text.replace(text.find("KIND"), 4, type == "h2hinf" ? "maneuvering_missile" : "missile");
+    text.replace(text.find("TYPE"), 4, type);
     text.replace(text.find("VARIANT"), 7, variant);
     text.replace(text.find("PRECISION"), 9, precision);
     text.replace(text.find("RESET"), 5, reset ? "" : "reset_adam_each_step = false");
@@ -62,11 +67,16 @@ void require_same_checkpoint(const std::string& a, const std::string& b) {
     CHECK(A.state.adam_step == B.state.adam_step);
 }
 
-void require_same_trajectory(const std::string& a, const std::string& b) {
+void require_same_trajectory(const std::string& a, const std::string& b, bool mixed = false) {
     h5::Handle fa = h5::open_file(a, false), fb = h5::open_file(b, false);
-    for (const char* name : {"t", "x", "xhat", "xtilde", "y", "gain", "v_star", "n_star", "p", "loss", "hjie_residual",
-                             "hjie_rel_residual_median", "hjie_rel_residual_p95", "hji_violation_fraction",
-                             "cosine_mean"}) {
+    std::vector<std::string> names = {"t", "x", "xhat", "xtilde", "y", "gain", "v_star", "n_star", "p", "loss",
+                                      "hjie_residual", "hjie_rel_residual_median", "hjie_rel_residual_p95",
+                                      "hji_violation_fraction", "cosine_mean"};
+    if (mixed)
+        for (const char* extra : {"hjie2_residual", "hjie2_rel_residual_median", "hjie2_rel_residual_p95",
+                                  "hji2_violation_fraction", "consistency_gap", "consistency_gap_printed"})
+            names.push_back(extra);
+    for (const std::string& name : names) {
         INFO(name);
         std::vector<hsize_t> da, db;
         CHECK(test::bitwise_equal(h5::read_doubles(fa.get(), name, &da), h5::read_doubles(fb.get(), name, &db)));
@@ -86,6 +96,54 @@ TEST_CASE("1 and 2 threads give bit-identical training", "[train][determinism]")
         require_same_checkpoint<float>(d1 / "run/checkpoint.h5", d2 / "run/checkpoint.h5");
         require_same_trajectory(d1 / "run/trajectory.h5", d2 / "run/trajectory.h5");
     }
+}
+
+TEST_CASE("mixed H2/H-infinity filter: 1 and 2 threads bit-identical, resume bit-identical", "[train][mixed]") {
+    for (const char* variant : {"dissipative", "paper"}) {
+        INFO(variant);
+        test::TempDir d1("mthr1"), d2("mthr2");
+        RunConfig cfg = small_config(variant, "float", true, "h2hinf");
+        REQUIRE(cfg.nv == 6);
+        train(cfg, d1 / "run", -1, 1);
+        train(cfg, d2 / "run", -1, 2);
+        require_same_checkpoint<float>(d1 / "run/checkpoint.h5", d2 / "run/checkpoint.h5");
+        require_same_trajectory(d1 / "run/trajectory.h5", d2 / "run/trajectory.h5", true);
+        // train T, resume, train T == train 2T
+        TrainSummary half = train(cfg, d2 / "split", 0.06, 2);
+        REQUIRE(half.last_step == 6);
+        TrainOptions opt;
+        opt.quiet = true;
+        TrainSummary rest = train_resume(d2 / "split/checkpoint.h5", opt);
+        CHECK(rest.last_step == 12);
+        CHECK(rest.mixed);
+        require_same_checkpoint<float>(d2 / "run/checkpoint.h5", d2 / "split/checkpoint.h5");
+        require_same_trajectory(d2 / "run/trajectory.h5", d2 / "split/trajectory.h5", true);
+    }
+}
+
+TEST_CASE("mixed filter: x^ + x~ equals x at every step; eqs. (11) and (23) as printed do not", "[train][mixed]") {
+    test::TempDir d("mgap");
+    RunConfig cfg = small_config("dissipative", "double", true, "h2hinf");
+    TrainSummary s = train(cfg, d / "run", -1, 2);
+    REQUIRE(s.status == 0);
+    h5::Handle f = h5::open_file(d / "run/trajectory.h5", false);
+    std::vector<double> gap = h5::read_doubles(f.get(), "consistency_gap");
+    std::vector<double> printed = h5::read_doubles(f.get(), "consistency_gap_printed");
+    std::vector<double> gain = h5::read_doubles(f.get(), "gain"), xt = h5::read_doubles(f.get(), "xtilde");
+    REQUIRE(gap.size() == 12);
+    for (std::size_t k = 0; k < gap.size(); ++k) {
+        // the states are ~1e5: round-off of x - x^ is ~1e-11; the printed signs leave 2 h |l* dC| (dC = x~ here)
+        CHECK(gap[k] < 1e-8);
+        double worst = 0;
+        for (int i = 0; i < 6; ++i) {
+            double ldc = 0;
+            for (int j = 0; j < 6; ++j) ldc += gain[k * 36 + i * 6 + j] * xt[k * 6 + j];
+            worst = std::max(worst, 2 * cfg.dt * std::fabs(ldc));
+        }
+        CHECK(printed[k] == Approx(worst).epsilon(1e-6));
+        CHECK(printed[k] > 1e-3);
+    }
+    CHECK(s.max_consistency_gap < 1e-8);
 }
 
 TEST_CASE("train 2T equals train T, resume, train T (bit-identical)", "[train][resume]") {
