@@ -2,6 +2,8 @@
 // that names the object; HDF5's own error stack printing is silenced.
 #include "hinf/h5.hpp"
 
+#include <filesystem>
+
 #include <cstring>
 
 #include "hinf/error.hpp"
@@ -61,7 +63,7 @@ std::vector<T> read_typed(hid_t loc, const std::string& name, hid_t mem_type, st
     if (rank > 0) H5Sget_simple_extent_dims(space.get(), d.data(), nullptr);
     hsize_t total = 1;
     for (hsize_t x : d) total *= x;
-    HINF_CHECK(total < (hsize_t(1) << 34), "HDF5: dataset '" + name + "' is implausibly large");
+    HINF_CHECK(total < (hsize_t(1) << 30), "HDF5: dataset '" + name + "' is implausibly large");
     std::vector<T> out(static_cast<std::size_t>(total));
     if (total > 0)
         check_status(H5Dread(dset.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
@@ -103,6 +105,8 @@ Handle create_file(const std::string& path) {
 }
 
 Handle open_file(const std::string& path, bool writable) {
+    std::error_code ec;
+    HINF_CHECK(!std::filesystem::is_directory(path, ec), "'" + path + "' is a directory (pass the .h5 file inside it)");
     FILE* f = std::fopen(path.c_str(), "rb");
     HINF_CHECK(f != nullptr, "cannot open '" + path + "' (no such file, or not readable)");
     std::fclose(f);

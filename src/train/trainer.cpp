@@ -57,6 +57,13 @@ bool all_finite(const std::vector<double>& v) {
 }
 
 template <typename T>
+bool all_finite_t(const std::vector<T>& v) {
+    for (T x : v)
+        if (!std::isfinite(x)) return false;
+    return true;
+}
+
+template <typename T>
 class Trainer {
 public:
     Trainer(RunConfig cfg, std::string out_dir) : cfg_(std::move(cfg)), dir_(std::move(out_dir)) {}
@@ -105,8 +112,11 @@ public:
         Progress progress("train", ck_.state.step, last_step, quiet);
         auto t0 = std::chrono::steady_clock::now();
         std::vector<double> medians;
+        std::int64_t rollbacks = 0;
         while (ck_.state.step < last_step) {
             if (!time_step()) {
+                if (cfg_.on_divergence == "rollback" && rollbacks < cfg_.max_rollbacks && roll_back(++rollbacks))
+                    continue;
                 sum.status = 4;
                 break;
             }
@@ -165,7 +175,7 @@ private:
         kern::HjieSystemView view{n, nv, m, xt_.data(), dA_.data(), Bm_.data(), dC_.data(), q_.data()};
 
         // K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
-        kern::AdamParams ap{cfg_.learning_rate, cfg_.beta1, cfg_.beta2, cfg_.tau};
+        kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
         if (cfg_.reset_adam) {
             std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
             std::fill(ck_.adam_v.begin(), ck_.adam_v.end(), T(0));
@@ -183,6 +193,11 @@ private:
             ++ck_.state.adam_step;
             kern::adam_update(ck_.net.theta.data(), ck_.adam_m.data(), ck_.adam_v.data(), grad_.data(),
                               std::int64_t(grad_.size()), ck_.state.adam_step, ap);
+        }
+
+        if (!all_finite_t(ck_.net.theta)) {
+            diagnose(step, "network weights", NAN);
+            return false;
         }
 
         // residual statistics over all N samples after the K steps
@@ -260,20 +275,43 @@ private:
         }
         x = x_next;
         xhat = xhat_next;
+        rec_loss_finite_ = rec_loss_last_;
         return true;
     }
 
     void checkpoint() {
-        traj_.flush();
+        traj_.snapshot();  // before the checkpoint's rename: the snapshot never has fewer rows
         ckpt_write(dir_ + "/checkpoint.h5", ck_, cfg_);
     }
 
+    // training.on_divergence = "rollback": back to the last checkpoint with a smaller learning rate.
+    bool roll_back(std::int64_t count) {
+        const std::string path = dir_ + "/checkpoint.h5";
+        if (!std::filesystem::exists(path)) {
+            std::fprintf(stderr, "hinf: no checkpoint to roll back to yet (%s)\n", path.c_str());
+            return false;
+        }
+        const double scale = ck_.state.learning_rate_scale * cfg_.rollback_factor;
+        traj_ = TrajectoryWriter();  // close before the file is replaced
+        ck_ = ckpt_read<T>(path);
+        ck_.state.learning_rate_scale = scale;
+        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        std::fprintf(stderr, "hinf: rolled back to time step %lld with learning rate %g (roll-back %lld of %lld)\n",
+                     static_cast<long long>(ck_.state.step), cfg_.learning_rate * scale, static_cast<long long>(count),
+                     static_cast<long long>(cfg_.max_rollbacks));
+        return true;
+    }
+
+    // One line: the time step, the quantity, the last finite values, what is kept and what to do.
     void diagnose(std::int64_t step, const char* what, double value) {
+        double err = 0;
+        for (int i = 0; i < cfg_.n; ++i) err += std::pow(ck_.state.x[i] - ck_.state.xhat[i], 2);
         std::fprintf(stderr,
-                     "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite loss "
-                     "%g. The last good checkpoint %s/checkpoint.h5 is kept (lower training.learning_rate and resume "
-                     "from it)\n",
-                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_last_, dir_.c_str());
+                     "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
+                     "loss %g, |x~| %g, learning rate %g. The last good checkpoint %s/checkpoint.h5 is kept (lower "
+                     "training.learning_rate or set training.on_divergence = \"rollback\", and resume from it)\n",
+                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_finite_,
+                     std::sqrt(err), cfg_.learning_rate * ck_.state.learning_rate_scale, dir_.c_str());
         traj_.flush();
     }
 
@@ -285,6 +323,7 @@ private:
     std::vector<double> xt_, dA_, Bm_, dC_, q_, xs_, work_, p_all_, P_all_;
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
+    double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite
     double rec_loss_first_ = 0, rec_loss_last_ = 0, rec_rel_median_ = 0, rec_violation_ = 0, rec_cosine_ = 0;
 };
 
@@ -322,6 +361,7 @@ TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
 }
 
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
+    ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
 }
