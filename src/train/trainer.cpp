@@ -306,12 +306,16 @@ private:
     void diagnose(std::int64_t step, const char* what, double value) {
         double err = 0;
         for (int i = 0; i < cfg_.n; ++i) err += std::pow(ck_.state.x[i] - ck_.state.xhat[i], 2);
+        const std::string ckpt = dir_ + "/checkpoint.h5";
+        const std::string kept = std::filesystem::exists(ckpt)
+                                     ? "The last good checkpoint " + ckpt + " is kept (lower training.learning_rate "
+                                       "or set training.on_divergence = \"rollback\", and resume from it)"
+                                     : "No checkpoint was written yet (lower training.learning_rate and train again)";
         std::fprintf(stderr,
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
-                     "loss %g, |x~| %g, learning rate %g. The last good checkpoint %s/checkpoint.h5 is kept (lower "
-                     "training.learning_rate or set training.on_divergence = \"rollback\", and resume from it)\n",
+                     "loss %g, |x~| %g, learning rate %g. %s\n",
                      static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_finite_,
-                     std::sqrt(err), cfg_.learning_rate * ck_.state.learning_rate_scale, dir_.c_str());
+                     std::sqrt(err), cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
         traj_.flush();
     }
 
