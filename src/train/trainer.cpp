@@ -186,7 +186,9 @@ private:
             kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
                                                    int(cfg_.batch), ck_.net.step, ws_);
             if (k == 1) rec_loss_first_ = L.loss;
-            if (!std::isfinite(L.loss) || L.loss > cfg_.loss_limit) {
+            // the limit applies once this step's updates have acted: the first loss of a time step
+            // measures the old weights on new samples, which a roll-back could not change
+            if (!std::isfinite(L.loss) || (k > 1 && L.loss > cfg_.loss_limit)) {
                 diagnose(step, "training loss", L.loss);
                 return false;
             }
@@ -217,6 +219,10 @@ private:
         rec_loss_last_ = std::sqrt(loss_hinge / double(N)) +
                          (ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0) *
                              loss_h2 / double(N);
+        if (!std::isfinite(rec_loss_last_) || rec_loss_last_ > cfg_.loss_limit) {  // before it reaches a checkpoint
+            diagnose(step, "training loss after the Adam steps", rec_loss_last_);
+            return false;
+        }
         rec_rel_median_ = percentile(rel, 0.5);
         rec_violation_ = viol / double(N);
         rec_cosine_ = cos_sum / double(N);
@@ -287,15 +293,15 @@ private:
     // training.on_divergence = "rollback": back to the last checkpoint with a smaller learning rate.
     bool roll_back(std::int64_t count) {
         const std::string path = dir_ + "/checkpoint.h5";
-        if (!std::filesystem::exists(path)) {
-            std::fprintf(stderr, "hinf: no checkpoint to roll back to yet (%s)\n", path.c_str());
-            return false;
-        }
         const double scale = ck_.state.learning_rate_scale * cfg_.rollback_factor;
         traj_ = TrajectoryWriter();  // close before the file is replaced
-        ck_ = ckpt_read<T>(path);
+        if (std::filesystem::exists(path)) {
+            ck_ = ckpt_read<T>(path);
+            traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        } else {
+            start_fresh();  // no checkpoint yet: back to the initial network and state
+        }
         ck_.state.learning_rate_scale = scale;
-        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
         std::fprintf(stderr, "hinf: rolled back to time step %lld with learning rate %g (roll-back %lld of %lld)\n",
                      static_cast<long long>(ck_.state.step), cfg_.learning_rate * scale, static_cast<long long>(count),
                      static_cast<long long>(cfg_.max_rollbacks));
