@@ -124,6 +124,7 @@ TEST_CASE("kill -9 at random moments, resume: bit-identical to an uninterrupted 
     REQUIRE(wait_for(ref, 120) == 0);
     const double ref_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
+    int total_kills = 0;
     for (unsigned seed : {11u, 12u, 13u, 14u, 15u}) {
         std::mt19937 rng(seed);
         INFO("seed " << seed << " (reference run " << ref_ms << " ms)");
@@ -133,7 +134,7 @@ TEST_CASE("kill -9 at random moments, resume: bit-identical to an uninterrupted 
             pid_t pid = spawn_hinf(next_command(cfg, dir), log, 0);
             if (attempt < 4) {
                 // kill -9 after a random share of the whole run's wall time (startup included)
-                std::uniform_real_distribution<double> when(0.05 * ref_ms, 0.9 * ref_ms);
+                std::uniform_real_distribution<double> when(0.02 * ref_ms, 0.6 * ref_ms);
                 std::this_thread::sleep_for(std::chrono::microseconds(std::int64_t(1e3 * when(rng))));
                 kill(pid, SIGKILL);
                 status = wait_for(pid, 120);
@@ -146,10 +147,12 @@ TEST_CASE("kill -9 at random moments, resume: bit-identical to an uninterrupted 
         }
         INFO("kills " << kills << "; log:\n" << read_text(log));
         REQUIRE(status == 0);
-        CHECK(kills >= 1);
+        total_kills += kills;
         require_same_checkpoint<float>(d / "ref/checkpoint.h5", dir + "/checkpoint.h5");
         require_same_trajectory(d / "ref/trajectory.h5", dir + "/trajectory.h5");
     }
+    // a kill can land after a (short, resumed) process has ended; most must not
+    CHECK(total_kills >= 10);
 }
 
 TEST_CASE("kill -9 inside a checkpoint write keeps the last good checkpoint and resumes exactly", "[crash][resume]") {
