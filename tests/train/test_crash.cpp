@@ -131,11 +131,16 @@ TEST_CASE("kill -9 at random moments, resume: bit-identical to an uninterrupted 
         const std::string dir = d / ("run" + std::to_string(seed)), log = d / ("run" + std::to_string(seed) + ".log");
         int kills = 0, status = -1;
         for (int attempt = 0; attempt < 12 && status != 0; ++attempt) {
+            // share of the run still to do: a resumed process is shorter, and the kill must land inside it
+            const double remaining =
+                fs::exists(dir + "/checkpoint.h5") ? double(30 - ckpt_read<float>(dir + "/checkpoint.h5").state.step) / 30
+                                                   : 1.0;
             pid_t pid = spawn_hinf(next_command(cfg, dir), log, 0);
             if (attempt < 4) {
-                // kill -9 after a random share of the whole run's wall time (startup included)
-                std::uniform_real_distribution<double> when(0.02 * ref_ms, 0.6 * ref_ms);
-                std::this_thread::sleep_for(std::chrono::microseconds(std::int64_t(1e3 * when(rng))));
+                // kill -9 after a random share of that part's expected wall time (startup included)
+                std::uniform_real_distribution<double> when(0.02, 0.7);
+                const double delay_ms = when(rng) * ref_ms * std::max(remaining, 0.2);
+                std::this_thread::sleep_for(std::chrono::microseconds(std::int64_t(1e3 * delay_ms)));
                 kill(pid, SIGKILL);
                 status = wait_for(pid, 120);
                 kills += status == -SIGKILL;
