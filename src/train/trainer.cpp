@@ -317,11 +317,13 @@ private:
                                      ? "The last good checkpoint " + ckpt + " is kept (lower training.learning_rate "
                                        "or set training.on_divergence = \"rollback\", and resume from it)"
                                      : "No checkpoint was written yet (lower training.learning_rate and train again)";
+        char last_loss[32] = "none yet";  // no time step has ended finite
+        if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         std::fprintf(stderr,
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
-                     "loss %g, |x~| %g, learning rate %g. %s\n",
-                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_finite_,
-                     std::sqrt(err), cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
+                     "loss %s, |x~| %g, learning rate %g. %s\n",
+                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, last_loss, std::sqrt(err),
+                     cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
         traj_.flush();
     }
 

@@ -89,6 +89,7 @@ TEST_CASE("rollback without a checkpoint restarts from the initial state and can
     INFO(r.output);
     CHECK(r.status == 0);
     CHECK(diverged_step(r.output) == 0);
+    CHECK(r.output.find("last finite values: loss none yet") != std::string::npos);
     CHECK(r.output.find("No checkpoint was written yet") != std::string::npos);
     CHECK(r.output.find("hinf: rolled back to time step 0 with learning rate 0.1 (roll-back 1 of 3)") !=
           std::string::npos);
