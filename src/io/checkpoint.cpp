@@ -1,8 +1,15 @@
 // HDF5 checkpoints (see checkpoint.hpp and docs/formats.md).
 #include "io/checkpoint.hpp"
 
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <thread>
 #include <type_traits>
 
 #include "hinf/error.hpp"
@@ -29,13 +36,91 @@ std::vector<T> read_array(hid_t loc, const std::string& name, std::vector<hsize_
         return h5::read_doubles(loc, name, dims);
 }
 
-std::string prev_name(const std::string& path) {
+// Forces a file's (or a directory's) contents to disk: a rename is only as durable as what it names.
+void sync_path(const std::string& path) {
+    int fd = ::open(path.c_str(), O_RDONLY);
+    if (fd < 0) return;
+    ::fsync(fd);
+    ::close(fd);
+}
+
+// Test hook, documented in docs/reliability.md: HINF_TEST_CHECKPOINT_PAUSE_MS=k sleeps k ms in the
+// middle of writing checkpoint.h5.tmp so that the kill -9 tests can hit a half-written checkpoint.
+void test_pause_mid_write() {
+    const char* ms = std::getenv("HINF_TEST_CHECKPOINT_PAUSE_MS");
+    if (ms && *ms) std::this_thread::sleep_for(std::chrono::milliseconds(std::atoi(ms)));
+}
+
+// Reads a whole checkpoint of either precision (throws hinf::Error when damaged).
+void read_any(const std::string& path) {
+    if (ckpt_precision(path) == "float") ckpt_read<float>(path);
+    else ckpt_read<double>(path);
+}
+
+// Runs read_any(path) in a child process and returns "" when it read cleanly, else the problem.
+// Why a child: Debian's libhdf5 1.10 can itself crash (use-after-free in H5Aexists, found by
+// fuzz/fuzz_checkpoint.cpp) on a damaged object header, and no check of ours runs before it parses
+// one. A crash then ends the child, and the user gets one line instead of a segfault.
+std::string read_in_child(const std::string& path) {
+    int fds[2];
+    if (::pipe(fds) != 0) {  // no pipe: read in-process
+        try {
+            read_any(path);
+            return "";
+        } catch (const Error& e) {
+            return e.what();
+        }
+    }
+    std::fflush(nullptr);
+    pid_t pid = ::fork();
+    if (pid == 0) {
+        ::close(fds[0]);
+        int devnull = ::open("/dev/null", O_WRONLY);  // the message goes through the pipe; a crash report would
+        if (devnull >= 0) ::dup2(devnull, 2);          // break the CLI's one-line promise
+        int code = 0;
+        std::string what;
+        try {
+            read_any(path);
+        } catch (const Error& e) {
+            what = e.what();
+            code = 3;
+        } catch (const std::exception& e) {
+            what = std::string("cannot be read: ") + e.what();
+            code = 3;
+        }
+        if (!what.empty() && ::write(fds[1], what.data(), what.size()) < 0) code = 4;
+        ::_exit(code);
+    }
+    ::close(fds[1]);
+    if (pid < 0) {
+        ::close(fds[0]);
+        try {
+            read_any(path);
+            return "";
+        } catch (const Error& e) {
+            return e.what();
+        }
+    }
+    std::string msg;
+    char buf[4096];
+    for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) > 0;) msg.append(buf, std::size_t(n));
+    ::close(fds[0]);
+    int st = 0;
+    ::waitpid(pid, &st, 0);
+    if (WIFEXITED(st) && WEXITSTATUS(st) == 0) return "";
+    if (WIFEXITED(st) && WEXITSTATUS(st) == 3 && !msg.empty()) return msg;
+    return "the file is damaged: reading it crashed the HDF5 library (" +
+           (WIFSIGNALED(st) ? "signal " + std::to_string(WTERMSIG(st)) : "status " + std::to_string(WEXITSTATUS(st))) +
+           ")";
+}
+
+}  // namespace
+
+std::string ckpt_prev_name(const std::string& path) {
     std::string base = path;
     if (base.size() > 3 && base.compare(base.size() - 3, 3, ".h5") == 0) base.resize(base.size() - 3);
     return base + ".prev.h5";
 }
-
-}  // namespace
 
 template <typename T>
 void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfig& cfg) {
@@ -73,8 +158,11 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             write_array(g.get(), "W", w, {hsize_t(dout), hsize_t(din)}, "weights [out x in]");
             write_array(g.get(), "b", b, {hsize_t(dout)}, "biases");
         }
+        h5::flush(root);
+        test_pause_mid_write();
         h5::Handle adam = h5::create_group(root, "adam");
         h5::set_attr(adam.get(), "step", ck.state.adam_step);
+        h5::set_attr(adam.get(), "learning_rate_scale", ck.state.learning_rate_scale);
         write_array(adam.get(), "m", ck.adam_m, {hsize_t(ck.adam_m.size())}, "first-moment average m_k (eq. 15)");
         write_array(adam.get(), "v", ck.adam_v, {hsize_t(ck.adam_v.size())}, "second-moment average v_k (eq. 15)");
 
@@ -93,10 +181,29 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         h5::set_attr(rng.get(), "counter", ck.state.step);
         h5::flush(root);
     }
+    sync_path(tmp);
+    // the old checkpoint is only demoted once the new one reads back with the same arrays
+    Checkpoint<T> back = ckpt_read<T>(tmp);
+    HINF_CHECK(back.net.theta == ck.net.theta && back.adam_m == ck.adam_m && back.adam_v == ck.adam_v &&
+                   back.state.step == ck.state.step,
+               "checkpoint '" + tmp + "' does not read back as written (disk trouble?); '" + path + "' is kept");
+    // keep the last two: the current file becomes prev (a hard link, so that path never disappears),
+    // then tmp replaces path in one atomic rename
     std::error_code ec;
-    if (std::filesystem::exists(path)) std::filesystem::rename(path, prev_name(path), ec);
+    const std::string prev = ckpt_prev_name(path);
+    bool current_good = std::filesystem::exists(path);
+    // a damaged checkpoint.h5 (a resume from prev) must not push out the good prev
+    if (current_good) current_good = read_in_child(path).empty();
+    if (current_good) {
+        std::filesystem::remove(prev, ec);
+        std::filesystem::create_hard_link(path, prev, ec);
+        if (ec) std::filesystem::copy_file(path, prev, std::filesystem::copy_options::overwrite_existing, ec);
+        HINF_CHECK(!ec, "cannot keep '" + path + "' as '" + prev + "': " + ec.message());
+    }
     std::filesystem::rename(tmp, path, ec);
     HINF_CHECK(!ec, "cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
+    std::string dir = std::filesystem::path(path).parent_path().string();
+    sync_path(dir.empty() ? "." : dir);
 }
 
 std::string ckpt_precision(const std::string& path) {
@@ -150,6 +257,10 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     }
     h5::Handle adam = h5::open_group(f.get(), "adam");
     ck.state.adam_step = h5::get_attr_int(adam.get(), "step");
+    if (h5::has_attr(adam.get(), "learning_rate_scale"))
+        ck.state.learning_rate_scale = h5::get_attr_double(adam.get(), "learning_rate_scale");
+    HINF_CHECK(ck.state.learning_rate_scale > 0 && ck.state.learning_rate_scale <= 1,
+               "checkpoint '" + path + "': adam/learning_rate_scale must be in (0, 1] (damaged file)");
     ck.adam_m = read_array<T>(adam.get(), "m", nullptr);
     ck.adam_v = read_array<T>(adam.get(), "v", nullptr);
     HINF_CHECK(ck.adam_m.size() == ck.net.theta.size() && ck.adam_v.size() == ck.net.theta.size(),
@@ -164,7 +275,18 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     return ck;
 }
 
+void ckpt_verify(const std::string& path) {
+    const std::string what = read_in_child(path);
+    if (what.empty()) return;
+    std::string msg = what.find(path) != std::string::npos ? what : "checkpoint '" + path + "': " + what;
+    const std::string prev = ckpt_prev_name(path);
+    if (prev != path && std::filesystem::exists(prev) && read_in_child(prev).empty())
+        msg += "; the previous checkpoint is good: hinf resume " + prev;
+    throw Error(msg);
+}
+
 std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunConfig* cfg_out) {
+    ckpt_verify(path);  // in a child process first: a file that crashes libhdf5 gives one line
     std::string precision = ckpt_precision(path);
     if (cfg_out) *cfg_out = ckpt_config(path);
     if (precision == "float") return network_freeze(ckpt_read<float>(path).net);

@@ -16,6 +16,7 @@ struct TrainState {
     std::int64_t step = 0;          // time steps completed; the next one is at t = step * dt
     std::vector<double> x, xhat;    // true state and estimate at t = step * dt
     std::int64_t adam_step = 0;     // Adam steps taken in the current sequence (k of eq. (15))
+    double learning_rate_scale = 1;  // < 1 after a divergence roll-back (training.on_divergence = "rollback")
 };
 
 template <typename T>
@@ -26,8 +27,8 @@ struct Checkpoint {
     std::string config_text;
 };
 
-/// Writes path atomically: path.tmp is written, flushed and closed, the old file is kept as
-/// `<path minus .h5>.prev.h5`, then path.tmp is renamed to path.
+/// Writes path atomically: path.tmp is written, flushed, fsynced, closed and read back; only then
+/// is the old file renamed to `<path minus .h5>.prev.h5` and path.tmp renamed to path.
 template <typename T>
 void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfig& cfg);
 
@@ -37,6 +38,14 @@ std::string ckpt_precision(const std::string& path);
 /// Reads a checkpoint; checks format version, shapes and the config hash.
 template <typename T>
 Checkpoint<T> ckpt_read(const std::string& path);
+
+/// `<path minus .h5>.prev.h5`: the checkpoint before the last one, kept by ckpt_write.
+std::string ckpt_prev_name(const std::string& path);
+
+/// Reads the whole checkpoint and throws one line naming the file and the problem if it is damaged,
+/// of another format version, or its config does not match its hash; suggests the previous
+/// checkpoint when that one reads back cleanly.
+void ckpt_verify(const std::string& path);
 
 /// Loads the config stored in a checkpoint.
 RunConfig ckpt_config(const std::string& path);

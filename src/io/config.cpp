@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <toml++/toml.h>
@@ -69,11 +70,15 @@ ConfigDoc& ConfigDoc::operator=(const ConfigDoc& o) {
 }
 
 ConfigDoc ConfigDoc::from_file(const std::string& path) {
+    std::error_code ec;
+    HINF_CHECK(!std::filesystem::is_directory(path, ec),
+               "config file '" + path + "' is a directory (pass the .toml file inside it)");
     std::ifstream in(path, std::ios::binary);
     HINF_CHECK(in.good(), "cannot open config file '" + path + "' (check the path and permissions)");
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    std::string text = ss.str();
+    // at most 1 MiB + 1 bytes: /dev/zero or a multi-GB file must not hang or exhaust memory
+    std::string text(kMaxConfigBytes + 1, '\0');
+    in.read(text.data(), std::streamsize(text.size()));
+    text.resize(std::size_t(in.gcount()));
     HINF_CHECK(!text.empty(), "config file '" + path + "' is empty (see runs/missile_hinf.toml for an example)");
     HINF_CHECK(text.size() <= kMaxConfigBytes,
                "config file '" + path + "' is larger than 1 MiB (is it really a TOML config?)");

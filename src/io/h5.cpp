@@ -2,6 +2,9 @@
 // that names the object; HDF5's own error stack printing is silenced.
 #include "hinf/h5.hpp"
 
+#include <filesystem>
+#include <type_traits>
+
 #include <cstring>
 
 #include "hinf/error.hpp"
@@ -36,6 +39,14 @@ Handle make_dcpl(const std::vector<hsize_t>& dims, bool checksum) {
     return dcpl;
 }
 
+// Size in bytes of the file that holds loc.
+hsize_t file_size(hid_t loc) {
+    Handle file(H5Iget_file_id(loc));
+    hsize_t size = 0;
+    if (file.get() < 0 || H5Fget_filesize(file.get(), &size) < 0) return 0;
+    return size;
+}
+
 void write_typed(hid_t loc, const std::string& name, hid_t file_type, hid_t mem_type, const void* data,
                  const std::vector<hsize_t>& dims, const std::string& units, const std::string& meaning,
                  bool checksum) {
@@ -61,7 +72,33 @@ std::vector<T> read_typed(hid_t loc, const std::string& name, hid_t mem_type, st
     if (rank > 0) H5Sget_simple_extent_dims(space.get(), d.data(), nullptr);
     hsize_t total = 1;
     for (hsize_t x : d) total *= x;
-    HINF_CHECK(total < (hsize_t(1) << 34), "HDF5: dataset '" + name + "' is implausibly large");
+    HINF_CHECK(total < (hsize_t(1) << 30), "HDF5: dataset '" + name + "' is implausibly large");
+    // hinf writes every element it declares: a dataset larger than its file comes from a damaged header
+    HINF_CHECK(total * sizeof(T) <= file_size(loc),
+               "HDF5: dataset '" + name + "' claims more data than its file holds (damaged file)");
+    // the stored type and storage must match before HDF5 copies: libhdf5 1.10 trusts a damaged
+    // layout message and copies past its buffer (found by fuzz/fuzz_checkpoint.cpp)
+    Handle ftype(check(H5Dget_type(dset.get()), "read the type of '" + name + "'"));
+    const H5T_class_t want = std::is_floating_point_v<T> ? H5T_FLOAT : H5T_INTEGER;
+    const std::size_t fsize = H5Tget_size(ftype.get());
+    HINF_CHECK(H5Tget_class(ftype.get()) == want && (fsize == 4 || fsize == 8),
+               "HDF5: dataset '" + name + "' has an unexpected element type (damaged file?)");
+    Handle dcpl(check(H5Dget_create_plist(dset.get()), "read the layout of '" + name + "'"));
+    const H5D_layout_t layout = H5Pget_layout(dcpl.get());
+    HINF_CHECK(layout == H5D_COMPACT || layout == H5D_CONTIGUOUS || layout == H5D_CHUNKED,
+               "HDF5: dataset '" + name + "' has an unknown storage layout (damaged file)");
+    if (layout == H5D_CHUNKED) {  // a chunk larger than hinf writes makes libhdf5 copy past its buffer
+        std::vector<hsize_t> chunk(d.size() + 1, 0), maxd(d.size(), 0);
+        if (rank > 0) H5Sget_simple_extent_dims(space.get(), d.data(), maxd.data());
+        const int crank = H5Pget_chunk(dcpl.get(), rank + 1, chunk.data());
+        bool ok = crank == rank;
+        for (int i = 0; ok && i < rank; ++i)
+            ok = chunk[i] >= 1 && chunk[i] <= (maxd[i] == H5S_UNLIMITED ? hsize_t(4096) : std::max<hsize_t>(d[i], 1));
+        HINF_CHECK(ok, "HDF5: dataset '" + name + "' has a damaged chunk layout");
+    } else {
+        HINF_CHECK(H5Dget_storage_size(dset.get()) >= total * fsize,
+                   "HDF5: dataset '" + name + "' stores less data than its shape needs (damaged or truncated file)");
+    }
     std::vector<T> out(static_cast<std::size_t>(total));
     if (total > 0)
         check_status(H5Dread(dset.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
@@ -103,6 +140,8 @@ Handle create_file(const std::string& path) {
 }
 
 Handle open_file(const std::string& path, bool writable) {
+    std::error_code ec;
+    HINF_CHECK(!std::filesystem::is_directory(path, ec), "'" + path + "' is a directory (pass the .h5 file inside it)");
     FILE* f = std::fopen(path.c_str(), "rb");
     HINF_CHECK(f != nullptr, "cannot open '" + path + "' (no such file, or not readable)");
     std::fclose(f);
@@ -181,7 +220,7 @@ std::string read_string(hid_t loc, const std::string& name) {
     HINF_CHECK(H5Tget_class(type.get()) == H5T_STRING && !H5Tis_variable_str(type.get()),
                "HDF5: dataset '" + name + "' is not a fixed-length string");
     std::size_t size = H5Tget_size(type.get());
-    HINF_CHECK(size < (1u << 26), "HDF5: string '" + name + "' is implausibly large");
+    HINF_CHECK(size < (1u << 26) && size <= file_size(loc), "HDF5: string '" + name + "' is implausibly large");
     std::string buf(size, '\0');
     check_status(H5Dread(dset.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "read '" + name + "'");
     buf.resize(std::strlen(buf.c_str()));

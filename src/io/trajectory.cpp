@@ -1,13 +1,47 @@
 // Trajectory file writer (see trajectory.hpp).
 #include "io/trajectory.hpp"
 
+#include <filesystem>
+
 #include "hinf/error.hpp"
 
 namespace hinf {
 
+namespace {
+
+std::string snapshot_name(const std::string& path) {
+    std::string base = path;
+    if (base.size() > 3 && base.compare(base.size() - 3, 3, ".h5") == 0) base.resize(base.size() - 3);
+    return base + ".ckpt.h5";
+}
+
+// Rows in the snapshot, or -1 when it is missing or unreadable (then the live file is used).
+long long snapshot_rows(const std::string& snap) {
+    if (!std::filesystem::exists(snap)) return -1;
+    try {
+        h5::Handle f = h5::open_file(snap, false);
+        std::vector<hsize_t> dims;
+        h5::read_doubles(f.get(), "t", &dims);
+        return dims.empty() ? -1 : static_cast<long long>(dims[0]);
+    } catch (const Error&) {
+        return -1;
+    }
+}
+
+void copy_replace(const std::string& from, const std::string& to) {
+    std::error_code ec;
+    std::filesystem::copy_file(from, to + ".tmp", std::filesystem::copy_options::overwrite_existing, ec);
+    HINF_CHECK(!ec, "cannot copy '" + from + "' to '" + to + ".tmp': " + ec.message() + " (disk full?)");
+    std::filesystem::rename(to + ".tmp", to, ec);
+    HINF_CHECK(!ec, "cannot rename '" + to + ".tmp' to '" + to + "': " + ec.message());
+}
+
+}  // namespace
+
 TrajectoryWriter TrajectoryWriter::create(const std::string& path, const std::vector<TrajectoryColumn>& columns,
                                           const std::map<std::string, std::string>& attrs) {
     TrajectoryWriter w;
+    w.path_ = path;
     w.file_ = h5::create_file(path);
     w.columns_ = columns;
     for (const auto& [k, v] : attrs) h5::set_attr(w.file_.get(), k, v);
@@ -19,7 +53,10 @@ TrajectoryWriter TrajectoryWriter::create(const std::string& path, const std::ve
 
 TrajectoryWriter TrajectoryWriter::reopen(const std::string& path, const std::vector<TrajectoryColumn>& columns,
                                           hsize_t rows) {
+    const std::string snap = snapshot_name(path);
+    if (snapshot_rows(snap) >= static_cast<long long>(rows)) copy_replace(snap, path);
     TrajectoryWriter w;
+    w.path_ = path;
     w.file_ = h5::open_file(path, true);
     w.columns_ = columns;
     for (const auto& c : columns) {
@@ -40,5 +77,10 @@ void TrajectoryWriter::append(const std::map<std::string, std::vector<double>>& 
 }
 
 void TrajectoryWriter::flush() { h5::flush(file_.get()); }
+
+void TrajectoryWriter::snapshot() {
+    flush();
+    copy_replace(path_, snapshot_name(path_));
+}
 
 }  // namespace hinf

@@ -20,14 +20,20 @@ public:
     /// Creates `path` with the given columns; `attrs` become root attributes.
     static TrajectoryWriter create(const std::string& path, const std::vector<TrajectoryColumn>& columns,
                                    const std::map<std::string, std::string>& attrs);
-    /// Reopens `path` and cuts every column to `rows` rows (continuing after a checkpoint).
+    /// Reopens `path` and cuts every column to `rows` rows (continuing after a checkpoint). When the
+    /// snapshot `<path minus .h5>.ckpt.h5` holds at least `rows` rows it replaces `path` first: a
+    /// process killed mid-append can leave the live file's HDF5 metadata half-written.
     static TrajectoryWriter reopen(const std::string& path, const std::vector<TrajectoryColumn>& columns,
                                    hsize_t rows);
     /// Appends one row: values[name] must hold `width` numbers for every column.
     void append(const std::map<std::string, std::vector<double>>& values);
     void flush();
+    /// Flushes, then copies the file to its snapshot name (temporary + rename): called at every
+    /// checkpoint, before the checkpoint itself is renamed into place.
+    void snapshot();
 
 private:
+    std::string path_;
     h5::Handle file_;
     std::vector<TrajectoryColumn> columns_;
     std::vector<h5::RowWriter> writers_;

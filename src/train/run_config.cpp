@@ -104,6 +104,26 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.seed = static_cast<std::uint64_t>(t.get_int("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
     c.checkpoint_every = t.get_int("checkpoint_every", c.checkpoint_every, 1, 1000000000);
     c.loss_limit = t.get_double("loss_limit", c.loss_limit, 0.0, 1e300);
+    c.on_divergence = t.get_string("on_divergence", c.on_divergence, {"stop", "rollback"});
+    c.rollback_factor = t.get_double("rollback_factor", c.rollback_factor, 1e-6, 1.0);
+    if (c.rollback_factor >= 1) t.reject("rollback_factor", "must be < 1 (each roll-back lowers the learning rate)");
+    c.max_rollbacks = t.get_int("max_rollbacks", c.max_rollbacks, 0, 1000);
+    // consistency: the network and the per-time-step buffers must fit in memory (a typo such as
+    // hidden = [65536, 65536] or samples = 1e8 must fail here, not as bad_alloc an hour later)
+    double params = 0, width_sum = 0;
+    for (std::size_t l = 0; l <= c.hidden.size(); ++l) {
+        const double din = l == 0 ? n : double(c.hidden[l - 1]);
+        const double dout = l == c.hidden.size() ? double(n) * n : double(c.hidden[l]);
+        params += din * dout + dout;
+        if (l < c.hidden.size()) width_sum += double(c.hidden[l]);
+    }
+    if (params > 1e8)
+        net.reject("hidden", "gives " + std::to_string(std::int64_t(params)) + " parameters, more than 1e8 (use narrower layers)");
+    const double bytes = 8.0 * double(c.samples) * (3.0 * width_sum + 2.0 * n * n + 8.0 * n + 64.0);
+    if (bytes > 64e9)
+        t.reject("samples", "= " + std::to_string(c.samples) + " with hidden widths summing to " +
+                                std::to_string(std::int64_t(width_sum)) + " needs about " +
+                                std::to_string(std::int64_t(bytes / 1e9)) + " GB per time step (lower it)");
     t.finish();
 
     ConfigSection s(doc, "sampling");

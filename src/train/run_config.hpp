@@ -40,6 +40,9 @@ struct RunConfig {
     std::uint64_t seed = 1;
     std::int64_t checkpoint_every = 100;
     double loss_limit = 1e30;
+    std::string on_divergence = "stop";  // "stop" (exit 4) or "rollback" (to the last checkpoint, smaller rate)
+    double rollback_factor = 0.5;        // learning rate multiplier per roll-back
+    std::int64_t max_rollbacks = 3;      // then stop as with "stop"
 
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;

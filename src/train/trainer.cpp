@@ -88,6 +88,13 @@ bool all_finite(const std::vector<double>& v) {
 }
 
 template <typename T>
+bool all_finite_t(const std::vector<T>& v) {
+    for (T x : v)
+        if (!std::isfinite(x)) return false;
+    return true;
+}
+
+template <typename T>
 class Trainer {
 public:
     Trainer(RunConfig cfg, std::string out_dir) : cfg_(std::move(cfg)), dir_(std::move(out_dir)) {}
@@ -138,8 +145,11 @@ public:
         auto t0 = std::chrono::steady_clock::now();
         std::vector<double> medians, medians2;
         sum.mixed = cfg_.type == "h2hinf";
+        std::int64_t rollbacks = 0;
         while (ck_.state.step < last_step) {
             if (!time_step()) {
+                if (cfg_.on_divergence == "rollback" && rollbacks < cfg_.max_rollbacks && roll_back(++rollbacks))
+                    continue;
                 sum.status = 4;
                 break;
             }
@@ -204,7 +214,7 @@ private:
         kern::HjieSystemView view{n, nv, m, xt_.data(), dA_.data(), Bm_.data(), dC_.data(), q_.data()};
 
         // K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
-        kern::AdamParams ap{cfg_.learning_rate, cfg_.beta1, cfg_.beta2, cfg_.tau};
+        kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
         if (cfg_.reset_adam) {
             std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
             std::fill(ck_.adam_v.begin(), ck_.adam_v.end(), T(0));
@@ -216,7 +226,9 @@ private:
                                                    int(cfg_.batch), ck_.net.step, ws_);
             if (k == 1) rec_loss_first_ = L.loss;
             if (k == cfg_.adam_steps) rec_loss_last_ = L.loss;
-            if (!std::isfinite(L.loss) || L.loss > cfg_.loss_limit) {
+            // the limit applies once this step's updates have acted: the first loss of a time step
+            // measures the old weights on new samples, which a roll-back could not change
+            if (!std::isfinite(L.loss) || (k > 1 && L.loss > cfg_.loss_limit)) {
                 diagnose(step, "training loss", L.loss);
                 return false;
             }
@@ -225,11 +237,16 @@ private:
                               std::int64_t(grad_.size()), ck_.state.adam_step, ap);
         }
 
+        if (!all_finite_t(ck_.net.theta)) {
+            diagnose(step, "network weights", NAN);
+            return false;
+        }
+
         // residual statistics over all N samples after the K steps
         kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), xt_.data(), N, ck_.net.step, ws_);
         std::vector<double> rel(N), rel2(N);
         double viol2 = 0;
-        double viol = 0, pos = 0, cos_sum = 0;
+        double viol = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
         for (std::int64_t i = 0; i < N; ++i) {
             kern::HjieSampleValue v = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n,
                                                                 view, i, ck_.net.step.hjie, ck_.net.step.objective);
@@ -239,6 +256,15 @@ private:
             viol2 += v.residual2 > 0.01 * v.abs_sum2 ? 1 : 0;
             pos += v.residual > 0 ? 1 : 0;
             cos_sum += cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
+            loss_hinge += v.hinge;
+            loss_h2 += v.h2;
+        }
+        const double loss_after = std::sqrt(loss_hinge / double(N)) +
+                                  (ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0) *
+                                      loss_h2 / double(N);
+        if (!std::isfinite(loss_after) || loss_after > cfg_.loss_limit) {  // before it reaches a checkpoint
+            diagnose(step, "training loss after the Adam steps", loss_after);
+            return false;
         }
         rec_rel_median_ = percentile(rel, 0.5);
         rec_violation_ = viol / double(N);
@@ -311,6 +337,7 @@ private:
         }
         x = x_next;
         xhat = xhat_next;
+        rec_loss_finite_ = rec_loss_last_;
         return true;
     }
 
@@ -343,16 +370,44 @@ private:
     }
 
     void checkpoint() {
-        traj_.flush();
+        traj_.snapshot();  // before the checkpoint's rename: the snapshot never has fewer rows
         ckpt_write(dir_ + "/checkpoint.h5", ck_, cfg_);
     }
 
+    // training.on_divergence = "rollback": back to the last checkpoint with a smaller learning rate.
+    bool roll_back(std::int64_t count) {
+        const std::string path = dir_ + "/checkpoint.h5";
+        const double scale = ck_.state.learning_rate_scale * cfg_.rollback_factor;
+        traj_ = TrajectoryWriter();  // close before the file is replaced
+        if (std::filesystem::exists(path)) {
+            ck_ = ckpt_read<T>(path);
+            traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        } else {
+            start_fresh();  // no checkpoint yet: back to the initial network and state
+        }
+        ck_.state.learning_rate_scale = scale;
+        std::fprintf(stderr, "hinf: rolled back to time step %lld with learning rate %g (roll-back %lld of %lld)\n",
+                     static_cast<long long>(ck_.state.step), cfg_.learning_rate * scale, static_cast<long long>(count),
+                     static_cast<long long>(cfg_.max_rollbacks));
+        return true;
+    }
+
+    // One line: the time step, the quantity, the last finite values, what is kept and what to do.
     void diagnose(std::int64_t step, const char* what, double value) {
+        double err = 0;
+        for (int i = 0; i < cfg_.n; ++i) err += std::pow(ck_.state.x[i] - ck_.state.xhat[i], 2);
+        const std::string ckpt = dir_ + "/checkpoint.h5";
+        const std::string kept = std::filesystem::exists(ckpt)
+                                     ? "The last good checkpoint " + ckpt + " is kept (lower training.learning_rate "
+                                       "or set training.on_divergence = \"rollback\", and resume from it)"
+                                     : "No checkpoint was written yet (lower training.learning_rate and train again)";
+        char last_loss[32] = "none yet";  // no time step has ended finite
+        if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         std::fprintf(stderr,
-                     "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite loss "
-                     "%g. The last good checkpoint %s/checkpoint.h5 is kept (lower training.learning_rate and resume "
-                     "from it)\n",
-                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, rec_loss_last_, dir_.c_str());
+                     "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
+                     "loss %s, |x~| %g, learning rate %g. %s\n",
+                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, last_loss, std::sqrt(err),
+                     cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
         traj_.flush();
     }
 
@@ -364,6 +419,7 @@ private:
     std::vector<double> xt_, dA_, Bm_, dC_, q_, xs_, work_, p_all_, P_all_;
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
+    double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite
     double rec_loss_first_ = 0, rec_loss_last_ = 0, rec_rel_median_ = 0, rec_violation_ = 0, rec_cosine_ = 0;
     double rec_rel_median2_ = 0, rec_violation2_ = 0, rec_gap_ = 0, rec_gap_printed_ = 0;
 };
@@ -402,6 +458,7 @@ TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
 }
 
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
+    ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
 }

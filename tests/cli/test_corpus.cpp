@@ -1,0 +1,115 @@
+// The bad-input corpus (tests/corpus/bad/cases.txt): every hostile config, checkpoint-shaped file
+// or network file gives its own message on one line and a non-zero exit, never a crash or a hang;
+// plus inputs that cannot live in git: /dev/zero, a directory, a sparse 2 GiB file, a missing file.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "helpers.hpp"
+
+using hinf::test::run_command;
+using hinf::test::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* kTiny = R"([system]
+kind = "missile"
+[filter]
+t_final = 0.02
+[network]
+hidden = [8]
+[training]
+samples = 50
+batch = 20
+adam_steps = 2
+checkpoint_every = 2
+)";
+
+std::string trim(const std::string& s) {
+    std::size_t a = s.find_first_not_of(' '), b = s.find_last_not_of(' ');
+    return a == std::string::npos ? "" : s.substr(a, b - a + 1);
+}
+
+void replace_all(std::string& s, const std::string& from, const std::string& to) {
+    for (std::size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size()))
+        s.replace(at, from.size(), to);
+}
+
+int count_lines(const std::string& s) {
+    int n = 0;
+    for (char c : s) n += c == '\n';
+    return n;
+}
+
+// One bad input: exit 2 (a hinf::Error, not a crash: signals give -1, internal errors 3), one line
+// "hinf: error: ..." holding the fragment, within 60 s.
+void expect_rejected(const std::string& label, const std::string& args, const std::string& fragment) {
+    auto r = run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " " + args);
+    INFO(label << ": hinf " << args << "\n" << r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.rfind("hinf: error: ", 0) == 0);
+    CHECK(count_lines(r.output) == 1);
+    CHECK(r.output.find(fragment) != std::string::npos);
+}
+
+}  // namespace
+
+TEST_CASE("the bad-input corpus: each file its own message, exit 2, one line", "[cli][errors][corpus]") {
+    TempDir d("corpus");
+    const std::string good = d / "good.toml";
+    std::ofstream(good) << kTiny;
+    auto t = run_command(std::string(HINF_CLI_PATH) + " train " + good + " --out " + (d / "run") + " --quiet");
+    REQUIRE(t.status == 0);
+    const std::string ckpt = d / "run/checkpoint.h5";
+
+    const std::string corpus = hinf::test::source_path("tests/corpus/bad");
+    std::ifstream list(corpus + "/cases.txt");
+    REQUIRE(list.good());
+    int cases = 0;
+    for (std::string line; std::getline(list, line);) {
+        if (line.empty() || line[0] == '#') continue;
+        std::stringstream ss(line);
+        std::string file, args, fragment;
+        std::getline(ss, file, '|');
+        std::getline(ss, args, '|');
+        std::getline(ss, fragment);
+        file = trim(file);
+        args = trim(args);
+        fragment = trim(fragment);
+        REQUIRE(!fragment.empty());
+        REQUIRE(fs::exists(corpus + "/" + file));
+        TempDir tmp("case");
+        replace_all(args, "{f}", corpus + "/" + file);
+        replace_all(args, "{tmp}", tmp.path.string());
+        replace_all(args, "{ckpt}", ckpt);
+        replace_all(args, "{good}", good);
+        expect_rejected(file, args, fragment);
+        ++cases;
+    }
+    CHECK(cases >= 40);
+
+    SECTION("inputs that cannot live in git") {
+        expect_rejected("/dev/zero", "train /dev/zero --out " + (d / "z"), "larger than 1 MiB");
+        expect_rejected("a directory", "train " + corpus + " --out " + (d / "z"), "is a directory");
+        expect_rejected("missing config", "train " + (d / "missing.toml"), "cannot open config file");
+        expect_rejected("missing checkpoint", "resume " + (d / "missing.h5"), "cannot open");
+        expect_rejected("directory as checkpoint", "resume " + corpus, "is a directory");
+        const std::string huge = d / "huge.toml";
+        {
+            std::ofstream(huge) << "[training]\n";
+            REQUIRE(::truncate(huge.c_str(), off_t(2) << 30) == 0);  // sparse: no disk used
+        }
+        expect_rejected("a 2 GiB config", "train " + huge, "larger than 1 MiB");
+        if (::geteuid() != 0) {  // root reads anything
+            const std::string locked = d / "locked.toml";
+            std::ofstream(locked) << kTiny;
+            ::chmod(locked.c_str(), 0);
+            expect_rejected("unreadable config", "train " + locked, "cannot open config file");
+        }
+    }
+}
