@@ -235,7 +235,7 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     h5::Handle f = h5::open_file(path, false);
     Checkpoint<T> ck;
     ck.config_text = h5::read_string(f.get(), "config");
-    ck.net = network_create<T>(cfg);  // shapes and scales from the config
+    ck.net = network_shell<T>(cfg);  // shapes and scales from the config; no random draws, no OpenMP
     const kern::StepConfig& sc = ck.net.step;
     h5::Handle net = h5::open_group(f.get(), "network");
     std::vector<double> sizes = h5::get_attr_doubles(net.get(), "sizes");

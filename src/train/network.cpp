@@ -36,11 +36,17 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
 }
 
 template <typename T>
-Network<T> network_create(const RunConfig& cfg) {
+Network<T> network_shell(const RunConfig& cfg) {
     Network<T> net;
     net.step = network_step_config(cfg);
+    net.theta.assign(static_cast<std::size_t>(net.step.shape.param_count()), T(0));
+    return net;
+}
+
+template <typename T>
+Network<T> network_create(const RunConfig& cfg) {
+    Network<T> net = network_shell<T>(cfg);
     const kern::MlpShape& sh = net.step.shape;
-    net.theta.assign(static_cast<std::size_t>(sh.param_count()), T(0));
     for (int l = 1; l <= sh.layers(); ++l) {
         const int din = sh.sizes[l - 1], dout = sh.sizes[l];
         const std::int64_t cnt = std::int64_t(din) * dout;
@@ -102,6 +108,8 @@ std::unique_ptr<FrozenNetwork> network_freeze(Network<T> net) {
 }
 
 template Network<float> network_create<float>(const RunConfig&);
+template Network<float> network_shell<float>(const RunConfig&);
+template Network<double> network_shell<double>(const RunConfig&);
 template Network<double> network_create<double>(const RunConfig&);
 template std::unique_ptr<FrozenNetwork> network_freeze<float>(Network<float>);
 template std::unique_ptr<FrozenNetwork> network_freeze<double>(Network<double>);

@@ -22,6 +22,11 @@ struct Network {
 template <typename T>
 Network<T> network_create(const RunConfig& cfg);
 
+/// Shapes and scales only, all weights zero (for loading: no random draws, no OpenMP — checkpoints are
+/// also read in a forked child, where libgomp's thread pool is unusable).
+template <typename T>
+Network<T> network_shell(const RunConfig& cfg);
+
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);
 

@@ -18,6 +18,7 @@
 #include "io/trajectory.hpp"
 #include "sampling.hpp"
 #include "train/filter_math.hpp"
+#include "train/samples.hpp"
 
 namespace hinf {
 
@@ -124,15 +125,9 @@ public:
     TrainSummary run(std::int64_t last_step, bool quiet) {
         TrainSummary sum;
         sum.first_step = ck_.state.step;
-        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
+        const int n = cfg_.n;
         const std::int64_t N = cfg_.samples;
         // per-time-step buffers, allocated once
-        xt_.resize(N * n);
-        dA_.resize(N * n);
-        Bm_.resize(N * n * nv);
-        dC_.resize(N * m);
-        q_.resize(N);
-        xs_.resize(N * n);
         grad_.resize(ck_.net.theta.size());
         idx_.resize(cfg_.batch);
         work_.resize(std::max<std::int64_t>(N, cfg_.batch));
@@ -196,22 +191,11 @@ private:
         for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
 
         // N samples around x~(t), and their constants (independent of the weights: once per time step)
-        kern::SamplingParams sp{cfg_.local_fraction, cfg_.local_spread, cfg_.radius_decades};
-        kern::sample_errors(xt_.data(), xtilde.data(), cfg_.error_floor.data(), n, N, sp, cfg_.seed, step);
-        std::vector<double> a_hat(n), c_hat(m);
-        sys.drift(a_hat.data(), xhat.data(), t, 1);
-        sys.measurement(c_hat.data(), xhat.data(), t, 1);
-        for (std::int64_t i = 0; i < N; ++i)
-            for (int j = 0; j < n; ++j) xs_[i * n + j] = xhat[j] + xt_[i * n + j];
-        sys.drift(dA_.data(), xs_.data(), t, N);
-        sys.disturbance_gain(Bm_.data(), xs_.data(), t, N);
-        sys.measurement(dC_.data(), xs_.data(), t, N);
-        for (std::int64_t i = 0; i < N; ++i) {
-            for (int j = 0; j < n; ++j) dA_[i * n + j] -= a_hat[j];
-            for (int j = 0; j < m; ++j) dC_[i * m + j] -= c_hat[j];
-            q_[i] = quadratic_form(cfg_.Q.data(), xt_.data() + i * n, n);
-        }
-        kern::HjieSystemView view{n, nv, m, xt_.data(), dA_.data(), Bm_.data(), dC_.data(), q_.data()};
+        samples_build(&smp_, cfg_, x, xhat, step);
+        const std::vector<double>& a_hat = smp_.a_hat;
+        const std::vector<double>& c_hat = smp_.c_hat;
+        const std::vector<double>& xt_ = smp_.xt;
+        const kern::HjieSystemView view = smp_.view();
 
         // K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
         kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
@@ -416,7 +400,8 @@ private:
     Checkpoint<T> ck_;
     TrajectoryWriter traj_;
     kern::StepWorkspace<T> ws_;
-    std::vector<double> xt_, dA_, Bm_, dC_, q_, xs_, work_, p_all_, P_all_;
+    TimeStepSamples smp_;  // this time step's samples and their constants
+    std::vector<double> work_, p_all_, P_all_;
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
     double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite

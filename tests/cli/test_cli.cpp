@@ -113,3 +113,15 @@ TEST_CASE("bad inputs give one line and a non-zero exit", "[cli][errors]") {
     expect_error("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet", "already holds a run");
     CHECK(run_hinf("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet --force").status == 0);
 }
+
+TEST_CASE("a full-size network trains through its checkpoints without hanging", "[cli][train]") {
+    // regression: the checkpoint read-back runs in a forked child; a random re-initialisation there
+    // used OpenMP, whose thread pool does not survive fork(), and the first checkpoint hung forever
+    TempDir d("fullsize");
+    std::string cfg = write(d, "full.toml", "[training]\nsamples = 200\nbatch = 80\nadam_steps = 1\ncheckpoint_every = 1\n");
+    auto r = hinf::test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + cfg + " --out " +
+                                     (d / "run") + " --until 0.03 --quiet");
+    INFO(r.output);
+    CHECK(r.status == 0);
+    CHECK(r.output.find("trained time steps 0..3") != std::string::npos);
+}
