@@ -1,10 +1,13 @@
 // Shared test helpers: allclose / bitwise comparisons, temporary directories, running the CLI.
 #pragma once
 #include <array>
+#include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <filesystem>
 #include <string>
 #include <sys/wait.h>
@@ -49,6 +52,30 @@ inline CommandResult run_command(const std::string& cmd) {
 inline CommandResult run_hinf(const std::string& args) { return run_command(std::string(HINF_CLI_PATH) + " " + args); }
 
 inline std::string source_path(const std::string& rel) { return std::string(HINF_SOURCE_DIR) + "/" + rel; }
+
+/// A missile config that trains in a fraction of a second (tiny network, few samples).
+inline std::string tiny_missile_config(const std::string& t_final = "0.05") {
+    return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +
+           "\n[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 2\n";
+}
+
+/// Writes `text` to dir/name (binary, exact bytes) and returns the path.
+inline std::string write_file(const TempDir& dir, const std::string& name, const std::string& text) {
+    std::string path = dir / name;
+    std::ofstream(path, std::ios::binary) << text;
+    return path;
+}
+
+/// `hinf ARGS` must exit 2 with exactly one line "hinf: error: ...FRAGMENT...".
+inline void expect_one_line_error(const std::string& args, const std::string& fragment) {
+    INFO("hinf " << args);
+    CommandResult r = run_hinf(args);
+    INFO(r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.find(fragment) != std::string::npos);
+    CHECK(r.output.rfind("hinf: error: ", 0) == 0);
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+}
 
 template <typename T>
 bool bitwise_equal(const std::vector<T>& a, const std::vector<T>& b) {

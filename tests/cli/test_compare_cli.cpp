@@ -9,34 +9,12 @@
 using hinf::test::run_hinf;
 using hinf::test::TempDir;
 
-namespace {
-const char* kTinyCompare = R"([system]
-kind = "missile"
-[filter]
-t_final = 0.05
-[network]
-hidden = [8]
-[training]
-samples = 50
-batch = 20
-adam_steps = 2
-checkpoint_every = 2
-)";
-
-void expect_one_line_error(const std::string& args, const std::string& fragment) {
-    INFO("hinf " << args);
-    auto r = run_hinf(args);
-    INFO(r.output);
-    CHECK(r.status == 2);
-    CHECK(r.output.find(fragment) != std::string::npos);
-    CHECK(r.output.rfind("hinf: error: ", 0) == 0);
-}
-}  // namespace
+using hinf::test::expect_one_line_error;
 
 TEST_CASE("hinf compare writes the table, compare.h5 and compare.csv and rejects bad input", "[cli][compare]") {
     TempDir d("cli-compare");
     const std::string cfg = d / "tiny.toml";
-    std::ofstream(cfg) << kTinyCompare;
+    std::ofstream(cfg) << hinf::test::tiny_missile_config();
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
     INFO(t.output);
     REQUIRE(t.status == 0);

@@ -17,19 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* kTiny = R"([system]
-kind = "missile"
-[filter]
-t_final = 0.02
-[network]
-hidden = [8]
-[training]
-samples = 50
-batch = 20
-adam_steps = 2
-checkpoint_every = 2
-)";
-
 std::string trim(const std::string& s) {
     std::size_t a = s.find_first_not_of(' '), b = s.find_last_not_of(' ');
     return a == std::string::npos ? "" : s.substr(a, b - a + 1);
@@ -62,7 +49,7 @@ void expect_rejected(const std::string& label, const std::string& args, const st
 TEST_CASE("the bad-input corpus: each file its own message, exit 2, one line", "[cli][errors][corpus]") {
     TempDir d("corpus");
     const std::string good = d / "good.toml";
-    std::ofstream(good) << kTiny;
+    std::ofstream(good) << hinf::test::tiny_missile_config("0.02");
     auto t = run_command(std::string(HINF_CLI_PATH) + " train " + good + " --out " + (d / "run") + " --quiet");
     REQUIRE(t.status == 0);
     const std::string ckpt = d / "run/checkpoint.h5";
@@ -107,7 +94,7 @@ TEST_CASE("the bad-input corpus: each file its own message, exit 2, one line", "
         expect_rejected("a 2 GiB config", "train " + huge, "larger than 1 MiB");
         if (::geteuid() != 0) {  // root reads anything
             const std::string locked = d / "locked.toml";
-            std::ofstream(locked) << kTiny;
+            std::ofstream(locked) << hinf::test::tiny_missile_config("0.02");
             ::chmod(locked.c_str(), 0);
             expect_rejected("unreadable config", "train " + locked, "cannot open config file");
         }
