@@ -12,5 +12,7 @@ void add_bench_command(CLI::App& app);    // bench
 void add_lmi_command(CLI::App& app);
 /// `hinf compare`: baseline and DNN filters side by side (src/cli/compare_cmd.cpp).
 void add_compare_command(CLI::App& app);
+/// `hinf filter`: filters run on recorded measurements, no truth (src/cli/filter_cmd.cpp).
+void add_filter_command(CLI::App& app);
 
 }  // namespace hinf::cli

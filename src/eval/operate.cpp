@@ -29,6 +29,7 @@ struct RunResult {
     double set_count = 0;
     double hji_violations = 0, hji_steps = 0;  // on-line: steps with HJIE(p at the true x~) > 0.01 S
     std::vector<double> x, xhat, xhat_open;  // run 0 only: [steps x n]
+    std::vector<double> y;                   // run 0 only: [steps x m] the measurements fed to the filter
 };
 
 RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, OnlineFilter& filter, std::int64_t run,
@@ -106,6 +107,7 @@ RunResult one_run(const RunConfig& cfg, FrozenNetwork& net, OnlineFilter& filter
             r.x.insert(r.x.end(), x.begin(), x.end());
             r.xhat.insert(r.xhat.end(), xhat.begin(), xhat.end());
             r.xhat_open.insert(r.xhat_open.end(), xo.begin(), xo.end());
+            r.y.insert(r.y.end(), y.begin(), y.end());
         }
         // eq. (19): the DNN filter (gain (8), oracle or measured) through the adapter of src/filters;
         // a diverged filter stays diverged: its estimate is frozen at the last finite value
@@ -264,6 +266,8 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::write_doubles(root, "x", R0.x.data(), {hsize_t(steps), hsize_t(n)}, "state units", "true state, run 0");
     h5::write_doubles(root, "xhat", R0.xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "DNN filter estimate, run 0");
+    h5::write_doubles(root, "y", R0.y.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units",
+                      "measurements y(t_k) = C(x(t_k)) + n_k fed to the filter, run 0 (input for `hinf filter`)");
     h5::write_doubles(root, "xhat_open_loop", R0.xhat_open.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "open-loop predictor, run 0");
     f.reset();

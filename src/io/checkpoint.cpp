@@ -2,7 +2,6 @@
 #include "io/checkpoint.hpp"
 
 #include <fcntl.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -14,6 +13,7 @@
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/isolate.hpp"
 
 namespace hinf {
 
@@ -57,61 +57,9 @@ void read_any(const std::string& path) {
     else ckpt_read<double>(path);
 }
 
-// Runs read_any(path) in a child process and returns "" when it read cleanly, else the problem.
-// Why a child: Debian's libhdf5 1.10 can itself crash (use-after-free in H5Aexists, found by
-// fuzz/fuzz_checkpoint.cpp) on a damaged object header, and no check of ours runs before it parses
-// one. A crash then ends the child, and the user gets one line instead of a segfault.
+// Reads path in a child process (io/isolate.hpp): "" when it read cleanly, else the problem.
 std::string read_in_child(const std::string& path) {
-    int fds[2];
-    if (::pipe(fds) != 0) {  // no pipe: read in-process
-        try {
-            read_any(path);
-            return "";
-        } catch (const Error& e) {
-            return e.what();
-        }
-    }
-    std::fflush(nullptr);
-    pid_t pid = ::fork();
-    if (pid == 0) {
-        ::close(fds[0]);
-        int devnull = ::open("/dev/null", O_WRONLY);  // the message goes through the pipe; a crash report would
-        if (devnull >= 0) ::dup2(devnull, 2);          // break the CLI's one-line promise
-        int code = 0;
-        std::string what;
-        try {
-            read_any(path);
-        } catch (const Error& e) {
-            what = e.what();
-            code = 3;
-        } catch (const std::exception& e) {
-            what = std::string("cannot be read: ") + e.what();
-            code = 3;
-        }
-        if (!what.empty() && ::write(fds[1], what.data(), what.size()) < 0) code = 4;
-        ::_exit(code);
-    }
-    ::close(fds[1]);
-    if (pid < 0) {
-        ::close(fds[0]);
-        try {
-            read_any(path);
-            return "";
-        } catch (const Error& e) {
-            return e.what();
-        }
-    }
-    std::string msg;
-    char buf[4096];
-    for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) > 0;) msg.append(buf, std::size_t(n));
-    ::close(fds[0]);
-    int st = 0;
-    ::waitpid(pid, &st, 0);
-    if (WIFEXITED(st) && WEXITSTATUS(st) == 0) return "";
-    if (WIFEXITED(st) && WEXITSTATUS(st) == 3 && !msg.empty()) return msg;
-    return "the file is damaged: reading it crashed the HDF5 library (" +
-           (WIFSIGNALED(st) ? "signal " + std::to_string(WTERMSIG(st)) : "status " + std::to_string(WEXITSTATUS(st))) +
-           ")";
+    return run_isolated([&path] { read_any(path); });
 }
 
 }  // namespace

@@ -1,0 +1,67 @@
+// See filter_set.hpp.
+#include "cli/filter_set.hpp"
+
+#include <cstdio>
+#include <sstream>
+
+#include "filters/dnn.hpp"
+#include "filters/glf.hpp"
+#include "hinf/error.hpp"
+#include "io/checkpoint.hpp"
+
+namespace hinf::cli {
+
+std::vector<std::string> split_list(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    std::string item;
+    while (std::getline(ss, item, ','))
+        if (!item.empty()) out.push_back(item);
+    return out;
+}
+
+FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,
+                           const FilterModel& exact) {
+    FilterSet set;
+    auto& owned = set.filters;
+    for (const std::string& name : split_list(a.filters)) {
+        if (name == "ekf") owned.push_back(make_ekf(told));
+        else if (name == "ukf") owned.push_back(make_ukf(told));
+        else if (name == "pf") owned.push_back(make_particle_filter(told, a.particles, 0.5, a.roughening));
+        else if (name == "open_loop") owned.push_back(make_open_loop_filter(exact));
+        else if (name == "glf") {
+            // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
+            GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, cfg.rho);
+            HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
+                                 " (try another --glf-vertices, or drop glf)");
+            std::printf("glf: %d vertices at t =", g.vertices);
+            for (double t : g.vertex_times) std::printf(" %.4g", t);
+            std::printf(" s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; %s\n", g.rho, g.status.c_str());
+            owned.push_back(make_glf_filter(exact, g));
+        } else if (name == "dnn") {
+            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+            for (const std::string& path : a.networks) {
+                RunConfig ncfg;
+                std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
+                HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
+                                                " states, the config's system has " + std::to_string(cfg.n));
+                for (const std::string& mode : split_list(a.modes)) {
+                    HINF_CHECK(mode == "oracle" || mode == "measured",
+                               "--mode '" + mode + "' is not one of: oracle, measured");
+                    std::string label = "dnn_" + ncfg.variant + "_" + mode;
+                    for (const auto& o : owned)
+                        HINF_CHECK(o->name() != label,
+                                   "two --network files give the filter name '" + label + "' (same variant twice)");
+                    // the gain uses rho of the network's own training config
+                    owned.push_back(make_dnn_filter(exact, *net, *make_hinf_gain_law(ncfg.rho), mode == "measured", label));
+                }
+                set.networks.push_back(std::move(net));
+            }
+        } else
+            HINF_FAIL("--filters: unknown filter '" + name + "' (use dnn, ekf, ukf, pf, open_loop, glf)");
+    }
+    HINF_CHECK(!owned.empty(), "--filters: no filter named (use dnn, ekf, ukf, pf, open_loop, glf)");
+    return set;
+}
+
+}  // namespace hinf::cli

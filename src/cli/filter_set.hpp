@@ -1,0 +1,38 @@
+// Building the on-line filters named on a command line (`hinf compare`, `hinf filter`): EKF, UKF, PF,
+// open loop, GLF and one DNN filter per network and mode. Argument handling only; the filters live in
+// src/filters.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "filters/filter.hpp"
+#include "train/network.hpp"
+#include "train/run_config.hpp"
+
+namespace hinf::cli {
+
+struct FilterSetArgs {
+    std::string filters;                // comma list: dnn, ekf, ukf, pf, open_loop, glf
+    std::vector<std::string> networks;  // checkpoints for dnn
+    std::string modes;                  // comma list: oracle, measured
+    std::int64_t particles = 2000;
+    double roughening = 0.0;
+    int glf_vertices = 8;
+};
+
+struct FilterSet {
+    std::vector<std::unique_ptr<OnlineFilter>> filters;
+    std::vector<std::unique_ptr<FrozenNetwork>> networks;  // owned here: the dnn filters hold clones
+};
+
+std::vector<std::string> split_list(const std::string& s);
+
+/// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters.
+/// Throws hinf::Error naming the option for an unknown filter or mode, a missing --network, or a network
+/// trained for another state dimension.
+FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,
+                           const FilterModel& exact);
+
+}  // namespace hinf::cli

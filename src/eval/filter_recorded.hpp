@@ -1,0 +1,38 @@
+// `hinf filter`: on-line filters run on recorded measurements, no truth anywhere. Writes the estimates
+// (and covariances where a filter has them) and truth-free diagnostics (innovation statistics).
+// Not the reading of the record (io/measurements.cpp) nor the filters (src/filters).
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "filters/filter.hpp"
+#include "io/measurements.hpp"
+#include "train/run_config.hpp"
+
+namespace hinf {
+
+struct RecordedOptions {
+    std::string out_dir;
+    std::string source;        // the measurement file, recorded in the output
+    std::vector<double> P0;    // [n x n] initial covariance told to EKF/UKF/PF
+    std::vector<double> xhat0;  // [n] initial estimate
+    bool quiet = false;
+};
+
+struct RecordedResult {
+    std::string name;
+    std::int64_t steps = 0;
+    double diverged_at = -1;             // time [s] of the record the filter diverged at; < 0: never
+    std::vector<double> innovation_rms;  // [m] sqrt(mean_k (y_k - C(x^_k))^2), per output, before divergence
+    std::vector<double> innovation_mean;  // [m]
+    double us_per_step = 0;
+};
+
+/// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;
+/// writes out_dir/estimates.h5 (one group per filter) and out_dir/estimates_<filter>.csv.
+/// Filters that read the true state are refused (there is none).
+std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
+                                            const Measurements& ms, const RecordedOptions& opt);
+
+}  // namespace hinf

@@ -1,0 +1,160 @@
+// See measurements.hpp.
+#include "io/measurements.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "hinf/error.hpp"
+#include "hinf/h5.hpp"
+#include "io/isolate.hpp"
+
+namespace hinf {
+
+namespace {
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+    return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string trim(const std::string& s) {
+    const auto a = s.find_first_not_of(" \t\r");
+    if (a == std::string::npos) return "";
+    const auto b = s.find_last_not_of(" \t\r");
+    return s.substr(a, b - a + 1);
+}
+
+std::vector<std::string> split_commas(const std::string& line) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) cells.push_back(trim(cell));
+    if (!line.empty() && line.back() == ',') cells.push_back("");
+    return cells;
+}
+
+// true and *v when the whole cell is one number (strtod also accepts "nan" and "inf": caught by the
+// finiteness check with its own message)
+bool parse_number(const std::string& cell, double* v) {
+    if (cell.empty()) return false;
+    char* end = nullptr;
+    errno = 0;
+    *v = std::strtod(cell.c_str(), &end);
+    return end == cell.c_str() + cell.size();
+}
+
+// The checks shared by both formats; `where(k)` names row k (0-based) for the message.
+template <typename Where>
+void check_rows(Measurements& ms, const std::string& path, Where where) {
+    const std::int64_t K = ms.rows;
+    HINF_CHECK(K >= 2, "measurements '" + path + "': " + std::to_string(K) +
+                           " row(s); hinf filter needs at least 2 (a time column and the outputs per row)");
+    for (std::int64_t k = 0; k < K; ++k) {
+        HINF_CHECK(std::isfinite(ms.t[k]), "measurements '" + path + "' " + where(k) + ": time is not finite (" +
+                                              std::to_string(ms.t[k]) + "); remove or repair the row");
+        for (int j = 0; j < ms.m; ++j)
+            HINF_CHECK(std::isfinite(ms.y[k * ms.m + j]),
+                       "measurements '" + path + "' " + where(k) + ": output " + std::to_string(j + 1) +
+                           " is not finite (" + std::to_string(ms.y[k * ms.m + j]) +
+                           "); hinf filter needs every sample (interpolate or cut the record)");
+        if (k > 0)
+            HINF_CHECK(ms.t[k] > ms.t[k - 1], "measurements '" + path + "' " + where(k) + ": time " +
+                                                  std::to_string(ms.t[k]) + " s is not after the previous row's " +
+                                                  std::to_string(ms.t[k - 1]) + " s (time must increase strictly)");
+    }
+    ms.dt = (ms.t[K - 1] - ms.t[0]) / double(K - 1);
+    for (std::int64_t k = 1; k < K; ++k) {
+        const double step = ms.t[k] - ms.t[k - 1];
+        HINF_CHECK(std::fabs(step - ms.dt) <= kUniformTolerance * ms.dt,
+                   "measurements '" + path + "' " + where(k) + ": time step " + std::to_string(step) +
+                       " s differs from the record's mean step " + std::to_string(ms.dt) +
+                       " s; the filters run on a uniform grid (resample the record)");
+    }
+}
+
+Measurements read_csv(const MeasurementSource& src) {
+    std::ifstream in(src.path);
+    HINF_CHECK(in.good(), "measurements '" + src.path + "' cannot be opened (check the path)");
+    Measurements ms;
+    ms.m = src.outputs;
+    std::vector<std::int64_t> line_of;  // file line number (1-based) of each data row
+    std::string line;
+    std::int64_t lineno = 0;
+    bool seen_data = false;
+    while (std::getline(in, line)) {
+        ++lineno;
+        const std::string s = trim(line);
+        if (s.empty() || s[0] == '#') continue;
+        const std::vector<std::string> cells = split_commas(s);
+        double first = 0;
+        if (!seen_data && ms.columns.empty() && !parse_number(cells[0], &first)) {  // the header row
+            HINF_CHECK(int(cells.size()) == 1 + ms.m,
+                       "measurements '" + src.path + "' line " + std::to_string(lineno) + ": the header has " +
+                           std::to_string(cells.size()) + " columns, expected " + std::to_string(1 + ms.m) +
+                           " (time + " + std::to_string(ms.m) + " output(s) of the config's system)");
+            ms.columns.assign(cells.begin() + 1, cells.end());
+            continue;
+        }
+        seen_data = true;
+        HINF_CHECK(int(cells.size()) == 1 + ms.m,
+                   "measurements '" + src.path + "' line " + std::to_string(lineno) + ": " +
+                       std::to_string(cells.size()) + " columns, expected " + std::to_string(1 + ms.m) + " (time + " +
+                       std::to_string(ms.m) + " output(s) of the config's system)");
+        for (std::size_t c = 0; c < cells.size(); ++c) {
+            double v = 0;
+            HINF_CHECK(parse_number(cells[c], &v), "measurements '" + src.path + "' line " + std::to_string(lineno) +
+                                                       ", column " + std::to_string(c + 1) + ": '" + cells[c] +
+                                                       "' is not a number");
+            (c == 0 ? ms.t : ms.y).push_back(v);
+        }
+        line_of.push_back(lineno);
+    }
+    ms.rows = std::int64_t(ms.t.size());
+    check_rows(ms, src.path, [&](std::int64_t k) { return "line " + std::to_string(line_of[k]); });
+    return ms;
+}
+
+Measurements read_hdf5_here(const MeasurementSource& src) {
+    h5::Handle f = h5::open_file(src.path, false);
+    for (const std::string* name : {&src.time_dataset, &src.values_dataset})
+        HINF_CHECK(h5::exists(f.get(), *name), "measurements '" + src.path + "': no dataset '" + *name +
+                                                   "' (name them with --time-dataset / --dataset)");
+    Measurements ms;
+    ms.m = src.outputs;
+    std::vector<hsize_t> td, yd;
+    ms.t = h5::read_doubles(f.get(), src.time_dataset, &td);
+    ms.y = h5::read_doubles(f.get(), src.values_dataset, &yd);
+    HINF_CHECK(td.size() == 1, "measurements '" + src.path + "': dataset '" + src.time_dataset + "' has " +
+                                   std::to_string(td.size()) + " dimensions, expected 1 ([K] seconds)");
+    const bool shape_ok = (yd.size() == 2 && yd[0] == td[0] && yd[1] == hsize_t(ms.m)) ||
+                          (yd.size() == 1 && ms.m == 1 && yd[0] == td[0]);
+    std::string shape;
+    for (std::size_t i = 0; i < yd.size(); ++i) shape += (i ? " x " : "") + std::to_string(yd[i]);
+    HINF_CHECK(shape_ok, "measurements '" + src.path + "': dataset '" + src.values_dataset + "' is [" + shape +
+                             "], expected [" + std::to_string(td[0]) + " x " + std::to_string(ms.m) +
+                             "] (one row per time in '" + src.time_dataset + "', one column per output)");
+    ms.rows = std::int64_t(td[0]);
+    check_rows(ms, src.path, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
+    return ms;
+}
+
+}  // namespace
+
+Measurements read_measurements(const MeasurementSource& src) {
+    HINF_CHECK(src.outputs >= 1, "measurements: the system has no outputs");
+    const std::string& p = src.path;
+    if (ends_with(p, ".csv") || ends_with(p, ".txt")) return read_csv(src);
+    if (ends_with(p, ".h5") || ends_with(p, ".hdf5")) {
+        std::ifstream probe(p);
+        HINF_CHECK(probe.good(), "measurements '" + p + "' cannot be opened (check the path)");
+        const std::string problem = run_isolated([&src] { read_hdf5_here(src); });
+        HINF_CHECK(problem.empty(), problem.find(p) == std::string::npos ? "measurements '" + p + "': " + problem : problem);
+        return read_hdf5_here(src);
+    }
+    HINF_FAIL("measurements '" + p + "': unknown file type (use .csv or .txt with a time column, or .h5/.hdf5 "
+              "with datasets t and y)");
+}
+
+}  // namespace hinf
