@@ -3,6 +3,7 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
+#include "models/expr_system.hpp"
 #include "models/maneuvering_missile.hpp"
 #include "models/missile.hpp"
 #include "models/system.hpp"
@@ -11,7 +12,12 @@ namespace hinf {
 
 std::unique_ptr<System> make_system(const ConfigDoc& doc) {
     ConfigSection s(doc, "system");
-    std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile"});
+    std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile", "expr"});
+    if (kind == "expr") {
+        std::unique_ptr<System> sys = make_expr_system(s);
+        s.finish();
+        return sys;
+    }
     const bool maneuver = kind == "maneuvering_missile";
     ManeuverParams mp;
     MissileParams p = maneuver ? mp.base : MissileParams{};
