@@ -333,6 +333,12 @@ std::vector<std::string> ExprSystem::compiled(const std::string& which) const {
     return out;
 }
 
+std::string expr_library_versions() {
+    return "GiNaC " + std::to_string(GiNaC::version_major) + "." + std::to_string(GiNaC::version_minor) + "." +
+           std::to_string(GiNaC::version_micro) + " (parse, differentiate), muParser " +
+           std::string(mu::ParserVersion.substr(0, mu::ParserVersion.find(' '))) + " (evaluate)";
+}
+
 std::unique_ptr<System> make_expr_system(ConfigSection& s) {
     ExprSpec spec;
     spec.where = s.where("kind");

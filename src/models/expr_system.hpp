@@ -76,6 +76,9 @@ private:
     mutable std::vector<std::unique_ptr<Workspace>> pool_;  // idle workspaces
 };
 
+/// "GiNaC 1.8.6 (parse, differentiate), muParser 2.3.3 (evaluate)": the libraries doing the work.
+std::string expr_library_versions();
+
 /// Reads [system] kind = "expr" (every key but kind) into a checked ExprSystem.
 std::unique_ptr<System> make_expr_system(ConfigSection& s);
 

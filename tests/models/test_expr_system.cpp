@@ -295,3 +295,19 @@ TEST_CASE("train, compare (every filter) and operate run on an expression system
     INFO(r.output);
     CHECK(r.status == 0);
 }
+
+TEST_CASE("hinf bench reports the expression evaluation cost per state", "[cli][bench][expr]") {
+    TempDir dir("expr-bench");
+    test::CommandResult r = test::run_hinf("bench --threads 1 --precision f32 --batch 40 --repeats 3 --expr-config " +
+                                           test::source_path("runs/vanderpol.toml") + " --out " + (dir / "b"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("f ns/state") != std::string::npos);
+    h5::Handle f = h5::open_file(dir / "b/bench.h5", false);
+    for (const char* key : {"expr_f_ns_per_state", "expr_g_ns_per_state", "expr_h_ns_per_state",
+                            "expr_drift_jacobian_us", "expr_measurement_jacobian_us", "expr_eval_ms_per_time_step",
+                            "expr_time_step_ms"}) {
+        INFO(key);
+        CHECK(h5::get_attr_double(f.get(), key) > 0);
+    }
+}
