@@ -112,7 +112,7 @@ BenchRow time_step(const BenchOptions& opt, int threads) {
     return row;
 }
 
-// Expression systems (issue 7): f, g, h evaluated in bulk over the N sample states of a training time step,
+// Expression systems (issue 7): f, g, h evaluated over the N sample states of a training time step,
 // the Jacobians at one state, against the hand-written missile; and the share of a whole training time step.
 template <typename F>
 double median_ms(int repeats, F&& work) {
@@ -174,8 +174,8 @@ void bench_expr_report(const BenchOptions& opt, hid_t file) {
     if (opt.expr_config.empty()) return;
     const int threads = opt.threads.back();
     BenchExpr b = bench_expr(opt, threads);
-    std::printf("\nexpression system %s, %d thread(s): expressions by %s, in bulk over the N "
-                "sample states of a time step\n",
+    std::printf("\nexpression system %s, %d thread(s): expressions by %s, over the N sample "
+                "states of a time step\n",
                 opt.expr_config.c_str(), threads, expr_library_versions().c_str());
     std::printf("%-18s %12s %12s %12s %12s %12s\n", "", "f ns/state", "g ns/state", "h ns/state", "dA/dx us",
                 "dC/dx us");

@@ -1,6 +1,6 @@
 // A system written in the config ([system] kind = "expr"): f, g, h as expressions in the states, named
-// parameters and t, read by GiNaC (parsing, exact symbolic Jacobians dA/dx, dC/dx) and evaluated in bulk over
-// a batch of states by muParser. Not a parser of our own: both grammars are the libraries'; see docs/formats.md.
+// parameters and t, read by GiNaC (parsing, exact symbolic Jacobians dA/dx, dC/dx) and evaluated over a batch
+// of states by muParser's byte code. Not a parser of our own: both grammars are the libraries'; see docs/formats.md.
 #pragma once
 #include <memory>
 #include <mutex>
@@ -59,7 +59,7 @@ public:
     std::vector<std::string> compiled(const std::string& which) const;
 
     struct Compiled;   // one entry: a constant, or the index of its muParser program
-    struct Workspace;  // muParser programs bound to their own column buffers: one per concurrent caller
+    struct Workspace;  // muParser programs bound to their own state buffer: one per concurrent caller
 
 private:
     void evaluate(double* out, const std::vector<Compiled>& exprs, const double* x, double t,
