@@ -68,8 +68,26 @@ std::string quoted(const ExprText& e) { return e.where + " \"" + e.text + "\""; 
 
 std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
 
+std::string c_text_plain(const GiNaC::ex& e) {
+    std::ostringstream os;
+    os << e;
+    return os.str();
+}
+
 // muParser reads the user's text first: it reports unknown symbols and syntax errors with a position.
 void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, const std::string& known) {
+    // GiNaC's parser and diff recurse on the nesting: bound it before either sees the text
+    const std::size_t max_length = 5000;
+    int depth = 0, max_depth = 0;
+    for (char c : e.text) {
+        depth += c == '(' ? 1 : c == ')' ? -1 : 0;
+        max_depth = std::max(max_depth, depth);
+    }
+    HINF_CHECK(e.text.size() <= max_length, e.where + ": the expression has " + std::to_string(e.text.size()) +
+                                                " characters, more than " + std::to_string(max_length) +
+                                                " (split it with definitions = [\"name = ...\"])");
+    HINF_CHECK(max_depth <= 100, quoted(e) + ": parentheses nest " + std::to_string(max_depth) +
+                                     " deep, more than 100 (split it with definitions = [\"name = ...\"])");
     mu::Parser p;
     define_functions(p);
     std::vector<double> dummy(symbols.size(), 1.0);
@@ -91,16 +109,37 @@ void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, co
     }
 }
 
+// GiNaC's message without its "GiNaC: parse error at line 0, column 0: " preamble (it has no positions).
+std::string ginac_reason(const std::exception& err) {
+    std::string msg = first_line(err.what());
+    for (const std::string noise : {"GiNaC: ", "parse error at line 0, column 0: "})
+        for (auto at = msg.find(noise); at != std::string::npos; at = msg.find(noise)) msg.erase(at, noise.size());
+    return msg;
+}
+
 // GiNaC reads it again for the symbolic work; its grammar is a subset of muParser's (no comparisons, no ?:).
 GiNaC::ex read_symbolic(const ExprText& e, const GiNaC::symtab& table) {
     GiNaC::parser reader(table, true);
+    GiNaC::ex out;
     try {
-        return reader(e.text);
+        out = reader(e.text);
     } catch (const std::exception& err) {
-        HINF_FAIL(quoted(e) + ": cannot be differentiated (GiNaC: " + first_line(err.what()) +
-                  "); use + - * / ^, ( ), numbers and sin cos tan asin acos atan atan2 sinh cosh tanh asinh acosh "
-                  "atanh exp log sqrt abs pow step; write a switch as step(s) (1 for s >= 0, else 0)");
+        HINF_FAIL(quoted(e) + ": GiNaC, which differentiates it, cannot read it (" + ginac_reason(err) +
+                  "); use + - * / ^ (with parentheses: (a^b)^c), numbers and sin cos tan asin acos atan atan2 sinh "
+                  "cosh tanh asinh acosh atanh exp log sqrt abs pow step; write a switch as step(s) (1 for s >= 0, "
+                  "else 0)");
     }
+    GiNaC::ex numeric_form;  // sqrt(-2) stays a power until evaluated in floating point
+    try {
+        numeric_form = out.evalf();
+    } catch (const std::exception& err) {
+        HINF_FAIL(quoted(e) + ": GiNaC cannot evaluate it (" + ginac_reason(err) + ")");
+    }
+    for (auto it = numeric_form.preorder_begin(); it != numeric_form.preorder_end(); ++it)
+        if (GiNaC::is_a<GiNaC::numeric>(*it) && !GiNaC::ex_to<GiNaC::numeric>(*it).is_real())
+            HINF_FAIL(quoted(e) + ": has the complex value " + c_text_plain(*it) +
+                      " (a square root or log of a negative constant?): f, g, h must be real");
+    return out;
 }
 
 // d/dx step(s) is zero wherever it exists; GiNaC leaves it as D[0](step)(s).
@@ -190,35 +229,43 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         for (const auto& e : row) g.push_back(read(e));
     for (const auto& e : spec.h) h.push_back(read(e));
 
-    // exact Jacobians dA/dx [n x n] and dC/dx [m x n]
-    zero_step_derivative no_step;
-    std::vector<GiNaC::ex> df, dh;
-    for (const auto& fi : f)
-        for (const auto& xj : state_symbols) df.push_back(no_step(fi.diff(xj)));
-    for (const auto& hi : h)
-        for (const auto& xj : state_symbols) dh.push_back(no_step(hi.diff(xj)));
+    // exact Jacobians dA/dx [n x n] and dC/dx [m x n]; GiNaC reports trouble (a pole met while simplifying,
+    // say) as its own exception types, turned into one line here
+    try {
+        zero_step_derivative no_step;
+        std::vector<GiNaC::ex> df, dh;
+        for (const auto& fi : f)
+            for (const auto& xj : state_symbols) df.push_back(no_step(fi.diff(xj)));
+        for (const auto& hi : h)
+            for (const auto& xj : state_symbols) dh.push_back(no_step(hi.diff(xj)));
 
-    auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
-        for (const auto& e : exprs) {
-            Compiled c;
-            GiNaC::ex value = e.evalf();
-            if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
-                c.value = GiNaC::ex_to<GiNaC::numeric>(value).to_double();
-                c.text = c_text(e);
-            } else {
-                c.constant = false;
-                c.text = c_text(e);
-                c.program = int(programs_.size());
-                programs_.push_back(c.text);
+        auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
+            for (const auto& e : exprs) {
+                Compiled c;
+                GiNaC::ex value = e.evalf();
+                if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
+                    c.value = GiNaC::ex_to<GiNaC::numeric>(value).to_double();
+                    c.text = c_text(e);
+                } else {
+                    c.constant = false;
+                    c.text = c_text(e);
+                    c.program = int(programs_.size());
+                    programs_.push_back(c.text);
+                }
+                out->push_back(std::move(c));
             }
-            out->push_back(std::move(c));
-        }
-    };
-    compile(f, &f_);
-    compile(g, &g_);
-    compile(h, &h_);
-    compile(df, &df_);
-    compile(dh, &dh_);
+        };
+        compile(f, &f_);
+        compile(g, &g_);
+        compile(h, &h_);
+        compile(df, &df_);
+        compile(dh, &dh_);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& err) {
+        HINF_FAIL(spec.where + ": GiNaC failed on the expressions: " + ginac_reason(err) +
+                  " (check f, g, h for divisions by zero or undefined functions)");
+    }
     // a first workspace evaluates every program once: a print muParser cannot read is our bug, said here
     std::unique_ptr<Workspace> ws = workspace_acquire();
     for (std::size_t k = 0; k < programs_.size(); ++k) {

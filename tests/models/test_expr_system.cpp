@@ -262,7 +262,8 @@ TEST_CASE("expression errors are one line naming the key, the expression and the
                  "g row 1 has 2 entries, expected 1 (one entry per disturbance)");
     }
     SECTION("what muParser reads but GiNaC cannot differentiate") {
-        bad_text(replace(ok, "p + c*p^3", "p > 0 ? p : 0"), "\"p > 0 ? p : 0\": cannot be differentiated");
+        bad_text(replace(ok, "p + c*p^3", "p > 0 ? p : 0"), "\"p > 0 ? p : 0\": GiNaC, which differentiates it, cannot read it (expected EOF, got: \">\")");
+        bad_text(replace(ok, "p + c*p^3", "sqrt(-2)*p"), "\"sqrt(-2)*p\": has the complex value");
     }
     SECTION("names") {
         bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"p\"]"), "state 'p' is defined twice");
