@@ -18,9 +18,9 @@ namespace hinf {
 
 struct ExprSystem::Compiled {
     bool constant = true;
-    double value = 0;      // if constant
-    int program = -1;      // else: index into programs_ and Workspace::parsers
-    std::string text;      // what muParser evaluates (GiNaC's print_csrc_double)
+    double value = 0;  // if constant
+    int program = -1;  // else: index into programs_ and Workspace::parsers
+    std::string text;  // what muParser evaluates (GiNaC's print_csrc_double)
 };
 
 struct ExprSystem::Workspace {
@@ -33,10 +33,18 @@ namespace {
 // step(s) = 1 for s >= 0, else 0: a switch such as the missile's atmosphere at 9144 m (z >= 9144 is the
 // upper layer). Its derivative is zero except at the switch itself, where it does not exist: the Jacobians
 // use zero (docs/method.md).
-double mu_step(double s) { return s >= 0 ? 1.0 : 0.0; }
-double mu_pow(double a, double b) { return std::pow(a, b); }
-double mu_fabs(double a) { return std::fabs(a); }
-double mu_atan2(double a, double b) { return std::atan2(a, b); }
+double mu_step(double s) {
+    return s >= 0 ? 1.0 : 0.0;
+}
+double mu_pow(double a, double b) {
+    return std::pow(a, b);
+}
+double mu_fabs(double a) {
+    return std::fabs(a);
+}
+double mu_atan2(double a, double b) {
+    return std::atan2(a, b);
+}
 
 // The functions GiNaC's C print uses beyond muParser's own (sin, cos, exp, log, sqrt, tanh, ...).
 void define_functions(mu::Parser& p) {
@@ -50,10 +58,9 @@ void define_functions(mu::Parser& p) {
 
 const std::set<std::string>& reserved_names() {
     static const std::set<std::string> names = {
-        "t",    "pi",   "Pi",   "I",    "Euler", "Catalan", "Digits", "sin",  "cos",   "tan",  "asin",
-        "acos", "atan", "atan2", "sinh", "cosh", "tanh",    "asinh",  "acosh", "atanh", "exp",  "log",
-        "sqrt", "abs",  "fabs", "pow",  "step",  "ln",      "log2",   "log10", "sign",  "rint", "min",
-        "max",  "sum",  "avg",  "_pi",  "_e"};
+        "t",     "pi",   "Pi",   "I",     "Euler", "Catalan", "Digits", "sin", "cos", "tan",  "asin", "acos", "atan",
+        "atan2", "sinh", "cosh", "tanh",  "asinh", "acosh",   "atanh",  "exp", "log", "sqrt", "abs",  "fabs", "pow",
+        "step",  "ln",   "log2", "log10", "sign",  "rint",    "min",    "max", "sum", "avg",  "_pi",  "_e"};
     return names;
 }
 
@@ -64,9 +71,13 @@ bool is_identifier(const std::string& s) {
     return true;
 }
 
-std::string quoted(const ExprText& e) { return e.where + " \"" + e.text + "\""; }
+std::string quoted(const ExprText& e) {
+    return e.where + " \"" + e.text + "\"";
+}
 
-std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
+std::string first_line(const std::string& s) {
+    return s.substr(0, s.find('\n'));
+}
 
 std::string c_text_plain(const GiNaC::ex& e) {
     std::ostringstream os;
@@ -350,9 +361,13 @@ void ExprSystem::measurement(double* c, const double* x, double t, std::int64_t 
     evaluate(c, h_, x, t, count);
 }
 
-void ExprSystem::drift_jacobian(double* J, const double* x, double t) const { evaluate(J, df_, x, t, 1); }
+void ExprSystem::drift_jacobian(double* J, const double* x, double t) const {
+    evaluate(J, df_, x, t, 1);
+}
 
-void ExprSystem::measurement_jacobian(double* H, const double* x, double t) const { evaluate(H, dh_, x, t, 1); }
+void ExprSystem::measurement_jacobian(double* H, const double* x, double t) const {
+    evaluate(H, dh_, x, t, 1);
+}
 
 std::vector<std::string> ExprSystem::compiled(const std::string& which) const {
     const std::vector<Compiled>* list = which == "f"    ? &f_
@@ -412,7 +427,8 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s) {
     for (std::size_t i = 0; i < g.size(); ++i) {
         std::vector<ExprText> row;
         for (std::size_t j = 0; j < g[i].size(); ++j)
-            row.push_back({s.where("g") + " row " + std::to_string(i + 1) + " entry " + std::to_string(j + 1), g[i][j]});
+            row.push_back(
+                {s.where("g") + " row " + std::to_string(i + 1) + " entry " + std::to_string(j + 1), g[i][j]});
         spec.g.push_back(row);
     }
     spec.h = texts("h", s.get_strings("h", {}));

@@ -10,10 +10,6 @@
 
 #include "models/system.hpp"
 
-namespace mu {
-class Parser;
-}
-
 namespace hinf {
 
 class ConfigSection;
@@ -26,14 +22,14 @@ struct ExprText {
 
 /// Everything [system] kind = "expr" says, before any expression is read.
 struct ExprSpec {
-    std::vector<std::string> states, units;                 // n names, n units ("" if not given)
-    std::vector<std::pair<std::string, double>> parameters;  // named constants
+    std::vector<std::string> states, units;                     // n names, n units ("" if not given)
+    std::vector<std::pair<std::string, double>> parameters;     // named constants
     std::vector<std::pair<std::string, ExprText>> definitions;  // name = expression, in order (may use earlier ones)
-    int disturbance_dim = 1, output_dim = 1;                // nv, m as declared
-    std::vector<ExprText> f;                                 // n entries: A(x, t)
-    std::vector<std::vector<ExprText>> g;                    // n rows of nv entries: B(x, t)
-    std::vector<ExprText> h;                                 // m entries: C(x, t)
-    std::string where;                                       // "file.toml: [system]" for shape errors
+    int disturbance_dim = 1, output_dim = 1;                    // nv, m as declared
+    std::vector<ExprText> f;                                    // n entries: A(x, t)
+    std::vector<std::vector<ExprText>> g;                       // n rows of nv entries: B(x, t)
+    std::vector<ExprText> h;                                    // m entries: C(x, t)
+    std::string where;                                          // "file.toml: [system]" for shape errors
 };
 
 /// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h). Every expression is checked
@@ -41,7 +37,7 @@ struct ExprSpec {
 /// expression and the position. Safe to call from several threads at once (compare and operate split
 /// their runs over OpenMP threads): each concurrent call takes its own workspace from a pool.
 class ExprSystem : public System {
-public:
+  public:
     explicit ExprSystem(const ExprSpec& spec);
     ~ExprSystem() override;
     std::string name() const override { return "expr"; }
@@ -61,9 +57,8 @@ public:
     struct Compiled;   // one entry: a constant, or the index of its muParser program
     struct Workspace;  // muParser programs bound to their own state buffer: one per concurrent caller
 
-private:
-    void evaluate(double* out, const std::vector<Compiled>& exprs, const double* x, double t,
-                  std::int64_t count) const;
+  private:
+    void evaluate(double* out, const std::vector<Compiled>& exprs, const double* x, double t, std::int64_t count) const;
     std::unique_ptr<Workspace> workspace_acquire() const;
     void workspace_release(std::unique_ptr<Workspace> ws) const;
 
@@ -71,7 +66,7 @@ private:
     std::vector<std::string> states_, units_;
     std::vector<std::pair<std::string, double>> parameters_;
     std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
-    std::vector<std::string> programs_;           // the texts of the non-constant entries
+    std::vector<std::string> programs_;          // the texts of the non-constant entries
     mutable std::mutex pool_mutex_;
     mutable std::vector<std::unique_ptr<Workspace>> pool_;  // idle workspaces
 };

@@ -1,9 +1,9 @@
 // Expression systems ([system] kind = "expr"): seed 000's missile written as expressions
 // (runs/missile_expr.toml) against the built-in one, exact Jacobians against central differences, the
 // one-line errors at config read, concurrent use, and compare/operate on an expression system.
-#include <catch2/catch.hpp>
 #include <omp.h>
 
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <random>
 
@@ -54,8 +54,8 @@ std::vector<double> missile_states(std::int64_t count, std::uint64_t seed) {
         X[4] = vel(rng);
         X[5] = vel(rng);
     }
-    x[2] = 9144.0;                             // on the switch: the upper layer (z >= 9144)
-    x[8] = std::nextafter(9144.0, 0.0);        // just below it
+    x[2] = 9144.0;                       // on the switch: the upper layer (z >= 9144)
+    x[8] = std::nextafter(9144.0, 0.0);  // just below it
     return x;
 }
 
@@ -113,13 +113,23 @@ TEST_CASE("expression missile equals the built-in missile: f, g, h and Jacobians
     CHECK(ex->state_units() == ref.state_units());
     std::vector<double> x = missile_states(5000, seed);
     MissileDiff d = missile_diff(*ex, ref, x, 1.25);
-    INFO("largest relative differences: f " << d.f << ", g " << d.g << ", h " << d.h << ", dA/dx " << d.df
-                                            << ", dC/dx " << d.dh);
+    INFO("largest relative differences: f " << d.f << ", g " << d.g << ", h " << d.h << ", dA/dx " << d.df << ", dC/dx "
+                                            << d.dh);
     CHECK(d.f <= kEvalTol);
     CHECK(d.g == 0.0);
     CHECK(d.h == 0.0);
     CHECK(d.df <= kEvalTol);
     CHECK(d.dh == 0.0);
+    // the step's derivative is gone from the Jacobian's expressions (zero, docs/method.md §12), the step stays
+    const auto* es = dynamic_cast<const ExprSystem*>(ex.get());
+    REQUIRE(es);
+    bool step_kept = false;
+    for (const auto& text : es->compiled("df")) {
+        INFO(text);
+        CHECK(text.find("D_0_step") == std::string::npos);
+        step_kept = step_kept || text.find("step(") != std::string::npos;
+    }
+    CHECK(step_kept);
     // one state at a time (the path EKF/UKF/PF take) gives the same values as the batch
     std::vector<double> batch(6 * 5000), one(6);
     ex->drift(batch.data(), x.data(), 0.0, 5000);
@@ -233,7 +243,8 @@ TEST_CASE("expression missile trains like the built-in missile for 20 time steps
 
 TEST_CASE("expression errors are one line naming the key, the expression and the position", "[cli][expr]") {
     TempDir dir("expr-errors");
-    auto bad = [&](const std::string& system_extra, const std::string& fragment, const std::string& filter_extra = kStart) {
+    auto bad = [&](const std::string& system_extra, const std::string& fragment,
+                   const std::string& filter_extra = kStart) {
         std::string text = vdp_config(system_extra, filter_extra);
         test::expect_one_line_error("train " + test::write_file(dir, "bad.toml", text) + " --out " + (dir / "out"),
                                     fragment);
@@ -249,26 +260,30 @@ TEST_CASE("expression errors are one line naming the key, the expression and the
     };
     SECTION("unknown symbol, with its position") {
         bad_text(replace(ok, "mu*(1 - p^2)*w - p", "mu*(1 - p^2)*v - p"),
-                 "[system] f entry 2 \"mu*(1 - p^2)*v - p\": unknown symbol 'v' at character 14 (known: p, w, c, mu, t, pi)");
+                 "[system] f entry 2 \"mu*(1 - p^2)*v - p\": unknown symbol 'v' at character 14 (known: p, w, c, mu, "
+                 "t, pi)");
     }
     SECTION("parse error, with its position") {
         bad_text(replace(ok, "p + c*p^3", "p + c*(p^3"), "[system] h entry 1 \"p + c*(p^3\": ");
         bad_text(replace(ok, "p + c*p^3", "p + c*(p^3"), "Missing parenthesis at character 12");
     }
     SECTION("dimension mismatch") {
-        bad_text(replace(ok, "measurements = 1", "measurements = 2"), "h has 1 entries, expected 2 (one per measurement)");
+        bad_text(replace(ok, "measurements = 1", "measurements = 2"),
+                 "h has 1 entries, expected 2 (one per measurement)");
         bad_text(replace(ok, "f = [\"w\", ", "f = ["), "f has 1 entries, expected 2 (one per state)");
         bad_text(replace(ok, "g = [[\"0\"], [\"1\"]]", "g = [[\"0\", \"1\"], [\"1\"]]"),
                  "g row 1 has 2 entries, expected 1 (one entry per disturbance)");
     }
     SECTION("what muParser reads but GiNaC cannot differentiate") {
-        bad_text(replace(ok, "p + c*p^3", "p > 0 ? p : 0"), "\"p > 0 ? p : 0\": GiNaC, which differentiates it, cannot read it (expected EOF, got: \">\")");
+        bad_text(replace(ok, "p + c*p^3", "p > 0 ? p : 0"),
+                 "\"p > 0 ? p : 0\": GiNaC, which differentiates it, cannot read it (expected EOF, got: \">\")");
         bad_text(replace(ok, "p + c*p^3", "sqrt(-2)*p"), "\"sqrt(-2)*p\": has the complex value");
     }
     SECTION("names") {
         bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"p\"]"), "state 'p' is defined twice");
         bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"t\"]"), "state 't' is reserved");
-        bad("definitions = [\"speed w\"]\n", "[system] definitions entry 1 \"speed w\" must read \"name = expression\"");
+        bad("definitions = [\"speed w\"]\n",
+            "[system] definitions entry 1 \"speed w\" must read \"name = expression\"");
     }
     SECTION("required keys") {
         bad("", "[filter] x0: is required for [system] kind = \"expr\"", "");
@@ -284,9 +299,10 @@ TEST_CASE("train, compare (every filter) and operate run on an expression system
     INFO(r.output);
     REQUIRE(r.status == 0);
     const std::string ckpt = dir / "train/checkpoint.h5";
-    r = test::run_hinf("compare " + cfg + " --network " + ckpt +
-                       " --filters dnn,ekf,ukf,pf,glf,open_loop --glf-vertices 2 --particles 200 --runs 2 --quiet --out " +
-                       (dir / "compare"));
+    r = test::run_hinf(
+        "compare " + cfg + " --network " + ckpt +
+        " --filters dnn,ekf,ukf,pf,glf,open_loop --glf-vertices 2 --particles 200 --runs 2 --quiet --out " +
+        (dir / "compare"));
     INFO(r.output);
     CHECK(r.status == 0);
     CHECK(r.output.find("ekf") != std::string::npos);
@@ -305,9 +321,9 @@ TEST_CASE("hinf bench reports the expression evaluation cost per state", "[cli][
     REQUIRE(r.status == 0);
     CHECK(r.output.find("f ns/state") != std::string::npos);
     h5::Handle f = h5::open_file(dir / "b/bench.h5", false);
-    for (const char* key : {"expr_f_ns_per_state", "expr_g_ns_per_state", "expr_h_ns_per_state",
-                            "expr_drift_jacobian_us", "expr_measurement_jacobian_us", "expr_eval_ms_per_time_step",
-                            "expr_time_step_ms"}) {
+    for (const char* key :
+         {"expr_f_ns_per_state", "expr_g_ns_per_state", "expr_h_ns_per_state", "expr_drift_jacobian_us",
+          "expr_measurement_jacobian_us", "expr_eval_ms_per_time_step", "expr_time_step_ms"}) {
         INFO(key);
         CHECK(h5::get_attr_double(f.get(), key) > 0);
     }
