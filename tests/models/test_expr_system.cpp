@@ -328,3 +328,38 @@ TEST_CASE("hinf bench reports the expression evaluation cost per state", "[cli][
         CHECK(h5::get_attr_double(f.get(), key) > 0);
     }
 }
+
+TEST_CASE("the example configs of expression systems load", "[model][expr]") {
+    RunConfig vdp = load_run_config(ConfigDoc::from_file(test::source_path("runs/vanderpol.toml")));
+    CHECK(vdp.system->name() == "expr");
+    CHECK(vdp.n == 2);
+    CHECK(vdp.nv == 1);
+    CHECK(vdp.m == 1);
+    CHECK(vdp.system->state_units() == std::vector<std::string>{"m", "m/s"});
+    // Van der Pol at (p, w) = (2, 0.5): f = (w, mu (1 - p^2) w - p), h = p + c p^3, exact Jacobians
+    double x[2] = {2.0, 0.5}, a[2], c[1], J[4], H[2];
+    vdp.system->drift(a, x, 0.0, 1);
+    vdp.system->measurement(c, x, 0.0, 1);
+    vdp.system->drift_jacobian(J, x, 0.0);
+    vdp.system->measurement_jacobian(H, x, 0.0);
+    CHECK(a[0] == 0.5);
+    CHECK(a[1] == Approx(-3.5).epsilon(1e-15));
+    CHECK(c[0] == Approx(2.0 + 0.3 * 8.0).epsilon(1e-15));
+    CHECK(J[0] == 0.0);
+    CHECK(J[1] == 1.0);
+    CHECK(J[2] == Approx(-2.0 * 2.0 * 0.5 - 1.0).epsilon(1e-15));  // -2 mu p w - 1
+    CHECK(J[3] == Approx(1.0 - 4.0).epsilon(1e-15));              // mu (1 - p^2)
+    CHECK(H[0] == Approx(1.0 + 0.9 * 4.0).epsilon(1e-15));        // 1 + 3 c p^2
+    CHECK(H[1] == 0.0);
+    RunConfig me = load_run_config(ConfigDoc::from_file(test::source_path("runs/missile_expr.toml")));
+    RunConfig mb = load_run_config(ConfigDoc::from_file(test::source_path("runs/missile_hinf.toml")));
+    // everything but [system] is the built-in missile's config
+    CHECK(me.x0 == mb.x0);
+    CHECK(me.xhat0 == mb.xhat0);
+    CHECK(me.Q == mb.Q);
+    CHECK(me.rho == mb.rho);
+    CHECK(me.hidden == mb.hidden);
+    CHECK(me.samples == mb.samples);
+    CHECK(me.adam_steps == mb.adam_steps);
+    CHECK(me.t_final == mb.t_final);
+}
