@@ -5,6 +5,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace toml {
@@ -62,6 +63,13 @@ public:
     std::vector<double> get_doubles(const std::string& key, const std::vector<double>& fallback, int length = -1);
     std::vector<std::int64_t> get_ints(const std::string& key, const std::vector<std::int64_t>& fallback,
                                        std::int64_t lo, std::int64_t hi);
+    /// A list of texts (strings; numbers are taken as their TOML text, e.g. 0 -> "0"); `length` < 0: any length >= 1.
+    std::vector<std::string> get_strings(const std::string& key, const std::vector<std::string>& fallback,
+                                         int length = -1);
+    /// A list of rows of texts ([["a", "b"], ["c", 0]]); a flat list reads as rows of one entry each.
+    std::vector<std::vector<std::string>> get_string_rows(const std::string& key);
+    /// A table of named numbers ({ mu = 1.0, k = 2 } or a [section.key] sub-table), sorted by name.
+    std::vector<std::pair<std::string, double>> get_number_table(const std::string& key);
     /// A square matrix given as a list of rows, or a list of n numbers for a diagonal.
     std::vector<double> get_matrix(const std::string& key, const std::vector<double>& fallback, int rows, int cols);
     /// Throws on keys never asked for. Call once after all get_*.

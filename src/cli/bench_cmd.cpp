@@ -1,4 +1,5 @@
 // `hinf bench`: argument parsing for the training-step benchmark (src/eval/bench.cpp).
+#include <filesystem>
 #include <sstream>
 
 #include "cli/commands.hpp"
@@ -20,6 +21,7 @@ std::vector<std::string> split(const std::string& s) {
 void add_bench_command(CLI::App& app) {
     struct Args {
         std::string threads = "1,2", precision = "f32,f64", variant = "paper", out = "runs/out/bench";
+        std::string expr_config = "runs/missile_expr.toml";
         int batch = 800, repeats = 40;
     };
     auto a = std::make_shared<Args>();
@@ -30,6 +32,8 @@ void add_bench_command(CLI::App& app) {
     b->add_option("--variant", a->variant, "paper (the paper's network and loss) or dissipative (default paper)");
     b->add_option("--repeats", a->repeats, "Timed steps per configuration (default 40)");
     b->add_option("--out", a->out, "Output directory for bench.h5 (default runs/out/bench)");
+    b->add_option("--expr-config", a->expr_config,
+                  "Expression system whose evaluation cost is timed (default runs/missile_expr.toml; \"\" to skip)");
     b->callback([a]() {
         BenchOptions opt;
         opt.threads.clear();
@@ -48,6 +52,11 @@ void add_bench_command(CLI::App& app) {
         opt.batch = a->batch;
         opt.repeats = a->repeats;
         opt.out_dir = a->out;
+        opt.expr_config = a->expr_config;
+        // the default example also when run outside the source tree
+        std::error_code ec;
+        if (a->expr_config == "runs/missile_expr.toml" && !std::filesystem::exists(a->expr_config, ec))
+            opt.expr_config = std::string(HINF_SOURCE_DIR) + "/runs/missile_expr.toml";
         bench_run(opt);
     });
 }

@@ -11,6 +11,9 @@
 #include <filesystem>
 
 #include "adam.hpp"
+#include "hinf/config.hpp"
+#include "models/expr_system.hpp"
+#include "models/missile.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "peak.hpp"
@@ -109,6 +112,94 @@ BenchRow time_step(const BenchOptions& opt, int threads) {
     return row;
 }
 
+// Expression systems (issue 7): f, g, h evaluated over the N sample states of a training time step,
+// the Jacobians at one state, against the hand-written missile; and the share of a whole training time step.
+template <typename F>
+double median_ms(int repeats, F&& work) {
+    std::vector<double> ms;
+    for (int r = 0; r < repeats + 2; ++r) {
+        auto t0 = Clock::now();
+        work();
+        double dt = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        if (r >= 2) ms.push_back(dt);  // two warm-up calls
+    }
+    return median(ms);
+}
+
+void bench_system(const System& sys, const std::vector<double>& xs, int repeats, double* f_ns, double* g_ns,
+                  double* h_ns, double* df_us, double* dh_us) {
+    const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+    const std::int64_t N = std::int64_t(xs.size()) / n;
+    std::vector<double> a(N * n), B(N * n * nv), c(N * m), J(n * n), H(m * n);
+    *f_ns = 1e6 * median_ms(repeats, [&] { sys.drift(a.data(), xs.data(), 0.5, N); }) / double(N);
+    *g_ns = 1e6 * median_ms(repeats, [&] { sys.disturbance_gain(B.data(), xs.data(), 0.5, N); }) / double(N);
+    *h_ns = 1e6 * median_ms(repeats, [&] { sys.measurement(c.data(), xs.data(), 0.5, N); }) / double(N);
+    const int per = 100;
+    *df_us = 1e3 * median_ms(repeats, [&] {
+        for (int i = 0; i < per; ++i) sys.drift_jacobian(J.data(), &xs[std::size_t(i % N) * n], 0.5);
+    }) / per;
+    *dh_us = 1e3 * median_ms(repeats, [&] {
+        for (int i = 0; i < per; ++i) sys.measurement_jacobian(H.data(), &xs[std::size_t(i % N) * n], 0.5);
+    }) / per;
+}
+
+BenchExpr bench_expr(const BenchOptions& opt, int threads) {
+    BenchExpr b;
+    RunConfig cfg = load_run_config(ConfigDoc::from_file(opt.expr_config));
+    omp_set_num_threads(threads);
+    TimeStepSamples s;
+    samples_build(&s, cfg, cfg.x0, cfg.xhat0, 0);  // the N states of the first time step
+    bench_system(*cfg.system, s.xs, opt.repeats, &b.f_ns, &b.g_ns, &b.h_ns, &b.df_us, &b.dh_us);
+    if (cfg.n == 6 && cfg.nv == 1 && cfg.m == 6) {
+        MissileSystem ref{MissileParams{}};
+        bench_system(ref, s.xs, opt.repeats, &b.ref_f_ns, &b.ref_g_ns, &b.ref_h_ns, &b.ref_df_us, &b.ref_dh_us);
+    }
+    // a time step calls f and h at x^ and f, g, h on the N states (train/samples.cpp)
+    const double N = double(cfg.samples);
+    b.eval_ms = 1e-6 * (N * (b.f_ns + b.g_ns + b.h_ns) + b.f_ns + b.h_ns);
+    // the whole training time step of this config, measured: 10 time steps (K Adam steps each)
+    std::string dir = opt.out_dir + "/bench-expr-tmp";
+    TrainOptions to;
+    to.out_dir = dir;
+    to.until = 10 * cfg.dt;
+    to.quiet = true;
+    cfg.checkpoint_every = 1000000000;
+    TrainSummary ts = train_start(cfg, to);
+    std::filesystem::remove_all(dir);
+    b.time_step_ms = 1e3 * ts.wall_seconds / double(std::max<std::int64_t>(1, ts.last_step - ts.first_step));
+    return b;
+}
+
+void bench_expr_report(const BenchOptions& opt, hid_t file) {
+    if (opt.expr_config.empty()) return;
+    const int threads = opt.threads.back();
+    BenchExpr b = bench_expr(opt, threads);
+    std::printf("\nexpression system %s, %d thread(s): expressions by %s, over the N sample "
+                "states of a time step\n",
+                opt.expr_config.c_str(), threads, expr_library_versions().c_str());
+    std::printf("%-18s %12s %12s %12s %12s %12s\n", "", "f ns/state", "g ns/state", "h ns/state", "dA/dx us",
+                "dC/dx us");
+    std::printf("%-18s %12.1f %12.1f %12.1f %12.2f %12.2f\n", "expr", b.f_ns, b.g_ns, b.h_ns, b.df_us, b.dh_us);
+    if (b.ref_f_ns > 0)
+        std::printf("%-18s %12.1f %12.1f %12.1f %12.2f %12.2f\n", "built-in missile", b.ref_f_ns, b.ref_g_ns,
+                    b.ref_h_ns, b.ref_df_us, b.ref_dh_us);
+    std::printf("per training time step: expression evaluation %.3f ms of %.1f ms (%.1f%%)\n", b.eval_ms,
+                b.time_step_ms, 100 * b.eval_ms / b.time_step_ms);
+    h5::set_attr(file, "expr_config", opt.expr_config);
+    h5::set_attr(file, "expr_f_ns_per_state", b.f_ns);
+    h5::set_attr(file, "expr_g_ns_per_state", b.g_ns);
+    h5::set_attr(file, "expr_h_ns_per_state", b.h_ns);
+    h5::set_attr(file, "expr_drift_jacobian_us", b.df_us);
+    h5::set_attr(file, "expr_measurement_jacobian_us", b.dh_us);
+    h5::set_attr(file, "expr_eval_ms_per_time_step", b.eval_ms);
+    h5::set_attr(file, "expr_time_step_ms", b.time_step_ms);
+    if (b.ref_f_ns > 0) {
+        h5::set_attr(file, "missile_f_ns_per_state", b.ref_f_ns);
+        h5::set_attr(file, "missile_g_ns_per_state", b.ref_g_ns);
+        h5::set_attr(file, "missile_h_ns_per_state", b.ref_h_ns);
+    }
+}
+
 }  // namespace
 
 std::vector<BenchRow> bench_run(const BenchOptions& opt) {
@@ -156,6 +247,7 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
         h5::set_attr(f.get(), "peak_gflops_" + key, r.peak_gflops);
         h5::set_attr(f.get(), "outside_ms_" + key, r.outside_ms);
     }
+    bench_expr_report(opt, f.get());
     return rows;
 }
 

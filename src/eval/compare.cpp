@@ -123,7 +123,8 @@ struct FilterRun {
 FilterRun run_filter(const RunConfig& cfg, OnlineFilter& f, const Truth& tr, std::uint64_t run, std::int64_t steps,
                      std::int64_t stride, bool keep_path) {
     const int n = cfg.n, m = cfg.m;
-    const int npos = std::min(3, n), nvel = n >= 6 ? 3 : 0;
+    // "position" and "velocity": the states of the first and second unit (x, y, z and vx, vy, vz for the missile)
+    const std::vector<int> pos = state_unit_group(*cfg.system, 0), vel = state_unit_group(*cfg.system, 1);
     FilterRun r;
     std::vector<double> s1(n, 0), s2(n, 0), t1(n, 0), t2(n, 0), e(n);
     double num = 0, den = 0, settled = 0;
@@ -149,8 +150,8 @@ FilterRun run_filter(const RunConfig& cfg, OnlineFilter& f, const Truth& tr, std
         num += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
         den += cfg.dt * tr.energy[s];
         double pp = 0, vv = 0;
-        for (int i = 0; i < npos; ++i) pp += e[i] * e[i];
-        for (int i = 3; i < 3 + nvel; ++i) vv += e[i] * e[i];
+        for (int i : pos) pp += e[i] * e[i];
+        for (int i : vel) vv += e[i] * e[i];
         r.sq_pos += pp;
         r.sq_vel += vv;
         for (int i = 0; i < n; ++i) {

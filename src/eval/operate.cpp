@@ -212,7 +212,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     sum.online_hji_violation_fraction = hji_n > 0 ? hji_v / hji_n : 0.0;
     if (set_count > 0) mean_std(&sum.error_mean_settled, &sum.error_std_settled, ss, sq, set_count);
     else sum.error_mean_settled = sum.error_std_settled = std::vector<double>(n, NAN);
-    for (int i = 0; i < std::min(3, n); ++i) {
+    for (int i : state_unit_group(*cfg.system, 0)) {  // the states of the first state's unit
         sum.rmse_position += eq[i] / count;
         sum.rmse_position_open_loop += eqo[i] / count;
     }

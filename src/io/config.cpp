@@ -248,6 +248,86 @@ std::vector<std::int64_t> ConfigSection::get_ints(const std::string& key, const 
     return out;
 }
 
+namespace {
+
+// The text of one list entry: a string as is, a number as its TOML text; anything else is rejected.
+bool entry_text(const toml::node& e, std::string* out) {
+    if (const auto* s = e.as_string()) {
+        *out = s->get();
+        return true;
+    }
+    if (e.is_integer() || e.is_floating_point()) {
+        std::ostringstream ss;
+        if (const auto* i = e.as_integer())
+            ss << *i;
+        else
+            ss << *e.as_floating_point();
+        *out = ss.str();
+        return true;
+    }
+    return false;
+}
+
+}  // namespace
+
+std::vector<std::string> ConfigSection::get_strings(const std::string& key, const std::vector<std::string>& fallback,
+                                                    int length) {
+    known_.insert(key);
+    if (!has(key)) return fallback;
+    const toml::node* n = table_->get(key);
+    if (!n->is_array()) reject(key, "must be a list of strings, e.g. [\"a\", \"b\"]");
+    std::vector<std::string> out;
+    for (const auto& e : *n->as_array()) {
+        std::string text;
+        if (!entry_text(e, &text)) reject(key, "must contain strings (or numbers) only");
+        out.push_back(text);
+    }
+    if (out.empty()) reject(key, "must not be empty");
+    if (length >= 0 && static_cast<int>(out.size()) != length)
+        reject(key, "has " + std::to_string(out.size()) + " entries, expected " + std::to_string(length));
+    return out;
+}
+
+std::vector<std::vector<std::string>> ConfigSection::get_string_rows(const std::string& key) {
+    known_.insert(key);
+    std::vector<std::vector<std::string>> out;
+    if (!has(key)) return out;
+    const toml::node* n = table_->get(key);
+    if (!n->is_array()) reject(key, "must be a list of rows, e.g. [[\"0\"], [\"1\"]]");
+    for (const auto& e : *n->as_array()) {
+        std::vector<std::string> row;
+        std::string text;
+        if (const toml::array* r = e.as_array()) {
+            for (const auto& c : *r) {
+                if (!entry_text(c, &text)) reject(key, "must contain strings (or numbers) only");
+                row.push_back(text);
+            }
+        } else if (entry_text(e, &text)) {
+            row.push_back(text);
+        } else {
+            reject(key, "must contain rows of strings (or numbers) only");
+        }
+        out.push_back(row);
+    }
+    if (out.empty()) reject(key, "must not be empty");
+    return out;
+}
+
+std::vector<std::pair<std::string, double>> ConfigSection::get_number_table(const std::string& key) {
+    known_.insert(key);
+    std::vector<std::pair<std::string, double>> out;
+    if (!has(key)) return out;
+    const toml::node* n = table_->get(key);
+    if (!n->is_table()) reject(key, "must be a table of numbers, e.g. { mu = 1.0, k = 2.0 }");
+    for (auto&& [k, v] : *n->as_table()) {
+        std::optional<double> d = v.value<double>();
+        if (!d || v.is_boolean()) reject(key, "entry '" + std::string(k.str()) + "' must be a number");
+        if (!std::isfinite(*d)) reject(key, "entry '" + std::string(k.str()) + "' must be finite");
+        out.emplace_back(std::string(k.str()), *d);
+    }
+    return out;
+}
+
 std::vector<double> ConfigSection::get_matrix(const std::string& key, const std::vector<double>& fallback, int rows,
                                               int cols) {
     known_.insert(key);

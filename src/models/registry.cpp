@@ -3,15 +3,33 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
+#include "models/expr_system.hpp"
 #include "models/maneuvering_missile.hpp"
 #include "models/missile.hpp"
 #include "models/system.hpp"
 
 namespace hinf {
 
+std::vector<int> state_unit_group(const System& sys, int group) {
+    const std::vector<std::string> units = sys.state_units();
+    std::vector<std::string> seen;
+    for (const auto& u : units)
+        if (std::find(seen.begin(), seen.end(), u) == seen.end()) seen.push_back(u);
+    std::vector<int> out;
+    if (group < 0 || group >= int(seen.size())) return out;
+    for (int i = 0; i < int(units.size()); ++i)
+        if (units[i] == seen[group]) out.push_back(i);
+    return out;
+}
+
 std::unique_ptr<System> make_system(const ConfigDoc& doc) {
     ConfigSection s(doc, "system");
-    std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile"});
+    std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile", "expr"});
+    if (kind == "expr") {
+        std::unique_ptr<System> sys = make_expr_system(s);
+        s.finish();
+        return sys;
+    }
     const bool maneuver = kind == "maneuvering_missile";
     ManeuverParams mp;
     MissileParams p = maneuver ? mp.base : MissileParams{};

@@ -35,6 +35,11 @@ public:
     virtual std::vector<std::string> state_units() const = 0;
 };
 
+/// The states of one unit, for error summaries in state units: group 0 holds the states with the first state's
+/// unit (the missile's positions, "position" in tables), group 1 those with the next unit met (its velocities).
+/// Empty when there is no such unit.
+std::vector<int> state_unit_group(const System& sys, int group);
+
 /// Builds the system named by [system] kind in the config (checks every key of [system]).
 std::unique_ptr<System> make_system(const ConfigDoc& doc);
 

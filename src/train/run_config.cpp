@@ -64,6 +64,13 @@ RunConfig load_run_config(ConfigDoc doc) {
         for (int j = 0; j < n; ++j)
             if (c.Q[i * n + j] != c.Q[j * n + i]) f.reject("Q", "must be symmetric");
     }
+    // the defaults are seed 000's missile; a system of one's own must say where it starts
+    if (c.system->name() == "expr")
+        for (const char* key : {"x0", "xhat0"})
+            if (!f.has(key))
+                f.reject(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
+                                  " numbers: the " + (std::string(key) == "x0" ? "true" : "estimated") +
+                                  " initial state)");
     c.x0 = f.get_doubles("x0", {150000, 210000, 120000, -2500, -2500, -2500}, n);
     c.xhat0 = f.get_doubles("xhat0", {140000, 204000, 111000, -2200, -2800, -2100}, n);
     c.dt = f.get_double("dt", c.dt, 0.0, 1e6);

@@ -1,0 +1,438 @@
+// Expression systems: GiNaC reads f, g, h and differentiates them exactly; muParser's byte code evaluates the
+// printed results over a batch of states (docs/method.md §12). Not a parser of our own.
+#include "models/expr_system.hpp"
+
+#include <ginac/ginac.h>
+#include <muParser.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "hinf/config.hpp"
+#include "hinf/error.hpp"
+
+namespace hinf {
+
+struct ExprSystem::Compiled {
+    bool constant = true;
+    double value = 0;  // if constant
+    int program = -1;  // else: index into programs_ and Workspace::parsers
+    std::string text;  // what muParser evaluates (GiNaC's print_csrc_double)
+};
+
+struct ExprSystem::Workspace {
+    std::vector<std::unique_ptr<mu::Parser>> parsers;  // one per program
+    std::vector<double> point;                         // [n + 1]: the state being evaluated, then t
+};
+
+namespace {
+
+// step(s) = 1 for s >= 0, else 0: a switch such as the missile's atmosphere at 9144 m (z >= 9144 is the
+// upper layer). Its derivative is zero except at the switch itself, where it does not exist: the Jacobians
+// use zero (docs/method.md).
+double mu_step(double s) {
+    return s >= 0 ? 1.0 : 0.0;
+}
+double mu_pow(double a, double b) {
+    return std::pow(a, b);
+}
+double mu_fabs(double a) {
+    return std::fabs(a);
+}
+double mu_atan2(double a, double b) {
+    return std::atan2(a, b);
+}
+
+// The functions GiNaC's C print uses beyond muParser's own (sin, cos, exp, log, sqrt, tanh, ...).
+void define_functions(mu::Parser& p) {
+    p.DefineFun("step", mu_step);
+    p.DefineFun("pow", mu_pow);
+    p.DefineFun("fabs", mu_fabs);
+    p.DefineFun("atan2", mu_atan2);
+    p.DefineConst("pi", M_PI);
+    p.DefineConst("Pi", M_PI);
+}
+
+const std::set<std::string>& reserved_names() {
+    static const std::set<std::string> names = {
+        "t",     "pi",   "Pi",   "I",     "Euler", "Catalan", "Digits", "sin", "cos", "tan",  "asin", "acos", "atan",
+        "atan2", "sinh", "cosh", "tanh",  "asinh", "acosh",   "atanh",  "exp", "log", "sqrt", "abs",  "fabs", "pow",
+        "step",  "ln",   "log2", "log10", "sign",  "rint",    "min",    "max", "sum", "avg",  "_pi",  "_e"};
+    return names;
+}
+
+bool is_identifier(const std::string& s) {
+    if (s.empty() || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
+    for (char c : s)
+        if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+    return true;
+}
+
+std::string quoted(const ExprText& e) {
+    return e.where + " \"" + e.text + "\"";
+}
+
+std::string first_line(const std::string& s) {
+    return s.substr(0, s.find('\n'));
+}
+
+std::string c_text_plain(const GiNaC::ex& e) {
+    std::ostringstream os;
+    os << e;
+    return os.str();
+}
+
+// muParser reads the user's text first: it reports unknown symbols and syntax errors with a position.
+void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, const std::string& known) {
+    // GiNaC's parser and diff recurse on the nesting: bound it before either sees the text
+    const std::size_t max_length = 5000;
+    int depth = 0, max_depth = 0;
+    for (char c : e.text) {
+        depth += c == '(' ? 1 : c == ')' ? -1 : 0;
+        max_depth = std::max(max_depth, depth);
+    }
+    HINF_CHECK(e.text.size() <= max_length, e.where + ": the expression has " + std::to_string(e.text.size()) +
+                                                " characters, more than " + std::to_string(max_length) +
+                                                " (split it with definitions = [\"name = ...\"])");
+    HINF_CHECK(max_depth <= 100, quoted(e) + ": parentheses nest " + std::to_string(max_depth) +
+                                     " deep, more than 100 (split it with definitions = [\"name = ...\"])");
+    mu::Parser p;
+    define_functions(p);
+    std::vector<double> dummy(symbols.size(), 1.0);
+    for (std::size_t i = 0; i < symbols.size(); ++i) p.DefineVar(symbols[i], &dummy[i]);
+    try {
+        p.SetExpr(e.text);
+        p.Eval();
+    } catch (const mu::Parser::exception_type& err) {
+        const int at = err.GetPos() + 1;  // muParser counts from 0
+        if (err.GetCode() == mu::ecUNASSIGNABLE_TOKEN)
+            HINF_FAIL(quoted(e) + ": unknown symbol '" + err.GetToken() + "' at character " + std::to_string(at) +
+                      " (known: " + known + ")");
+        std::string msg = err.GetMsg();
+        auto cut = msg.find(" at position");
+        if (cut != std::string::npos) msg.resize(cut);
+        if (!msg.empty() && msg.back() == '.') msg.pop_back();
+        HINF_FAIL(quoted(e) + ": " + msg + (at > 0 ? " at character " + std::to_string(at) : std::string()) +
+                  " (fix the expression; operators + - * / ^, functions as in docs/formats.md)");
+    }
+}
+
+// GiNaC's message without its "GiNaC: parse error at line 0, column 0: " preamble (it has no positions).
+std::string ginac_reason(const std::exception& err) {
+    std::string msg = first_line(err.what());
+    for (const std::string noise : {"GiNaC: ", "parse error at line 0, column 0: "})
+        for (auto at = msg.find(noise); at != std::string::npos; at = msg.find(noise)) msg.erase(at, noise.size());
+    return msg;
+}
+
+// GiNaC reads it again for the symbolic work; its grammar is a subset of muParser's (no comparisons, no ?:).
+GiNaC::ex read_symbolic(const ExprText& e, const GiNaC::symtab& table) {
+    GiNaC::parser reader(table, true);
+    GiNaC::ex out;
+    try {
+        out = reader(e.text);
+    } catch (const std::exception& err) {
+        HINF_FAIL(quoted(e) + ": GiNaC, which differentiates it, cannot read it (" + ginac_reason(err) +
+                  "); use + - * / ^ (with parentheses: (a^b)^c), numbers and sin cos tan asin acos atan atan2 sinh "
+                  "cosh tanh asinh acosh atanh exp log sqrt abs pow step; write a switch as step(s) (1 for s >= 0, "
+                  "else 0)");
+    }
+    GiNaC::ex numeric_form;  // sqrt(-2) stays a power until evaluated in floating point
+    try {
+        numeric_form = out.evalf();
+    } catch (const std::exception& err) {
+        HINF_FAIL(quoted(e) + ": GiNaC cannot evaluate it (" + ginac_reason(err) + ")");
+    }
+    for (auto it = numeric_form.preorder_begin(); it != numeric_form.preorder_end(); ++it)
+        if (GiNaC::is_a<GiNaC::numeric>(*it) && !GiNaC::ex_to<GiNaC::numeric>(*it).is_real())
+            HINF_FAIL(quoted(e) + ": has the complex value " + c_text_plain(*it) +
+                      " (a square root or log of a negative constant?): f, g, h must be real");
+    return out;
+}
+
+// d/dx step(s) is zero wherever it exists; GiNaC leaves it as D[0](step)(s).
+struct zero_step_derivative : public GiNaC::map_function {
+    GiNaC::ex operator()(const GiNaC::ex& e) override {
+        if (GiNaC::is_a<GiNaC::fderivative>(e) &&
+            GiNaC::ex_to<GiNaC::fderivative>(e).get_serial() == GiNaC::step_SERIAL::serial)
+            return 0;
+        return e.map(*this);
+    }
+};
+
+std::string c_text(const GiNaC::ex& e) {
+    std::ostringstream os;
+    e.print(GiNaC::print_csrc_double(os));
+    return os.str();
+}
+
+}  // namespace
+
+ExprSystem::~ExprSystem() = default;
+
+ExprSystem::ExprSystem(const ExprSpec& spec)
+    : n_(int(spec.states.size())),
+      nv_(spec.disturbance_dim),
+      m_(spec.output_dim),
+      states_(spec.states),
+      units_(spec.units),
+      parameters_(spec.parameters) {
+    // names: identifiers, distinct, not t / pi / a function
+    HINF_CHECK(n_ >= 1, spec.where + " states: give at least one state name, e.g. states = [\"x1\", \"x2\"]");
+    if (units_.empty()) units_.assign(n_, "");
+    std::set<std::string> seen;
+    std::vector<std::string> symbols;
+    auto add_name = [&](const std::string& name, const std::string& what) {
+        HINF_CHECK(is_identifier(name), spec.where + " " + what + " '" + name +
+                                            "' is not a name (letters, digits and _, not starting with a digit)");
+        HINF_CHECK(!reserved_names().count(name),
+                   spec.where + " " + what + " '" + name + "' is reserved (t, pi or a function name): rename it");
+        HINF_CHECK(seen.insert(name).second, spec.where + " " + what + " '" + name + "' is defined twice: rename one");
+        symbols.push_back(name);
+    };
+    for (const auto& s : states_) add_name(s, "state");
+    for (const auto& p : parameters_) add_name(p.first, "parameter");
+    symbols.push_back("t");
+
+    // shapes, before any expression is read
+    auto shape = [&](std::size_t got, std::size_t want, const std::string& key, const std::string& why) {
+        HINF_CHECK(got == want, spec.where + " " + key + " has " + std::to_string(got) + " entries, expected " +
+                                    std::to_string(want) + " (" + why + ")");
+    };
+    shape(spec.f.size(), std::size_t(n_), "f", "one per state");
+    shape(spec.g.size(), std::size_t(n_), "g", "one row per state");
+    for (std::size_t i = 0; i < spec.g.size(); ++i)
+        shape(spec.g[i].size(), std::size_t(nv_), "g row " + std::to_string(i + 1), "one entry per disturbance");
+    shape(spec.h.size(), std::size_t(m_), "h", "one per measurement");
+
+    GiNaC::symtab table;
+    std::vector<GiNaC::realsymbol> state_symbols;
+    for (const auto& s : states_) {
+        state_symbols.emplace_back(s);
+        table[s] = state_symbols.back();
+    }
+    for (const auto& p : parameters_) table[p.first] = GiNaC::realsymbol(p.first);
+    table["t"] = GiNaC::realsymbol("t");
+    table["pi"] = GiNaC::Pi;
+
+    auto known_list = [&]() {
+        std::string out;
+        for (const auto& s : symbols) out += (out.empty() ? "" : ", ") + s;
+        return out + ", pi";
+    };
+    auto read = [&](const ExprText& e) {
+        check_syntax(e, symbols, known_list());
+        return read_symbolic(e, table);
+    };
+    // definitions: each may use the states, parameters, t and the definitions above it
+    for (const auto& d : spec.definitions) {
+        GiNaC::ex e = read(d.second);
+        add_name(d.first, "definition");
+        table[d.first] = e;
+    }
+
+    std::vector<GiNaC::ex> f, g, h;
+    for (const auto& e : spec.f) f.push_back(read(e));
+    for (const auto& row : spec.g)
+        for (const auto& e : row) g.push_back(read(e));
+    for (const auto& e : spec.h) h.push_back(read(e));
+
+    // exact Jacobians dA/dx [n x n] and dC/dx [m x n]; GiNaC reports trouble (a pole met while simplifying,
+    // say) as its own exception types, turned into one line here
+    try {
+        zero_step_derivative no_step;
+        std::vector<GiNaC::ex> df, dh;
+        for (const auto& fi : f)
+            for (const auto& xj : state_symbols) df.push_back(no_step(fi.diff(xj)));
+        for (const auto& hi : h)
+            for (const auto& xj : state_symbols) dh.push_back(no_step(hi.diff(xj)));
+
+        auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
+            for (const auto& e : exprs) {
+                Compiled c;
+                GiNaC::ex value = e.evalf();
+                if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
+                    c.value = GiNaC::ex_to<GiNaC::numeric>(value).to_double();
+                    c.text = c_text(e);
+                } else {
+                    c.constant = false;
+                    c.text = c_text(e);
+                    c.program = int(programs_.size());
+                    programs_.push_back(c.text);
+                }
+                out->push_back(std::move(c));
+            }
+        };
+        compile(f, &f_);
+        compile(g, &g_);
+        compile(h, &h_);
+        compile(df, &df_);
+        compile(dh, &dh_);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& err) {
+        HINF_FAIL(spec.where + ": GiNaC failed on the expressions: " + ginac_reason(err) +
+                  " (check f, g, h for divisions by zero or undefined functions)");
+    }
+    // a first workspace evaluates every program once: a print muParser cannot read is our bug, said here
+    std::unique_ptr<Workspace> ws = workspace_acquire();
+    for (std::size_t k = 0; k < programs_.size(); ++k) {
+        try {
+            ws->parsers[k]->Eval();
+        } catch (const mu::Parser::exception_type& err) {
+            HINF_FAIL(spec.where + ": muParser cannot read GiNaC's print \"" + programs_[k] + "\": " + err.GetMsg() +
+                      " (please report this expression)");
+        }
+    }
+    workspace_release(std::move(ws));
+}
+
+std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
+    {
+        std::lock_guard<std::mutex> lock(pool_mutex_);
+        if (!pool_.empty()) {
+            std::unique_ptr<Workspace> ws = std::move(pool_.back());
+            pool_.pop_back();
+            return ws;
+        }
+    }
+    auto ws = std::make_unique<Workspace>();
+    ws->point.assign(std::size_t(n_ + 1), 0.0);
+    for (const auto& text : programs_) {
+        auto p = std::make_unique<mu::Parser>();
+        define_functions(*p);
+        for (const auto& par : parameters_) p->DefineConst(par.first, par.second);
+        for (int j = 0; j < n_; ++j) p->DefineVar(states_[j], &ws->point[std::size_t(j)]);
+        p->DefineVar("t", &ws->point[std::size_t(n_)]);
+        p->SetExpr(text);
+        ws->parsers.push_back(std::move(p));
+    }
+    return ws;
+}
+
+void ExprSystem::workspace_release(std::unique_ptr<Workspace> ws) const {
+    std::lock_guard<std::mutex> lock(pool_mutex_);
+    pool_.push_back(std::move(ws));
+}
+
+void ExprSystem::evaluate(double* out, const std::vector<Compiled>& exprs, const double* x, double t,
+                          std::int64_t count) const {
+    // One state at a time through muParser's byte code (about 40 ns per entry): its bulk mode costs ~25 us per
+    // call in fixed overhead, which dominated the one-state and sigma-point calls of EKF/UKF. Large batches
+    // (the N training samples, PF particles) are split over threads, each with its own workspace; per-state
+    // results do not depend on the split. Inside compare's/operate's parallel runs this stays serial.
+    const std::int64_t k_count = std::int64_t(exprs.size());
+    bool all_constant = true;
+    for (const Compiled& c : exprs) all_constant = all_constant && c.constant;
+    if (all_constant) {  // g = [0, 1], dC/dx of a linear h: no byte code to run
+        for (std::int64_t s = 0; s < count; ++s)
+            for (std::int64_t k = 0; k < k_count; ++k) out[s * k_count + k] = exprs[k].value;
+        return;
+    }
+    const bool split = count >= 256 && !omp_in_parallel();
+#pragma omp parallel if (split)
+    {
+        std::unique_ptr<Workspace> ws = workspace_acquire();
+        double* point = ws->point.data();
+        point[n_] = t;
+#pragma omp for schedule(static)
+        for (std::int64_t s = 0; s < count; ++s) {
+            for (int j = 0; j < n_; ++j) point[j] = x[s * n_ + j];
+            double* o = out + s * k_count;
+            for (std::int64_t k = 0; k < k_count; ++k)
+                o[k] = exprs[k].constant ? exprs[k].value : ws->parsers[exprs[k].program]->Eval();
+        }
+        workspace_release(std::move(ws));
+    }
+}
+
+void ExprSystem::drift(double* a, const double* x, double t, std::int64_t count) const {
+    evaluate(a, f_, x, t, count);
+}
+
+void ExprSystem::disturbance_gain(double* B, const double* x, double t, std::int64_t count) const {
+    evaluate(B, g_, x, t, count);
+}
+
+void ExprSystem::measurement(double* c, const double* x, double t, std::int64_t count) const {
+    evaluate(c, h_, x, t, count);
+}
+
+void ExprSystem::drift_jacobian(double* J, const double* x, double t) const {
+    evaluate(J, df_, x, t, 1);
+}
+
+void ExprSystem::measurement_jacobian(double* H, const double* x, double t) const {
+    evaluate(H, dh_, x, t, 1);
+}
+
+std::vector<std::string> ExprSystem::compiled(const std::string& which) const {
+    const std::vector<Compiled>* list = which == "f"    ? &f_
+                                        : which == "g"  ? &g_
+                                        : which == "h"  ? &h_
+                                        : which == "df" ? &df_
+                                        : which == "dh" ? &dh_
+                                                        : nullptr;
+    HINF_CHECK(list, "ExprSystem::compiled: '" + which + "' is not one of f, g, h, df, dh");
+    std::vector<std::string> out;
+    for (const auto& c : *list) out.push_back(c.text);
+    return out;
+}
+
+std::string expr_library_versions() {
+    return "GiNaC " + std::to_string(GiNaC::version_major) + "." + std::to_string(GiNaC::version_minor) + "." +
+           std::to_string(GiNaC::version_micro) + " (parse, differentiate), muParser " +
+           std::string(mu::ParserVersion.substr(0, mu::ParserVersion.find(' '))) + " (evaluate)";
+}
+
+std::unique_ptr<System> make_expr_system(ConfigSection& s) {
+    ExprSpec spec;
+    spec.where = s.where("kind");
+    spec.where = spec.where.substr(0, spec.where.rfind(" kind"));  // "file.toml:3: [system]"
+    auto require = [&](const std::string& key, const std::string& example) {
+        if (!s.has(key)) s.reject(key, "is required for kind = \"expr\" (e.g. " + example + ", see docs/byos.md)");
+    };
+    require("states", "states = [\"x1\", \"x2\"]");
+    require("f", "f = [\"x2\", \"-x1\"]");
+    require("g", "g = [[\"0\"], [\"1\"]]");
+    require("h", "h = [\"x1\"]");
+    require("measurements", "measurements = 1");
+    spec.states = s.get_strings("states", {});
+    const int n = int(spec.states.size());
+    spec.units = s.get_strings("units", std::vector<std::string>(std::size_t(n), ""), n);
+    spec.disturbance_dim = int(s.get_int("disturbances", 1, 1, 10000));
+    spec.output_dim = int(s.get_int("measurements", 1, 1, 10000));
+    spec.parameters = s.get_number_table("parameters");
+    auto texts = [&](const std::string& key, const std::vector<std::string>& list) {
+        std::vector<ExprText> out;
+        for (std::size_t i = 0; i < list.size(); ++i)
+            out.push_back({s.where(key) + " entry " + std::to_string(i + 1), list[i]});
+        return out;
+    };
+    std::vector<std::string> defs = s.get_strings("definitions", {});
+    for (std::size_t i = 0; i < defs.size(); ++i) {
+        const auto eq = defs[i].find('=');
+        const std::string where = s.where("definitions") + " entry " + std::to_string(i + 1);
+        HINF_CHECK(eq != std::string::npos, where + " \"" + defs[i] + "\" must read \"name = expression\"");
+        std::string name = defs[i].substr(0, eq);
+        name.erase(0, name.find_first_not_of(" \t"));
+        name.erase(name.find_last_not_of(" \t") + 1);
+        spec.definitions.push_back({name, {where, defs[i].substr(eq + 1)}});
+    }
+    spec.f = texts("f", s.get_strings("f", {}));
+    std::vector<std::vector<std::string>> g = s.get_string_rows("g");
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        std::vector<ExprText> row;
+        for (std::size_t j = 0; j < g[i].size(); ++j)
+            row.push_back(
+                {s.where("g") + " row " + std::to_string(i + 1) + " entry " + std::to_string(j + 1), g[i][j]});
+        spec.g.push_back(row);
+    }
+    spec.h = texts("h", s.get_strings("h", {}));
+    return std::make_unique<ExprSystem>(spec);
+}
+
+}  // namespace hinf

@@ -1,0 +1,80 @@
+// A system written in the config ([system] kind = "expr"): f, g, h as expressions in the states, named
+// parameters and t, read by GiNaC (parsing, exact symbolic Jacobians dA/dx, dC/dx) and evaluated over a batch
+// of states by muParser's byte code. Not a parser of our own: both grammars are the libraries'; see docs/formats.md.
+#pragma once
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "models/system.hpp"
+
+namespace hinf {
+
+class ConfigSection;
+
+/// One expression with the text that locates it in error messages ("file.toml:7: [system] f[2]").
+struct ExprText {
+    std::string where;
+    std::string text;
+};
+
+/// Everything [system] kind = "expr" says, before any expression is read.
+struct ExprSpec {
+    std::vector<std::string> states, units;                     // n names, n units ("" if not given)
+    std::vector<std::pair<std::string, double>> parameters;     // named constants
+    std::vector<std::pair<std::string, ExprText>> definitions;  // name = expression, in order (may use earlier ones)
+    int disturbance_dim = 1, output_dim = 1;                    // nv, m as declared
+    std::vector<ExprText> f;                                    // n entries: A(x, t)
+    std::vector<std::vector<ExprText>> g;                       // n rows of nv entries: B(x, t)
+    std::vector<ExprText> h;                                    // m entries: C(x, t)
+    std::string where;                                          // "file.toml: [system]" for shape errors
+};
+
+/// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h). Every expression is checked
+/// (syntax, unknown symbols, shapes) in the constructor, which throws hinf::Error naming the key, the
+/// expression and the position. Safe to call from several threads at once (compare and operate split
+/// their runs over OpenMP threads): each concurrent call takes its own workspace from a pool.
+class ExprSystem : public System {
+  public:
+    explicit ExprSystem(const ExprSpec& spec);
+    ~ExprSystem() override;
+    std::string name() const override { return "expr"; }
+    int state_dim() const override { return n_; }
+    int disturbance_dim() const override { return nv_; }
+    int output_dim() const override { return m_; }
+    void drift(double* a, const double* x, double t, std::int64_t count) const override;
+    void disturbance_gain(double* B, const double* x, double t, std::int64_t count) const override;
+    void measurement(double* c, const double* x, double t, std::int64_t count) const override;
+    void drift_jacobian(double* J, const double* x, double t) const override;
+    void measurement_jacobian(double* H, const double* x, double t) const override;
+    std::vector<std::string> state_names() const override { return states_; }
+    std::vector<std::string> state_units() const override { return units_; }
+    /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
+    std::vector<std::string> compiled(const std::string& which) const;
+
+    struct Compiled;   // one entry: a constant, or the index of its muParser program
+    struct Workspace;  // muParser programs bound to their own state buffer: one per concurrent caller
+
+  private:
+    void evaluate(double* out, const std::vector<Compiled>& exprs, const double* x, double t, std::int64_t count) const;
+    std::unique_ptr<Workspace> workspace_acquire() const;
+    void workspace_release(std::unique_ptr<Workspace> ws) const;
+
+    int n_ = 0, nv_ = 0, m_ = 0;
+    std::vector<std::string> states_, units_;
+    std::vector<std::pair<std::string, double>> parameters_;
+    std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
+    std::vector<std::string> programs_;          // the texts of the non-constant entries
+    mutable std::mutex pool_mutex_;
+    mutable std::vector<std::unique_ptr<Workspace>> pool_;  // idle workspaces
+};
+
+/// "GiNaC 1.8.6 (parse, differentiate), muParser 2.3.3 (evaluate)": the libraries doing the work.
+std::string expr_library_versions();
+
+/// Reads [system] kind = "expr" (every key but kind) into a checked ExprSystem.
+std::unique_ptr<System> make_expr_system(ConfigSection& s);
+
+}  // namespace hinf
