@@ -113,7 +113,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             r.innovation_rms[j] = std::sqrt(r.innovation_rms[j] / double(std::max<std::int64_t>(used, 1)));
         }
         r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
-        progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "done");
+        progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
         results.push_back(r);
         paths.push_back(std::move(p));
     }
