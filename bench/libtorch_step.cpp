@@ -145,6 +145,7 @@ int main(int argc, char** argv) {
             kern::step_gradient(grad.data(), theta.data(), view, idx.data(), M, sc, ws);
             kern::adam_update(theta.data(), mom.data(), vel.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1, ap);
             auto t1 = Clock::now();
+            openblas_set_num_threads(threads);  // ours ran OpenBLAS serially per chunk (kern::gemm_prepare)
             adam.zero_grad();
             torch::Tensor loss = torch_loss();
             loss.backward();
@@ -156,6 +157,7 @@ int main(int argc, char** argv) {
             }
         }
         double mo = median(t_ours), mt = median(t_torch);
+        std::printf("hinf GEMMs: %s\n", kern::gemm_description().c_str());
         std::printf("training step, %d threads, M = %d, median of %d interleaved repeats: hinf %.3f ms, LibTorch %s %.3f ms "
                     "(torch threads 1, OpenBLAS threads %d): LibTorch/hinf = %.2f\n",
                     threads, M, repeats, mo, TORCH_VERSION, mt, threads, mt / mo);

@@ -18,6 +18,14 @@ void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t 
         for (int a = 0; a < n; ++a) in[s * n + a] = T(xt[i * n + a] * inv);
     }
 }
+// W^T per layer for the own kernels' forward, once per call (shared by all chunks); null otherwise
+template <typename T>
+const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
+    if (gemm_path() != GEMM_OWN) return nullptr;
+    ws.wt.resize(sh.param_count());
+    mlp_pack_weights(ws.wt.data(), theta, sh);
+    return ws.wt.data();
+}
 }  // namespace
 
 template <typename T>
@@ -46,6 +54,8 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     const std::int64_t P = sh.param_count();
     ws.reserve(cfg, M);
     if (std::int64_t(ws.partial.size()) < chunks * P) ws.partial.assign(chunks * P, T(0));
+    gemm_prepare();
+    const T* wt = pack(ws, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 
     // pass 1: forward, head, per-sample loss pieces
@@ -55,7 +65,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
         load_inputs(in, sys.xt, idx, b0, B, n, cfg.input_scale);
-        mlp_forward(acts, theta, in, B, sh);
+        mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
@@ -97,9 +107,8 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
                           sys.xt + i * n, cfg.head);
         }
         T* part = ws.partial.data() + std::int64_t(c) * P;
-        std::fill(part, part + P, T(0));
         T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
-        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch);
+        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true);
     }
     // partial gradients summed in chunk order
 #pragma omp parallel for schedule(static)
@@ -117,6 +126,8 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
     const MlpShape& sh = cfg.shape;
     const int n = cfg.head.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     ws.reserve(cfg, static_cast<int>(count));
+    gemm_prepare();
+    const T* wt = pack(ws, theta, sh);
     const int chunks = static_cast<int>((count + C - 1) / C);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 #pragma omp parallel for schedule(static) if (chunks > 1)
@@ -126,7 +137,7 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
         T* in = ws.input.data() + b0 * D0;
         T* acts = ws.acts.data() + b0 * sh.act_per_sample();
         load_inputs<T>(in, xt, nullptr, b0, B, n, cfg.input_scale);
-        mlp_forward(acts, theta, in, B, sh);
+        mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         double Ptmp[kMax * kMax];
         for (int s = 0; s < B; ++s) {

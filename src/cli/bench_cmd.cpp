@@ -19,7 +19,7 @@ std::vector<std::string> split(const std::string& s) {
 
 void add_bench_command(CLI::App& app) {
     struct Args {
-        std::string threads = "1,2", precision = "f32,f64", variant = "paper", out = "runs/out/bench";
+        std::string threads = "1,2", precision = "f32,f64", variant = "paper", out = "runs/out/bench", gemm = "default";
         int batch = 800, repeats = 40;
     };
     auto a = std::make_shared<Args>();
@@ -30,6 +30,7 @@ void add_bench_command(CLI::App& app) {
     b->add_option("--variant", a->variant, "paper (the paper's network and loss) or dissipative (default paper)");
     b->add_option("--repeats", a->repeats, "Timed steps per configuration (default 40)");
     b->add_option("--out", a->out, "Output directory for bench.h5 (default runs/out/bench)");
+    b->add_option("--gemm", a->gemm, "GEMM kernels: default (own where built, else openblas), own, openblas or eigen");
     b->callback([a]() {
         BenchOptions opt;
         opt.threads.clear();
@@ -48,6 +49,7 @@ void add_bench_command(CLI::App& app) {
         opt.batch = a->batch;
         opt.repeats = a->repeats;
         opt.out_dir = a->out;
+        opt.gemm = a->gemm;
         bench_run(opt);
     });
 }

@@ -4,13 +4,14 @@
 
 #include <omp.h>
 
-#include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 
 #include "adam.hpp"
+#include "gemm.hpp"
+#include "mlp.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "peak.hpp"
@@ -117,11 +118,25 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
     for (int t : opt.threads) HINF_CHECK(t >= 1 && t <= 1024, "--threads entries must be between 1 and 1024");
     for (const auto& p : opt.precisions)
         HINF_CHECK(p == "f32" || p == "f64", "--precision '" + p + "' is not one of: f32, f64");
+    HINF_CHECK(opt.gemm == "default" || opt.gemm == "own" || opt.gemm == "openblas" || opt.gemm == "eigen",
+               "--gemm '" + opt.gemm + "' is not one of: default, own, openblas, eigen");
+    HINF_CHECK(opt.gemm != "own" || kern::gemm_own_available(),
+               "--gemm own: this build has no AVX-512 kernels (configure on an AVX-512 machine with HINF_NATIVE=ON), "
+               "use --gemm openblas");
     std::filesystem::create_directories(opt.out_dir);
-    std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, GEMMs by Eigen %d.%d.%d's own kernels (%s, "
-                "no BLAS), %d repeats after 5 warm-up steps\n",
-                opt.variant.c_str(), opt.batch, EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION,
-                kern::simd_name().c_str(), opt.repeats);
+    const kern::GemmPath previous = kern::gemm_path();
+    kern::set_gemm_path(opt.gemm == "eigen"      ? kern::GEMM_EIGEN
+                        : opt.gemm == "openblas" ? kern::GEMM_OPENBLAS
+                        : opt.gemm == "own"      ? kern::GEMM_OWN
+                                                 : kern::default_gemm_path());
+    struct Restore {
+        kern::GemmPath p;
+        ~Restore() { kern::set_gemm_path(p); }
+    } restore{previous};
+    const std::string gemm = kern::gemm_description();
+    std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, %d repeats after 5 warm-up steps\n"
+                "GEMMs: %s; other loops compiled for %s\n",
+                opt.variant.c_str(), opt.batch, opt.repeats, gemm.c_str(), kern::simd_name().c_str());
     std::vector<BenchRow> rows;
     for (const auto& p : opt.precisions)
         for (int t : opt.threads) {
@@ -140,8 +155,7 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
     h5::set_attr(f.get(), "variant", opt.variant);
     h5::set_attr(f.get(), "batch", std::int64_t(opt.batch));
     h5::set_attr(f.get(), "simd", kern::simd_name());
-    h5::set_attr(f.get(), "gemm", "Eigen " + std::to_string(EIGEN_WORLD_VERSION) + "." +
-                                      std::to_string(EIGEN_MAJOR_VERSION) + "." + std::to_string(EIGEN_MINOR_VERSION));
+    h5::set_attr(f.get(), "gemm", gemm);
     h5::set_attr(f.get(), "meaning",
                  "step_ms_<prec>_<threads>t: median ms of one training step (forward, loss, backward, Adam) on M "
                  "samples; peak_gflops_*: register-FMA loop; gflops_*: GEMM flops (2 per multiply-add) / median; "

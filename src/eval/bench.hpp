@@ -13,6 +13,7 @@ struct BenchOptions {
     int repeats = 40;
     std::string variant = "paper";  // "paper" (the paper's network and loss) or "dissipative"
     std::string out_dir = "runs/out/bench";
+    std::string gemm = "default";  // GEMM path (kern::GemmPath): "default", "own", "openblas" or "eigen"
 };
 
 struct BenchRow {
