@@ -82,8 +82,12 @@ struct Vec<double> {
     static M mask(int cnt) { return cnt >= W ? M(0xFF) : M((1u << cnt) - 1u); }
 };
 
-constexpr int kMR = 8;  // rows of A per micro-tile
-constexpr int kNV = 2;  // vectors of C per row of a micro-tile
+#ifndef HINF_GEMM_MR
+#define HINF_GEMM_MR 8
+#define HINF_GEMM_NV 2
+#endif
+constexpr int kMR = HINF_GEMM_MR;  // rows of A per micro-tile
+constexpr int kNV = HINF_GEMM_NV;  // vectors of C per row of a micro-tile
 
 // C[i0..i0+MR) x [j0..j0+NV*W) with the last vector masked by `last`; pb: the packed panel
 // [k x kNV*W] of Bm's columns j0...
@@ -135,54 +139,83 @@ inline void micro(int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int 
         }
 }
 
-template <typename T, int MR>
+// micro-tile with nv (1..NV) vectors per row
+template <typename T, int MR, int NV>
 inline void micro_nv(int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int ldc, bool accumulate,
                      const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
-    if (nv == 2)
-        micro<T, MR, 2>(k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
-    else
-        micro<T, MR, 1>(k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+    if constexpr (NV > 1) {
+        if (nv < NV) return micro_nv<T, MR, NV - 1>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+    }
+    micro<T, MR, NV>(k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+}
+
+// the last rem (1..MR) rows
+template <typename T, int MR>
+inline void micro_tail(int rem, int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int ldc,
+                       bool accumulate, const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
+    if constexpr (MR > 1) {
+        if (rem < MR) return micro_tail<T, MR - 1>(rem, nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+    }
+    micro_nv<T, MR, kNV>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
 }
 
 }  // namespace
 
 template <typename T>
-void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, int ldb, T* C, int ldc,
-              bool accumulate, const GemmEpi<T>& epi) {
+int gemm_panel_width() {
+    return kNV * Vec<T>::W;
+}
+
+template <typename T>
+void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
+                     bool accumulate, const GemmEpi<T>& epi) {
     using V = Vec<T>;
     constexpr int W = V::W, NR = kNV * W;
-    // the k x NR panel of Bm, copied contiguous: rows of Bm a power of two apart would share L1 sets
-    thread_local std::vector<T> panel;
-    if (panel.size() < std::size_t(k) * NR) panel.resize(std::size_t(k) * NR);
     for (int j0 = 0; j0 < n; j0 += NR) {
         const int nc = std::min(NR, n - j0);
         const int nv = (nc + W - 1) / W;
         const typename V::M last = V::mask(nc - (nv - 1) * W);
-        T* pb = panel.data();
-        for (int p = 0; p < k; ++p) {
-            const T* src = Bm + std::int64_t(p) * ldb + j0;
-            T* dst = pb + std::int64_t(p) * NR;
-            for (int c = 0; c < nc; ++c) dst[c] = src[c];
-        }
+        const T* pb = packed + std::int64_t(j0 / NR) * k * NR;
         int i0 = 0;
         for (; i0 + kMR <= m; i0 += kMR)
-            micro_nv<T, kMR>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last);
-        switch (m - i0) {
-            case 7: micro_nv<T, 7>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 6: micro_nv<T, 6>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 5: micro_nv<T, 5>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 4: micro_nv<T, 4>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 3: micro_nv<T, 3>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 2: micro_nv<T, 2>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            case 1: micro_nv<T, 1>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last); break;
-            default: break;
-        }
+            micro_nv<T, kMR, kNV>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last);
+        if (i0 < m) micro_tail<T, kMR - 1>(m - i0, nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last);
     }
+}
+
+template <typename T>
+void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, int ldb, T* C, int ldc,
+              bool accumulate, const GemmEpi<T>& epi) {
+    // the k x n Bm copied into contiguous panels: rows of Bm a power of two apart would share L1 sets
+    thread_local std::vector<T> packed;
+    const std::int64_t size = gemm_packed_size<T>(k, n);
+    if (std::int64_t(packed.size()) < size) packed.resize(size);
+    gemm_pack_b(packed.data(), k, n, Bm, ldb, 1);
+    gemm_own_packed(m, n, k, A, a_rs, a_cs, packed.data(), C, ldc, accumulate, epi);
 }
 
 #else  // no AVX-512: the own kernels are not built; mlp.cpp routes to OpenBLAS
 
 bool gemm_own_available() { return false; }
+
+template <typename T>
+int gemm_panel_width() {
+    return 64 / int(sizeof(T)) * 2;
+}
+
+template <typename T>
+void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
+                     bool accumulate, const GemmEpi<T>& epi) {
+    // the naive loops over the packed layout (reference only: this build routes the MLP to OpenBLAS)
+    const int NR = gemm_panel_width<T>();
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < n; ++j) {
+            const T* pb = packed + std::int64_t(j / NR) * k * NR + j % NR;
+            T acc = accumulate ? C[std::int64_t(i) * ldc + j] : T(0);
+            for (int p = 0; p < k; ++p) acc += A[std::int64_t(i) * a_rs + std::int64_t(p) * a_cs] * pb[std::int64_t(p) * NR];
+            C[std::int64_t(i) * ldc + j] = epilogue_scalar(acc, i, j, epi);
+        }
+}
 
 template <typename T>
 void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, int ldb, T* C, int ldc,
@@ -192,6 +225,38 @@ void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, 
 
 #endif
 
+template <typename T>
+std::int64_t gemm_packed_size(int k, int n) {
+    const int NR = gemm_panel_width<T>();
+    return std::int64_t((n + NR - 1) / NR) * k * NR;
+}
+
+template <typename T>
+void gemm_pack_b(T* packed, int k, int n, const T* Bm, int b_rs, int b_cs, int first, int last) {
+    const int NR = gemm_panel_width<T>();
+    const int panels = (n + NR - 1) / NR;
+    if (last < 0 || last > panels) last = panels;
+    for (int jb = first; jb < last; ++jb) {
+        const int j0 = jb * NR, nc = std::min(NR, n - j0);
+        T* dst = packed + std::int64_t(jb) * k * NR;
+        for (int p = 0; p < k; ++p, dst += NR) {
+            const T* src = Bm + std::int64_t(p) * b_rs + std::int64_t(j0) * b_cs;
+            for (int c = 0; c < nc; ++c) dst[c] = src[std::int64_t(c) * b_cs];
+            for (int c = nc; c < NR; ++c) dst[c] = T(0);
+        }
+    }
+}
+
+template int gemm_panel_width<float>();
+template int gemm_panel_width<double>();
+template std::int64_t gemm_packed_size<float>(int, int);
+template std::int64_t gemm_packed_size<double>(int, int);
+template void gemm_pack_b<float>(float*, int, int, const float*, int, int, int, int);
+template void gemm_pack_b<double>(double*, int, int, const double*, int, int, int, int);
+template void gemm_own_packed<float>(int, int, int, const float*, int, int, const float*, float*, int, bool,
+                                     const GemmEpi<float>&);
+template void gemm_own_packed<double>(int, int, int, const double*, int, int, const double*, double*, int, bool,
+                                      const GemmEpi<double>&);
 template void gemm_own<float>(int, int, int, const float*, int, int, const float*, int, float*, int, bool,
                               const GemmEpi<float>&);
 template void gemm_own<double>(int, int, int, const double*, int, int, const double*, int, double*, int, bool,

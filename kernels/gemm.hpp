@@ -9,6 +9,7 @@
 // row stride ldb. Every C entry is one sum over p = 0..k-1 in order, so the bits do not depend on
 // addresses, alignment or the thread count.
 #pragma once
+#include <cstdint>
 
 namespace hinf::kern {
 
@@ -35,6 +36,21 @@ bool gemm_own_available();
 template <typename T>
 void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, int ldb, T* C, int ldc,
               bool accumulate, const GemmEpi<T>& epi);
+
+/// Columns per panel of a packed Bm (2 vectors: 32 floats, 16 doubles).
+template <typename T>
+int gemm_panel_width();
+/// Floats a packed k x n Bm takes: ceil(n / panel width) panels of k x panel width.
+template <typename T>
+std::int64_t gemm_packed_size(int k, int n);
+/// Packs Bm (element (p, j) at Bm[p*b_rs + j*b_cs]) into panels, zero-padded. Panels [first, last)
+/// only (-1: all), so that callers can split the packing over threads.
+template <typename T>
+void gemm_pack_b(T* packed, int k, int n, const T* Bm, int b_rs, int b_cs, int first = 0, int last = -1);
+/// gemm_own with Bm given packed by gemm_pack_b (no packing inside).
+template <typename T>
+void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
+                     bool accumulate, const GemmEpi<T>& epi);
 
 /// Naive twin: three plain loops, the same definition.
 template <typename T>

@@ -109,39 +109,83 @@ std::string gemm_description() {
     return d;
 }
 
+namespace {
+// offsets of layer l's forward and backward panels in the pack
 template <typename T>
-void mlp_pack_weights(T* wt, const T* theta, const MlpShape& shape) {
-    for (int l = 1; l <= shape.layers(); ++l) {
-        const int din = shape.sizes[l - 1], dout = shape.sizes[l];
-        const T* W = theta + shape.weight_offset(l);
-        T* Wt = wt + shape.weight_offset(l);
-        for (int o = 0; o < dout; ++o)
-            for (int i = 0; i < din; ++i) Wt[std::int64_t(i) * dout + o] = W[std::int64_t(o) * din + i];
-        std::copy(W + std::int64_t(dout) * din, W + std::int64_t(dout) * din + dout, Wt + std::int64_t(dout) * din);
+void pack_offsets(const MlpShape& sh, int l, std::int64_t* fwd, std::int64_t* bwd) {
+    std::int64_t off = 0;
+    for (int k = 1; k <= l; ++k) {
+        const int din = sh.sizes[k - 1], dout = sh.sizes[k];
+        if (k == l) *fwd = off;
+        off += gemm_packed_size<T>(din, dout);
+        if (k == l) *bwd = off;
+        off += gemm_packed_size<T>(dout, din);
+    }
+}
+}  // namespace
+
+std::int64_t mlp_pack_size(const MlpShape& sh, int elem_size) {
+    std::int64_t n = 0;
+    for (int l = 1; l <= sh.layers(); ++l) {
+        const int din = sh.sizes[l - 1], dout = sh.sizes[l];
+        n += elem_size == 4 ? gemm_packed_size<float>(din, dout) + gemm_packed_size<float>(dout, din)
+                            : gemm_packed_size<double>(din, dout) + gemm_packed_size<double>(dout, din);
+    }
+    return n;
+}
+
+template <typename T>
+void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape) {
+    const int L = shape.layers(), NR = gemm_panel_width<T>();
+    // one task per (layer, direction, panel); each writes its own panel
+    int tasks = 0;
+    for (int l = 1; l <= L; ++l) tasks += (shape.sizes[l] + NR - 1) / NR + (shape.sizes[l - 1] + NR - 1) / NR;
+#pragma omp parallel for schedule(static) if (tasks > 8)
+    for (int t = 0; t < tasks; ++t) {
+        int rest = t;
+        for (int l = 1; l <= L; ++l) {
+            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+            const int pf = (dout + NR - 1) / NR, pbw = (din + NR - 1) / NR;
+            const T* W = theta + shape.weight_offset(l);
+            std::int64_t of = 0, ob = 0;
+            if (rest < pf + pbw) pack_offsets<T>(shape, l, &of, &ob);
+            if (rest < pf) {  // W^T: element (i, o) = W[o*din + i]
+                gemm_pack_b(pack + of, din, dout, W, 1, din, rest, rest + 1);
+                break;
+            }
+            rest -= pf;
+            if (rest < pbw) {  // W: element (o, i) = W[o*din + i]
+                gemm_pack_b(pack + ob, dout, din, W, din, 1, rest, rest + 1);
+                break;
+            }
+            rest -= pbw;
+        }
     }
 }
 
 template <typename T>
-void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* wt) {
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const T* in = x;
     if (gemm_path() == GEMM_OWN) {
         std::vector<T> own;
-        if (!wt) {
-            own.resize(shape.param_count());
+        if (!pack) {
+            own.resize(mlp_pack_size(shape, sizeof(T)));
             mlp_pack_weights(own.data(), theta, shape);
-            wt = own.data();
+            pack = own.data();
         }
         for (int l = 1; l <= shape.layers(); ++l) {
             const int din = shape.sizes[l - 1], dout = shape.sizes[l];
             T* H = acts + shape.act_offset(l, B);
             GemmEpi<T> e;
             e.kind = l < shape.layers() ? EPI_BIAS_LEAKY : EPI_BIAS;
-            e.bias = wt + shape.weight_offset(l) + std::int64_t(dout) * din;
+            e.bias = theta + shape.weight_offset(l) + std::int64_t(dout) * din;
             e.a1 = a1;
             e.a2 = a2;
+            std::int64_t of = 0, ob = 0;
+            pack_offsets<T>(shape, l, &of, &ob);
             // H_l = act(H_{l-1} W_l^T + 1 b_l^T), W_l^T from the pack
-            gemm_own(B, dout, din, in, din, 1, wt + shape.weight_offset(l), dout, H, dout, false, e);
+            gemm_own_packed(B, dout, din, in, din, 1, pack + of, H, dout, false, e);
             in = H;
         }
         return;
@@ -177,16 +221,21 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
 
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout_in, int B,
-                  const MlpShape& shape, T* scratch, bool overwrite) {
+                  const MlpShape& shape, T* scratch, bool overwrite, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const int L = shape.layers(), wmax = shape.max_width();
     T* G = scratch;                             // dL/dz_l   [B x D_l]
     T* Gprev = scratch + std::int64_t(B) * wmax;  // dL/dz_{l-1}
     if (gemm_path() == GEMM_OWN) {
+        std::vector<T> own;
+        if (!pack) {
+            own.resize(mlp_pack_size(shape, sizeof(T)));
+            mlp_pack_weights(own.data(), theta, shape);
+            pack = own.data();
+        }
         const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
         for (int l = L; l >= 1; --l) {
             const int din = shape.sizes[l - 1], dl = shape.sizes[l];
-            const T* W = theta + shape.weight_offset(l);
             T* dW = dtheta + shape.weight_offset(l);
             T* db = dW + std::int64_t(dl) * din;
             const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
@@ -206,7 +255,9 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
                 e.a2 = a2;
             }
             T* target = (l == 1) ? dx : Gprev;
-            gemm_own(B, din, dl, Gc, dl, 1, W, din, target, din, false, e);
+            std::int64_t of = 0, ob = 0;
+            pack_offsets<T>(shape, l, &of, &ob);
+            gemm_own_packed(B, din, dl, Gc, dl, 1, pack + ob, target, din, false, e);
             if (l > 1) {
                 Gc = Gprev;
                 std::swap(G, Gprev);
@@ -321,7 +372,8 @@ void mlp_backward_naive(T* dtheta, T* dx, const T* theta, const T* x, const T* a
 #define HINF_INSTANTIATE_MLP(T)                                                                              \
     template void mlp_pack_weights<T>(T*, const T*, const MlpShape&);                                        \
     template void mlp_forward<T>(T*, const T*, const T*, int, const MlpShape&, const T*);                    \
-    template void mlp_backward<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&, T*, bool); \
+    template void mlp_backward<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&, T*, bool, \
+                                  const T*);                                                                 \
     template void mlp_forward_naive<T>(T*, const T*, const T*, int, const MlpShape&);                        \
     template void mlp_backward_naive<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&);
 HINF_INSTANTIATE_MLP(float)

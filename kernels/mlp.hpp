@@ -49,22 +49,26 @@ struct MlpShape {
     std::int64_t act_offset(int l, int B) const;
 };
 
-// wt [param_count]: theta with each W_l replaced by W_l^T [D[l-1] x D[l]] (same offsets; biases
-// copied). GEMM_OWN's forward reads it; pack once per weight update, not per chunk.
+// GEMM_OWN's weights, packed once per weight update (not per chunk) into the own kernels' panels
+// (gemm_pack_b): per layer W_l^T [D[l-1] x D[l]] for the forward, then W_l [D[l] x D[l-1]] for the
+// backward. pack [mlp_pack_size]. Splits the packing over OpenMP threads when called outside a
+// parallel region.
+std::int64_t mlp_pack_size(const MlpShape& shape, int elem_size);
 template <typename T>
-void mlp_pack_weights(T* wt, const T* theta, const MlpShape& shape);
+void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape);
 
 // acts [B x act_per_sample] (layer-major: H_1 for all B, then H_2, ...), theta [param_count],
-// x [B x D0].  Output H_L at acts + act_offset(L, B). wt: mlp_pack_weights(theta) or null (then
+// x [B x D0].  Output H_L at acts + act_offset(L, B). pack: mlp_pack_weights(theta) or null (then
 // packed here when GEMM_OWN needs it).
 template <typename T>
-void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* wt = nullptr);
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack = nullptr);
 
 // Accumulates dL/dtheta into dtheta (caller zeroes it), or with overwrite = true writes it (no zeroing
 // needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x max_width].
+// pack: as for mlp_forward.
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,
-                  const MlpShape& shape, T* scratch, bool overwrite = false);
+                  const MlpShape& shape, T* scratch, bool overwrite = false, const T* pack = nullptr);
 
 // Naive twins: plain loops, one sample at a time; the reference for the fast versions.
 template <typename T>

@@ -18,13 +18,13 @@ void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t 
         for (int a = 0; a < n; ++a) in[s * n + a] = T(xt[i * n + a] * inv);
     }
 }
-// W^T per layer for the own kernels' forward, once per call (shared by all chunks); null otherwise
+// the own kernels' weight panels, once per call (shared by all chunks); null for the other paths
 template <typename T>
 const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
     if (gemm_path() != GEMM_OWN) return nullptr;
-    ws.wt.resize(sh.param_count());
-    mlp_pack_weights(ws.wt.data(), theta, sh);
-    return ws.wt.data();
+    ws.pack.resize(mlp_pack_size(sh, sizeof(T)));
+    mlp_pack_weights(ws.pack.data(), theta, sh);
+    return ws.pack.data();
 }
 }  // namespace
 
@@ -108,7 +108,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         }
         T* part = ws.partial.data() + std::int64_t(c) * P;
         T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
-        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true);
+        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
     // partial gradients summed in chunk order
 #pragma omp parallel for schedule(static)

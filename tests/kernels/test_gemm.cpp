@@ -60,3 +60,21 @@ TEST_CASE("own GEMM bits do not depend on buffer alignment", "[kernel][gemm]") {
     gemm_own(m, n, k, A2.data() + 3, k, 1, B2.data() + 5, n, C2.data() + 1, n, false, GemmEpi<float>{});
     for (int i = 0; i < m * n; ++i) REQUIRE(C1[i] == C2[i + 1]);
 }
+
+TEST_CASE("packed Bm read through strides gives the same bits as packing inside", "[kernel][gemm]") {
+    // Bm^T stored row-major (as the MLP's weights are for the forward), packed with b_rs = 1, b_cs = k
+    const int m = 21, n = 70, k = 37;
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::vector<double> A(m * k), Bt(n * k), Bm(k * n), C1(m * n), C2(m * n);
+    for (auto& x : A) x = u(gen);
+    for (auto& x : Bt) x = u(gen);
+    for (int p = 0; p < k; ++p)
+        for (int j = 0; j < n; ++j) Bm[p * n + j] = Bt[j * k + p];
+    std::vector<double> packed(gemm_packed_size<double>(k, n));
+    gemm_pack_b(packed.data(), k, n, Bt.data(), 1, k);
+    GemmEpi<double> e;
+    gemm_own(m, n, k, A.data(), k, 1, Bm.data(), n, C1.data(), n, false, e);
+    gemm_own_packed(m, n, k, A.data(), k, 1, packed.data(), C2.data(), n, false, e);
+    for (int i = 0; i < m * n; ++i) REQUIRE(C1[i] == C2[i]);
+}
