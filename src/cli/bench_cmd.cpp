@@ -30,7 +30,8 @@ void add_bench_command(CLI::App& app) {
     b->add_option("--variant", a->variant, "paper (the paper's network and loss) or dissipative (default paper)");
     b->add_option("--repeats", a->repeats, "Timed steps per configuration (default 40)");
     b->add_option("--out", a->out, "Output directory for bench.h5 (default runs/out/bench)");
-    b->add_option("--gemm", a->gemm, "GEMM kernels: default (own where built, else openblas), own, openblas or eigen");
+    b->add_option("--gemm", a->gemm, "GEMM kernels, comma-separated and timed interleaved: default (own where built, else openblas), own, "
+                  "openblas, eigen");
     b->callback([a]() {
         BenchOptions opt;
         opt.threads.clear();

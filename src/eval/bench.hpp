@@ -13,11 +13,12 @@ struct BenchOptions {
     int repeats = 40;
     std::string variant = "paper";  // "paper" (the paper's network and loss) or "dissipative"
     std::string out_dir = "runs/out/bench";
-    std::string gemm = "default";  // GEMM path (kern::GemmPath): "default", "own", "openblas" or "eigen"
+    // GEMM paths, comma-separated, timed interleaved: "default", "own", "openblas", "eigen" (kern::GemmPath)
+    std::string gemm = "default";
 };
 
 struct BenchRow {
-    std::string precision, variant;
+    std::string precision, variant, gemm;
     int threads = 1;
     double median_ms = 0, min_ms = 0, max_ms = 0;
     double gflops = 0, peak_gflops = 0;
