@@ -59,12 +59,16 @@ void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const
     // G = dL/dP (as a function of all n^2 entries): explicit gP plus p = P x~  =>  gp x~^T
     for (int a = 0; a < n; ++a)
         for (int b = 0; b < n; ++b) G[a * n + b] = (gP ? gP[a * n + b] : 0.0) + gp[a] * xt[b];
-    // P = c M M^T  =>  dL/dM = c (G + G^T) M ; only the lower triangle of M is free
+    // P = c M M^T  =>  dL/dM = c (G + G^T) M ; only the lower triangle of M is free. S = G + G^T once;
+    // M[j][b] = 0 for j < b, so the sum starts at j = b (the skipped terms are exact zeros: same bits)
+    double S[kMaxStates * kMaxStates];
+    for (int a = 0; a < n; ++a)
+        for (int j = 0; j < n; ++j) S[a * n + j] = G[a * n + j] + G[j * n + a];
     int k = 0;
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b) {
             double s = 0;
-            for (int j = 0; j < n; ++j) s += (G[a * n + j] + G[j * n + a]) * M[j * n + b];
+            for (int j = b; j < n; ++j) s += S[a * n + j] * M[j * n + b];
             d_o[k++] = T(hp.scale * s);
         }
 }

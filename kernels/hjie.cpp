@@ -102,8 +102,18 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
         for (int j = 0; j < nv; ++j) sum += B[a * nv + j] * u[j];
         bbp[a] = sum / (2.0 * hp.rho);
     }
+    // the four terms of eq. (16), as hjie_terms computes them, reusing u = B^T p
     double t[4];
-    hjie_terms(t, p, s, i, hp.rho);
+    {
+        double pa = 0, bb = 0, cc = 0;
+        for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+        for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
+        for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+        t[0] = s.q[i];
+        t[1] = pa;
+        t[2] = bb / (4.0 * hp.rho);
+        t[3] = -hp.rho * cc;
+    }
     if (gP)
         for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
     for (int a = 0; a < n; ++a) gp[a] = 0.0;
@@ -147,13 +157,15 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
         for (int a = 0; a < n; ++a) gp[a] += scale * cn * (2.0 * Pp[a] / p4 - 4.0 * pPp * p[a] / p6);
     }
     if (gP) {
+        // symmetric: (a, b) and (b, a) are the same products in the same order, so compute b <= a and mirror
         for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b) {
+            for (int b = 0; b <= a; ++b) {
                 double bb = 0;
                 for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[b * nv + j];
                 double g = 0.5 * hp.disturbance_intensity * bb;
                 if (pp > 0) g += cn * p[a] * p[b] / (pp * pp);
                 gP[a * n + b] = scale * g;
+                gP[b * n + a] = scale * g;
             }
     }
 }
