@@ -21,9 +21,11 @@ void unpack_m(double* M, const T* o, int n) {
 
 int head_outputs(Head kind, int n) { return kind == HEAD_GRADIENT ? n : n * (n + 1) / 2; }
 
-template <typename T>
-void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
-    const int n = hp.n;
+namespace {
+
+template <int N, typename T>
+void head_forward_n(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = N > 0 ? N : hp.n;
     assert(n <= kMaxStates);
     if (hp.kind == HEAD_GRADIENT) {
         for (int a = 0; a < n; ++a) p[a] = hp.scale * double(o[a]);
@@ -47,9 +49,9 @@ void head_forward(double* p, double* P, const T* o, const double* xt, const Head
     }
 }
 
-template <typename T>
-void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
-    const int n = hp.n;
+template <int N, typename T>
+void head_backward_n(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = N > 0 ? N : hp.n;
     if (hp.kind == HEAD_GRADIENT) {
         for (int a = 0; a < n; ++a) d_o[a] = T(hp.scale * gp[a]);
         return;
@@ -71,6 +73,22 @@ void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const
             for (int j = b; j < n; ++j) s += S[a * n + j] * M[j * n + b];
             d_o[k++] = T(hp.scale * s);
         }
+}
+
+}  // namespace
+
+// n = 6 (the missile models) compiled with the state dimension known, so the small loops unroll;
+// the same operations in the same order as the general version
+template <typename T>
+void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
+    if (hp.n == 6) return head_forward_n<6>(p, P, o, xt, hp);
+    head_forward_n<0>(p, P, o, xt, hp);
+}
+
+template <typename T>
+void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
+    if (hp.n == 6) return head_backward_n<6>(d_o, gp, gP, o, xt, hp);
+    head_backward_n<0>(d_o, gp, gP, o, xt, hp);
 }
 
 template void head_forward<float>(double*, double*, const float*, const double*, const HeadParams&);

@@ -19,8 +19,11 @@ inline void bt_times(double* u, const double* B, const double* p, int n, int nv)
 }
 }  // namespace
 
-void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
-    const int n = s.n, nv = s.nv, m = s.m;
+namespace {
+
+template <int N>
+void terms_n(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
@@ -36,8 +39,9 @@ void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_
     t[3] = -rho * cc;
 }
 
-double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
-    const int n = s.n, nv = s.nv, m = s.m;
+template <int N>
+double h2_rate_n(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
     double tr_bpb = 0;
@@ -57,10 +61,12 @@ double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, s
     return 0.5 * hp.disturbance_intensity * tr_bpb + 0.5 * hp.noise_intensity * tr_kpk;
 }
 
-HjieSampleValue hjie_sample_forward(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
-                                    const HjieParams& hp, HjieObjective obj) {
+template <int N>
+HjieSampleValue sample_forward_n(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
+                                 const HjieParams& hp, HjieObjective obj) {
+    const int n = N > 0 ? N : s.n;
     double t[4];
-    hjie_terms(t, p, s, i, hp.rho);
+    terms_n<N>(t, p, s, i, hp.rho);
     HjieSampleValue v;
     const int R = hjie_residual_count(hp.game);
     double eps[2], S[2];
@@ -84,14 +90,15 @@ HjieSampleValue hjie_sample_forward(const double* p, const double* P, const Hjie
     if (obj == HJIE_OBJECTIVE_PAPER) return v;
     // H2 bound: V(x~) ~ p^T x~ / 2 (exact for constant P) plus horizon * rate; one constant for all samples
     double px = 0;
-    for (int a = 0; a < s.n; ++a) px += p[a] * s.xt[i * s.n + a];
-    v.h2 = (0.5 * px + hp.horizon * hjie_h2_rate(p, P, s, i, hp)) / hp.h2_reference;
+    for (int a = 0; a < n; ++a) px += p[a] * s.xt[i * n + a];
+    v.h2 = (0.5 * px + hp.horizon * h2_rate_n<N>(p, P, s, i, hp)) / hp.h2_reference;
     return v;
 }
 
-void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
-                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
-    const int n = s.n, nv = s.nv, m = s.m;
+template <int N>
+void sample_backward_n(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
+                       std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
@@ -168,6 +175,32 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
                 gP[b * n + a] = scale * g;
             }
     }
+}
+
+}  // namespace
+
+// public entry points: n = 6 (the missile models) compiled with the state dimension known, so the
+// small loops unroll; the same operations in the same order as the general version
+void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
+    if (s.n == 6) return terms_n<6>(t, p, s, i, rho);
+    terms_n<0>(t, p, s, i, rho);
+}
+
+double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
+    if (s.n == 6) return h2_rate_n<6>(p, P, s, i, hp);
+    return h2_rate_n<0>(p, P, s, i, hp);
+}
+
+HjieSampleValue hjie_sample_forward(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
+                                    const HjieParams& hp, HjieObjective obj) {
+    if (s.n == 6) return sample_forward_n<6>(p, P, s, i, hp, obj);
+    return sample_forward_n<0>(p, P, s, i, hp, obj);
+}
+
+void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
+                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+    if (s.n == 6) return sample_backward_n<6>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
+    sample_backward_n<0>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
 }
 
 }  // namespace hinf::kern
