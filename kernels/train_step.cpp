@@ -110,12 +110,18 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
-    // partial gradients summed in chunk order
+    // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in
+    // blocks of components so that the inner loop runs along contiguous memory (vectorised)
+    constexpr std::int64_t kBlock = 2048;
+    const std::int64_t blocks = (P + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static)
-    for (std::int64_t j = 0; j < P; ++j) {
-        T g = T(0);
-        for (int c = 0; c < chunks; ++c) g += ws.partial[std::int64_t(c) * P + j];
-        grad[j] = g;
+    for (std::int64_t b = 0; b < blocks; ++b) {
+        const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
+        for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
+        for (int c = 0; c < chunks; ++c) {
+            const T* part = ws.partial.data() + std::int64_t(c) * P;
+            for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
+        }
     }
     return loss;
 }
