@@ -1,12 +1,12 @@
 // Register-blocked AVX-512 GEMM with fused epilogues, and its naive twin (see gemm.hpp).
 // Blocking: C is walked in column panels of NR = 2 vectors; the k x NR panel of Bm (at most
 // 256 x 32 floats = 32 KB) stays in L1 while MR = 8 rows of A at a time are broadcast against it,
-// 16 accumulators in registers. No packing, no zeroing pass: accumulators start at 0 or at C.
+// 16 accumulators in registers. Bm is read in place (gemm_own) or from panels packed once by the
+// caller (gemm_own_packed: the MLP's weights). No zeroing pass: accumulators start at 0 or at C.
 #include "gemm.hpp"
 
 #include <algorithm>
 #include <cstdint>
-#include <vector>
 
 #if defined(__AVX512F__)
 #include <immintrin.h>
@@ -92,7 +92,7 @@ constexpr int kNV = HINF_GEMM_NV;  // vectors of C per row of a micro-tile
 // C[i0..i0+MR) x [j0..j0+NV*W) with the last vector masked by `last`; pb: the packed panel
 // [k x kNV*W] of Bm's columns j0...
 template <typename T, int MR, int NV>
-inline void micro(int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int ldc, bool accumulate,
+inline void micro(int k, const T* A, int a_rs, int a_cs, const T* pb, int ldb, T* C, int ldc, bool accumulate,
                   const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
     using V = Vec<T>;
     using R = typename V::R;
@@ -120,7 +120,7 @@ inline void micro(int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int 
             for (int v = 0; v < NV; ++v) acc[r][v] = V::fma(av, bv[v], acc[r][v]);
         }
         a += a_cs;
-        b += kNV * W;
+        b += ldb;
     }
     const R a1 = V::set1(e.a1), a2 = V::set1(e.a2);
     _Pragma("GCC unroll 16")
@@ -141,22 +141,23 @@ inline void micro(int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int 
 
 // micro-tile with nv (1..NV) vectors per row
 template <typename T, int MR, int NV>
-inline void micro_nv(int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int ldc, bool accumulate,
-                     const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
+inline void micro_nv(int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, int ldb, T* C, int ldc,
+                     bool accumulate, const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
     if constexpr (NV > 1) {
-        if (nv < NV) return micro_nv<T, MR, NV - 1>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+        if (nv < NV) return micro_nv<T, MR, NV - 1>(nv, k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, e, i0, j0, last);
     }
-    micro<T, MR, NV>(k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+    micro<T, MR, NV>(k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, e, i0, j0, last);
 }
 
 // the last rem (1..MR) rows
 template <typename T, int MR>
-inline void micro_tail(int rem, int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, T* C, int ldc,
+inline void micro_tail(int rem, int nv, int k, const T* A, int a_rs, int a_cs, const T* pb, int ldb, T* C, int ldc,
                        bool accumulate, const GemmEpi<T>& e, int i0, int j0, typename Vec<T>::M last) {
     if constexpr (MR > 1) {
-        if (rem < MR) return micro_tail<T, MR - 1>(rem, nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+        if (rem < MR)
+            return micro_tail<T, MR - 1>(rem, nv, k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, e, i0, j0, last);
     }
-    micro_nv<T, MR, kNV>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, e, i0, j0, last);
+    micro_nv<T, MR, kNV>(nv, k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, e, i0, j0, last);
 }
 
 }  // namespace
@@ -166,32 +167,50 @@ int gemm_panel_width() {
     return kNV * Vec<T>::W;
 }
 
-template <typename T>
-void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
-                     bool accumulate, const GemmEpi<T>& epi) {
+namespace {
+// C's column panels; panel(j0) gives the k x NR block of Bm for columns j0.. and its row stride
+template <typename T, typename Panel>
+void drive(int m, int n, int k, const T* A, int a_rs, int a_cs, Panel panel, T* C, int ldc, bool accumulate,
+           const GemmEpi<T>& epi) {
     using V = Vec<T>;
     constexpr int W = V::W, NR = kNV * W;
     for (int j0 = 0; j0 < n; j0 += NR) {
         const int nc = std::min(NR, n - j0);
         const int nv = (nc + W - 1) / W;
         const typename V::M last = V::mask(nc - (nv - 1) * W);
-        const T* pb = packed + std::int64_t(j0 / NR) * k * NR;
+        int ldb = 0;
+        const T* pb = panel(j0, &ldb);
         int i0 = 0;
         for (; i0 + kMR <= m; i0 += kMR)
-            micro_nv<T, kMR, kNV>(nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last);
-        if (i0 < m) micro_tail<T, kMR - 1>(m - i0, nv, k, A, a_rs, a_cs, pb, C, ldc, accumulate, epi, i0, j0, last);
+            micro_nv<T, kMR, kNV>(nv, k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, epi, i0, j0, last);
+        if (i0 < m)
+            micro_tail<T, kMR - 1>(m - i0, nv, k, A, a_rs, a_cs, pb, ldb, C, ldc, accumulate, epi, i0, j0, last);
     }
+}
+}  // namespace
+
+template <typename T>
+void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
+                     bool accumulate, const GemmEpi<T>& epi) {
+    constexpr int NR = kNV * Vec<T>::W;
+    drive(m, n, k, A, a_rs, a_cs,
+          [&](int j0, int* ldb) {
+              *ldb = NR;
+              return packed + std::int64_t(j0 / NR) * k * NR;
+          },
+          C, ldc, accumulate, epi);
 }
 
 template <typename T>
 void gemm_own(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* Bm, int ldb, T* C, int ldc,
               bool accumulate, const GemmEpi<T>& epi) {
-    // the k x n Bm copied into contiguous panels: rows of Bm a power of two apart would share L1 sets
-    thread_local std::vector<T> packed;
-    const std::int64_t size = gemm_packed_size<T>(k, n);
-    if (std::int64_t(packed.size()) < size) packed.resize(size);
-    gemm_pack_b(packed.data(), k, n, Bm, ldb, 1);
-    gemm_own_packed(m, n, k, A, a_rs, a_cs, packed.data(), C, ldc, accumulate, epi);
+    // Bm read in place, row by row (the last vector masked); measured faster than packing it per call
+    drive(m, n, k, A, a_rs, a_cs,
+          [&](int j0, int* ld) {
+              *ld = ldb;
+              return Bm + j0;
+          },
+          C, ldc, accumulate, epi);
 }
 
 #else  // no AVX-512: the own kernels are not built; mlp.cpp routes to OpenBLAS
