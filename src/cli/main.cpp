@@ -16,7 +16,7 @@ int main(int argc, char** argv) {
     // runtime reads these when it loads, so set them and re-execute once. docs/method.md section 11.
     if (std::getenv("OMP_WAIT_POLICY") == nullptr && std::getenv("GOMP_SPINCOUNT") == nullptr &&
         std::getenv("KMP_BLOCKTIME") == nullptr) {
-        setenv("GOMP_SPINCOUNT", "3000", 1);
+        setenv("GOMP_SPINCOUNT", "1000", 1);
         setenv("KMP_BLOCKTIME", "1", 1);
         execv("/proc/self/exe", argv);  // returns only on failure: then carry on with the runtime's default
     }
