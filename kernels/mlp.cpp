@@ -240,7 +240,20 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
             T* db = dW + std::int64_t(dl) * din;
             const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
             // dW_l (+)= G_l^T H_{l-1}  (A = G_l read transposed); db_l (+)= column sums of G_l in order
-            gemm_own(dl, din, B, Gc, 1, dl, Hin, din, dW, din, !overwrite, GemmEpi<T>{});
+            if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
+                // rows narrower than a vector (the input layer): dW_l^T = H_{l-1}^T G_l fills the vectors;
+                // the same products summed in the same order, so the same bits
+                thread_local std::vector<T> t;
+                t.resize(std::size_t(din) * dl);
+                if (!overwrite)
+                    for (int o = 0; o < dl; ++o)
+                        for (int i = 0; i < din; ++i) t[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
+                gemm_own(din, dl, B, Hin, 1, din, Gc, dl, t.data(), dl, !overwrite, GemmEpi<T>{});
+                for (int o = 0; o < dl; ++o)
+                    for (int i = 0; i < din; ++i) dW[std::int64_t(o) * din + i] = t[std::size_t(i) * dl + o];
+            } else {
+                gemm_own(dl, din, B, Gc, 1, dl, Hin, din, dW, din, !overwrite, GemmEpi<T>{});
+            }
             if (overwrite) std::fill(db, db + dl, T(0));
             for (int s = 0; s < B; ++s)
                 for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * dl + o];
