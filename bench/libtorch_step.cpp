@@ -141,6 +141,9 @@ int main(int argc, char** argv) {
         kern::AdamParams ap{cfg.learning_rate, cfg.beta1, cfg.beta2, cfg.tau};
         std::vector<double> t_ours, t_torch;
         for (int r = 0; r < repeats + 10; ++r) {
+            // LibTorch's lazy thread-pool initialisation sets OpenMP to its own count (1) on the calling
+            // thread after our omp_set_num_threads above: restore ours before each of our steps
+            omp_set_num_threads(threads);
             auto t0 = Clock::now();
             kern::step_gradient(grad.data(), theta.data(), view, idx.data(), M, sc, ws);
             kern::adam_update(theta.data(), mom.data(), vel.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1, ap);
