@@ -243,8 +243,7 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
             if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
                 // rows narrower than a vector (the input layer): dW_l^T = H_{l-1}^T G_l fills the vectors;
                 // the same products summed in the same order, so the same bits
-                thread_local std::vector<T> t;
-                t.resize(std::size_t(din) * dl);
+                std::vector<T> t(std::size_t(din) * dl);
                 if (!overwrite)
                     for (int o = 0; o < dl; ++o)
                         for (int i = 0; i < din; ++i) t[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
