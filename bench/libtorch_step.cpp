@@ -141,10 +141,14 @@ int main(int argc, char** argv) {
         kern::AdamParams ap{cfg.learning_rate, cfg.beta1, cfg.beta2, cfg.tau};
         std::vector<double> t_ours, t_torch;
         for (int r = 0; r < repeats + 10; ++r) {
+            // LibTorch's lazy thread-pool initialisation sets OpenMP to its own count (1) on the calling
+            // thread after our omp_set_num_threads above: restore ours before each of our steps
+            omp_set_num_threads(threads);
             auto t0 = Clock::now();
             kern::step_gradient(grad.data(), theta.data(), view, idx.data(), M, sc, ws);
             kern::adam_update(theta.data(), mom.data(), vel.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1, ap);
             auto t1 = Clock::now();
+            openblas_set_num_threads(threads);  // ours ran OpenBLAS serially per chunk (kern::gemm_prepare)
             adam.zero_grad();
             torch::Tensor loss = torch_loss();
             loss.backward();
@@ -156,6 +160,7 @@ int main(int argc, char** argv) {
             }
         }
         double mo = median(t_ours), mt = median(t_torch);
+        std::printf("hinf GEMMs: %s\n", kern::gemm_description().c_str());
         std::printf("training step, %d threads, M = %d, median of %d interleaved repeats: hinf %.3f ms, LibTorch %s %.3f ms "
                     "(torch threads 1, OpenBLAS threads %d): LibTorch/hinf = %.2f\n",
                     threads, M, repeats, mo, TORCH_VERSION, mt, threads, mt / mo);

@@ -21,9 +21,11 @@ void unpack_m(double* M, const T* o, int n) {
 
 int head_outputs(Head kind, int n) { return kind == HEAD_GRADIENT ? n : n * (n + 1) / 2; }
 
-template <typename T>
-void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
-    const int n = hp.n;
+namespace {
+
+template <int N, typename T>
+void head_forward_n(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = N > 0 ? N : hp.n;
     assert(n <= kMaxStates);
     if (hp.kind == HEAD_GRADIENT) {
         for (int a = 0; a < n; ++a) p[a] = hp.scale * double(o[a]);
@@ -47,9 +49,9 @@ void head_forward(double* p, double* P, const T* o, const double* xt, const Head
     }
 }
 
-template <typename T>
-void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
-    const int n = hp.n;
+template <int N, typename T>
+void head_backward_n(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
+    const int n = N > 0 ? N : hp.n;
     if (hp.kind == HEAD_GRADIENT) {
         for (int a = 0; a < n; ++a) d_o[a] = T(hp.scale * gp[a]);
         return;
@@ -59,14 +61,34 @@ void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const
     // G = dL/dP (as a function of all n^2 entries): explicit gP plus p = P x~  =>  gp x~^T
     for (int a = 0; a < n; ++a)
         for (int b = 0; b < n; ++b) G[a * n + b] = (gP ? gP[a * n + b] : 0.0) + gp[a] * xt[b];
-    // P = c M M^T  =>  dL/dM = c (G + G^T) M ; only the lower triangle of M is free
+    // P = c M M^T  =>  dL/dM = c (G + G^T) M ; only the lower triangle of M is free. S = G + G^T once;
+    // M[j][b] = 0 for j < b, so the sum starts at j = b (the skipped terms are exact zeros: same bits)
+    double S[kMaxStates * kMaxStates];
+    for (int a = 0; a < n; ++a)
+        for (int j = 0; j < n; ++j) S[a * n + j] = G[a * n + j] + G[j * n + a];
     int k = 0;
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b) {
             double s = 0;
-            for (int j = 0; j < n; ++j) s += (G[a * n + j] + G[j * n + a]) * M[j * n + b];
+            for (int j = b; j < n; ++j) s += S[a * n + j] * M[j * n + b];
             d_o[k++] = T(hp.scale * s);
         }
+}
+
+}  // namespace
+
+// n = 6 (the missile models) compiled with the state dimension known, so the small loops unroll;
+// the same operations in the same order as the general version
+template <typename T>
+void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp) {
+    if (hp.n == 6) return head_forward_n<6>(p, P, o, xt, hp);
+    head_forward_n<0>(p, P, o, xt, hp);
+}
+
+template <typename T>
+void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp) {
+    if (hp.n == 6) return head_backward_n<6>(d_o, gp, gP, o, xt, hp);
+    head_backward_n<0>(d_o, gp, gP, o, xt, hp);
 }
 
 template void head_forward<float>(double*, double*, const float*, const double*, const HeadParams&);

@@ -19,8 +19,11 @@ inline void bt_times(double* u, const double* B, const double* p, int n, int nv)
 }
 }  // namespace
 
-void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
-    const int n = s.n, nv = s.nv, m = s.m;
+namespace {
+
+template <int N>
+void terms_n(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
@@ -36,8 +39,9 @@ void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_
     t[3] = -rho * cc;
 }
 
-double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
-    const int n = s.n, nv = s.nv, m = s.m;
+template <int N>
+double h2_rate_n(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
     double tr_bpb = 0;
@@ -57,10 +61,12 @@ double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, s
     return 0.5 * hp.disturbance_intensity * tr_bpb + 0.5 * hp.noise_intensity * tr_kpk;
 }
 
-HjieSampleValue hjie_sample_forward(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
-                                    const HjieParams& hp, HjieObjective obj) {
+template <int N>
+HjieSampleValue sample_forward_n(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
+                                 const HjieParams& hp, HjieObjective obj) {
+    const int n = N > 0 ? N : s.n;
     double t[4];
-    hjie_terms(t, p, s, i, hp.rho);
+    terms_n<N>(t, p, s, i, hp.rho);
     HjieSampleValue v;
     const int R = hjie_residual_count(hp.game);
     double eps[2], S[2];
@@ -84,14 +90,15 @@ HjieSampleValue hjie_sample_forward(const double* p, const double* P, const Hjie
     if (obj == HJIE_OBJECTIVE_PAPER) return v;
     // H2 bound: V(x~) ~ p^T x~ / 2 (exact for constant P) plus horizon * rate; one constant for all samples
     double px = 0;
-    for (int a = 0; a < s.n; ++a) px += p[a] * s.xt[i * s.n + a];
-    v.h2 = (0.5 * px + hp.horizon * hjie_h2_rate(p, P, s, i, hp)) / hp.h2_reference;
+    for (int a = 0; a < n; ++a) px += p[a] * s.xt[i * n + a];
+    v.h2 = (0.5 * px + hp.horizon * h2_rate_n<N>(p, P, s, i, hp)) / hp.h2_reference;
     return v;
 }
 
-void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
-                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
-    const int n = s.n, nv = s.nv, m = s.m;
+template <int N>
+void sample_backward_n(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
+                       std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+    const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
@@ -102,8 +109,18 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
         for (int j = 0; j < nv; ++j) sum += B[a * nv + j] * u[j];
         bbp[a] = sum / (2.0 * hp.rho);
     }
+    // the four terms of eq. (16), as hjie_terms computes them, reusing u = B^T p
     double t[4];
-    hjie_terms(t, p, s, i, hp.rho);
+    {
+        double pa = 0, bb = 0, cc = 0;
+        for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+        for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
+        for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+        t[0] = s.q[i];
+        t[1] = pa;
+        t[2] = bb / (4.0 * hp.rho);
+        t[3] = -hp.rho * cc;
+    }
     if (gP)
         for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
     for (int a = 0; a < n; ++a) gp[a] = 0.0;
@@ -147,15 +164,43 @@ void hjie_sample_backward(double* gp, double* gP, const double* p, const double*
         for (int a = 0; a < n; ++a) gp[a] += scale * cn * (2.0 * Pp[a] / p4 - 4.0 * pPp * p[a] / p6);
     }
     if (gP) {
+        // symmetric: (a, b) and (b, a) are the same products in the same order, so compute b <= a and mirror
         for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b) {
+            for (int b = 0; b <= a; ++b) {
                 double bb = 0;
                 for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[b * nv + j];
                 double g = 0.5 * hp.disturbance_intensity * bb;
                 if (pp > 0) g += cn * p[a] * p[b] / (pp * pp);
                 gP[a * n + b] = scale * g;
+                gP[b * n + a] = scale * g;
             }
     }
+}
+
+}  // namespace
+
+// public entry points: n = 6 (the missile models) compiled with the state dimension known, so the
+// small loops unroll; the same operations in the same order as the general version
+void hjie_terms(double* t, const double* p, const HjieSystemView& s, std::int64_t i, double rho) {
+    if (s.n == 6) return terms_n<6>(t, p, s, i, rho);
+    terms_n<0>(t, p, s, i, rho);
+}
+
+double hjie_h2_rate(const double* p, const double* P, const HjieSystemView& s, std::int64_t i, const HjieParams& hp) {
+    if (s.n == 6) return h2_rate_n<6>(p, P, s, i, hp);
+    return h2_rate_n<0>(p, P, s, i, hp);
+}
+
+HjieSampleValue hjie_sample_forward(const double* p, const double* P, const HjieSystemView& s, std::int64_t i,
+                                    const HjieParams& hp, HjieObjective obj) {
+    if (s.n == 6) return sample_forward_n<6>(p, P, s, i, hp, obj);
+    return sample_forward_n<0>(p, P, s, i, hp, obj);
+}
+
+void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
+                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+    if (s.n == 6) return sample_backward_n<6>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
+    sample_backward_n<0>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
 }
 
 }  // namespace hinf::kern

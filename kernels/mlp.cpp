@@ -1,9 +1,16 @@
-// MLP forward/backward with Eigen products (single-threaded per chunk; the caller splits samples
-// over threads), and their naive twins. See mlp.hpp for the shape legend.
+// MLP forward/backward on one chunk (single-threaded; the caller splits samples over threads) with the
+// GEMMs by OpenBLAS (default) or Eigen's own products, bias + LeakyReLU fused into one pass over the
+// product, and their naive twins. See mlp.hpp for the shape legend and docs/method.md section 11.
 #include "mlp.hpp"
+
+#include <cblas.h>
+
+#include "gemm.hpp"
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <atomic>
+#include <cstdlib>
 #include <cstring>
 
 namespace hinf::kern {
@@ -49,10 +56,152 @@ using MapV = Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>>;
 
 }  // namespace
 
+namespace {
+std::atomic<int> g_gemm_path{gemm_own_available() ? GEMM_OWN : GEMM_OPENBLAS};
+
+// C [m x n] = A' B' + beta C, all row-major; A' = A or A^T, B' = B or B^T. One serial OpenBLAS call.
+inline void gemm(bool ta, bool tb, int m, int n, int k, const float* A, int lda, const float* Bm, int ldb, float beta,
+                 float* C, int ldc) {
+    cblas_sgemm(CblasRowMajor, ta ? CblasTrans : CblasNoTrans, tb ? CblasTrans : CblasNoTrans, m, n, k, 1.0f, A, lda,
+                Bm, ldb, beta, C, ldc);
+}
+inline void gemm(bool ta, bool tb, int m, int n, int k, const double* A, int lda, const double* Bm, int ldb,
+                 double beta, double* C, int ldc) {
+    cblas_dgemm(CblasRowMajor, ta ? CblasTrans : CblasNoTrans, tb ? CblasTrans : CblasNoTrans, m, n, k, 1.0, A, lda,
+                Bm, ldb, beta, C, ldc);
+}
+
+// H [B x d] <- LeakyReLU(H + 1 b^T) (hidden layers) or H + 1 b^T (output layer): the GEMM's epilogue.
 template <typename T>
-void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape) {
+void bias_activation(T* H, const T* b, int B, int d, bool hidden, T a1, T a2) {
+    for (int s = 0; s < B; ++s) {
+        T* h = H + std::int64_t(s) * d;
+        if (hidden) {
+            for (int o = 0; o < d; ++o) {
+                const T z = h[o] + b[o];
+                h[o] = z > T(0) ? a1 * z : a2 * z;
+            }
+        } else {
+            for (int o = 0; o < d; ++o) h[o] += b[o];
+        }
+    }
+}
+}  // namespace
+
+GemmPath default_gemm_path() { return gemm_own_available() ? GEMM_OWN : GEMM_OPENBLAS; }
+void set_gemm_path(GemmPath path) { g_gemm_path.store(path == GEMM_OWN && !gemm_own_available() ? GEMM_OPENBLAS : path); }
+GemmPath gemm_path() { return GemmPath(g_gemm_path.load()); }
+
+void gemm_prepare() {
+    if (gemm_path() == GEMM_OPENBLAS && openblas_get_num_threads() != 1) openblas_set_num_threads(1);
+}
+
+std::string gemm_description() {
+    if (gemm_path() == GEMM_OWN)
+        return "hinf's own AVX-512 register-blocked kernels (8 x 2 vectors, bias/LeakyReLU fused)";
+    if (gemm_path() == GEMM_EIGEN)
+        return "Eigen " + std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) + "." +
+               std::to_string(EIGEN_MINOR_VERSION) + " own products (no BLAS)";
+    std::string d = std::string(openblas_get_config()) + ", " + openblas_get_corename() +
+                    " kernels, serial per chunk";
+    if (const char* ct = std::getenv("OPENBLAS_CORETYPE"))
+        d += " (forced by OPENBLAS_CORETYPE=" + std::string(ct) + "; unset it for this CPU's own kernels)";
+    return d;
+}
+
+namespace {
+// offsets of layer l's forward and backward panels in the pack
+template <typename T>
+void pack_offsets(const MlpShape& sh, int l, std::int64_t* fwd, std::int64_t* bwd) {
+    std::int64_t off = 0;
+    for (int k = 1; k <= l; ++k) {
+        const int din = sh.sizes[k - 1], dout = sh.sizes[k];
+        if (k == l) *fwd = off;
+        off += gemm_packed_size<T>(din, dout);
+        if (k == l) *bwd = off;
+        off += gemm_packed_size<T>(dout, din);
+    }
+}
+}  // namespace
+
+std::int64_t mlp_pack_size(const MlpShape& sh, int elem_size) {
+    std::int64_t n = 0;
+    for (int l = 1; l <= sh.layers(); ++l) {
+        const int din = sh.sizes[l - 1], dout = sh.sizes[l];
+        n += elem_size == 4 ? gemm_packed_size<float>(din, dout) + gemm_packed_size<float>(dout, din)
+                            : gemm_packed_size<double>(din, dout) + gemm_packed_size<double>(dout, din);
+    }
+    return n;
+}
+
+template <typename T>
+void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape) {
+    const int L = shape.layers(), NR = gemm_panel_width<T>();
+    // one task per (layer, direction, panel); each writes its own panel
+    int tasks = 0;
+    for (int l = 1; l <= L; ++l) tasks += (shape.sizes[l] + NR - 1) / NR + (shape.sizes[l - 1] + NR - 1) / NR;
+#pragma omp parallel for schedule(static) if (tasks > 8)
+    for (int t = 0; t < tasks; ++t) {
+        int rest = t;
+        for (int l = 1; l <= L; ++l) {
+            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+            const int pf = (dout + NR - 1) / NR, pbw = (din + NR - 1) / NR;
+            const T* W = theta + shape.weight_offset(l);
+            std::int64_t of = 0, ob = 0;
+            if (rest < pf + pbw) pack_offsets<T>(shape, l, &of, &ob);
+            if (rest < pf) {  // W^T: element (i, o) = W[o*din + i]
+                gemm_pack_b(pack + of, din, dout, W, 1, din, rest, rest + 1);
+                break;
+            }
+            rest -= pf;
+            if (rest < pbw) {  // W: element (o, i) = W[o*din + i]
+                gemm_pack_b(pack + ob, dout, din, W, din, 1, rest, rest + 1);
+                break;
+            }
+            rest -= pbw;
+        }
+    }
+}
+
+template <typename T>
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const T* in = x;
+    if (gemm_path() == GEMM_OWN) {
+        std::vector<T> own;
+        if (!pack) {
+            own.resize(mlp_pack_size(shape, sizeof(T)));
+            mlp_pack_weights(own.data(), theta, shape);
+            pack = own.data();
+        }
+        for (int l = 1; l <= shape.layers(); ++l) {
+            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+            T* H = acts + shape.act_offset(l, B);
+            GemmEpi<T> e;
+            e.kind = l < shape.layers() ? EPI_BIAS_LEAKY : EPI_BIAS;
+            e.bias = theta + shape.weight_offset(l) + std::int64_t(dout) * din;
+            e.a1 = a1;
+            e.a2 = a2;
+            std::int64_t of = 0, ob = 0;
+            pack_offsets<T>(shape, l, &of, &ob);
+            // H_l = act(H_{l-1} W_l^T + 1 b_l^T), W_l^T from the pack
+            gemm_own_packed(B, dout, din, in, din, 1, pack + of, H, dout, false, e);
+            in = H;
+        }
+        return;
+    }
+    if (gemm_path() == GEMM_OPENBLAS) {
+        for (int l = 1; l <= shape.layers(); ++l) {
+            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+            const T* W = theta + shape.weight_offset(l);
+            T* H = acts + shape.act_offset(l, B);
+            // H_l = act(H_{l-1} W_l^T + 1 b_l^T)
+            gemm(false, true, B, dout, din, in, din, W, din, T(0), H, dout);
+            bias_activation(H, W + std::int64_t(dout) * din, B, dout, l < shape.layers(), a1, a2);
+            in = H;
+        }
+        return;
+    }
     for (int l = 1; l <= shape.layers(); ++l) {
         const int din = shape.sizes[l - 1], dout = shape.sizes[l];
         const T* W = theta + shape.weight_offset(l);
@@ -72,11 +221,89 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
 
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout_in, int B,
-                  const MlpShape& shape, T* scratch) {
+                  const MlpShape& shape, T* scratch, bool overwrite, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const int L = shape.layers(), wmax = shape.max_width();
     T* G = scratch;                             // dL/dz_l   [B x D_l]
     T* Gprev = scratch + std::int64_t(B) * wmax;  // dL/dz_{l-1}
+    if (gemm_path() == GEMM_OWN) {
+        std::vector<T> own;
+        if (!pack) {
+            own.resize(mlp_pack_size(shape, sizeof(T)));
+            mlp_pack_weights(own.data(), theta, shape);
+            pack = own.data();
+        }
+        const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
+        for (int l = L; l >= 1; --l) {
+            const int din = shape.sizes[l - 1], dl = shape.sizes[l];
+            T* dW = dtheta + shape.weight_offset(l);
+            T* db = dW + std::int64_t(dl) * din;
+            const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
+            // dW_l (+)= G_l^T H_{l-1}  (A = G_l read transposed); db_l (+)= column sums of G_l in order
+            if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
+                // rows narrower than a vector (the input layer): dW_l^T = H_{l-1}^T G_l fills the vectors;
+                // the same products summed in the same order, so the same bits
+                std::vector<T> t(std::size_t(din) * dl);
+                if (!overwrite)
+                    for (int o = 0; o < dl; ++o)
+                        for (int i = 0; i < din; ++i) t[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
+                gemm_own(din, dl, B, Hin, 1, din, Gc, dl, t.data(), dl, !overwrite, GemmEpi<T>{});
+                for (int o = 0; o < dl; ++o)
+                    for (int i = 0; i < din; ++i) dW[std::int64_t(o) * din + i] = t[std::size_t(i) * dl + o];
+            } else {
+                gemm_own(dl, din, B, Gc, 1, dl, Hin, din, dW, din, !overwrite, GemmEpi<T>{});
+            }
+            if (overwrite) std::fill(db, db + dl, T(0));
+            for (int s = 0; s < B; ++s)
+                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * dl + o];
+            if (l == 1 && !dx) break;
+            // dL/dH_{l-1} = G_l W_l, times LeakyReLU's slope (H and z share their sign) in the store
+            GemmEpi<T> e;
+            if (l > 1) {
+                e.kind = EPI_LEAKY_GRAD;
+                e.H = Hin;
+                e.ldh = din;
+                e.a1 = a1;
+                e.a2 = a2;
+            }
+            T* target = (l == 1) ? dx : Gprev;
+            std::int64_t of = 0, ob = 0;
+            pack_offsets<T>(shape, l, &of, &ob);
+            gemm_own_packed(B, din, dl, Gc, dl, 1, pack + ob, target, din, false, e);
+            if (l > 1) {
+                Gc = Gprev;
+                std::swap(G, Gprev);
+            }
+        }
+        return;
+    }
+    if (gemm_path() == GEMM_OPENBLAS) {
+        const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
+        for (int l = L; l >= 1; --l) {
+            const int din = shape.sizes[l - 1], dl = shape.sizes[l];
+            const T* W = theta + shape.weight_offset(l);
+            T* dW = dtheta + shape.weight_offset(l);
+            T* db = dW + std::int64_t(dl) * din;
+            const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
+            // dW_l (+)= G_l^T H_{l-1}; db_l (+)= column sums of G_l, samples in order
+            gemm(true, false, dl, din, B, Gc, dl, Hin, din, overwrite ? T(0) : T(1), dW, din);
+            if (overwrite) std::fill(db, db + dl, T(0));
+            for (int s = 0; s < B; ++s)
+                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * dl + o];
+            if (l == 1 && !dx) break;
+            // dL/dH_{l-1} = G_l W_l, then through LeakyReLU (H and z share their sign: both slopes positive)
+            T* target = (l == 1) ? dx : Gprev;
+            gemm(false, false, B, din, dl, Gc, dl, W, din, T(0), target, din);
+            if (l > 1) {
+                const std::int64_t cnt = std::int64_t(B) * din;
+                for (std::int64_t i = 0; i < cnt; ++i) Gprev[i] *= Hin[i] > T(0) ? a1 : a2;
+                Gc = Gprev;
+                std::swap(G, Gprev);
+            }
+        }
+        return;
+    }
+    if (overwrite) std::fill(dtheta, dtheta + shape.param_count(), T(0));
     std::memcpy(G, dout_in, sizeof(T) * std::size_t(B) * shape.outputs());
     for (int l = L; l >= 1; --l) {
         const int din = shape.sizes[l - 1], dl = shape.sizes[l];
@@ -155,8 +382,10 @@ void mlp_backward_naive(T* dtheta, T* dx, const T* theta, const T* x, const T* a
 }
 
 #define HINF_INSTANTIATE_MLP(T)                                                                              \
-    template void mlp_forward<T>(T*, const T*, const T*, int, const MlpShape&);                              \
-    template void mlp_backward<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&, T*);  \
+    template void mlp_pack_weights<T>(T*, const T*, const MlpShape&);                                        \
+    template void mlp_forward<T>(T*, const T*, const T*, int, const MlpShape&, const T*);                    \
+    template void mlp_backward<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&, T*, bool, \
+                                  const T*);                                                                 \
     template void mlp_forward_naive<T>(T*, const T*, const T*, int, const MlpShape&);                        \
     template void mlp_backward_naive<T>(T*, T*, const T*, const T*, const T*, const T*, int, const MlpShape&);
 HINF_INSTANTIATE_MLP(float)

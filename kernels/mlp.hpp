@@ -8,9 +8,28 @@
 //                (H_L is the network output, pre-activation).
 #pragma once
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace hinf::kern {
+
+// Which GEMM kernels the fast forward/backward use (docs/method.md section 11). GEMM_OWN: hinf's
+// register-blocked AVX-512 kernels with fused epilogues (gemm.hpp; the default where built);
+// GEMM_OPENBLAS: OpenBLAS called directly, serially, once per product (the default without AVX-512);
+// GEMM_EIGEN: Eigen's own products. All run one chunk on the calling thread (the caller splits chunks
+// over OpenMP threads), so the bits do not depend on the thread count. Process-wide; set it before a
+// run, never during one. `hinf bench --gemm` measures each.
+enum GemmPath { GEMM_OPENBLAS = 0, GEMM_EIGEN = 1, GEMM_OWN = 2 };
+/// GEMM_OWN where gemm_own_available(), else GEMM_OPENBLAS.
+GemmPath default_gemm_path();
+/// Selecting GEMM_OWN where it is not built selects GEMM_OPENBLAS.
+void set_gemm_path(GemmPath path);
+GemmPath gemm_path();
+/// e.g. "OpenBLAS 0.3.21 SkylakeX kernels (serial per chunk)"; names an OPENBLAS_CORETYPE override.
+std::string gemm_description();
+/// Makes OpenBLAS run each call on the calling thread. Call outside parallel regions before a
+/// parallel loop of fast-kernel calls (step_gradient and network_eval do); cheap when already set.
+void gemm_prepare();
 
 struct MlpShape {
     std::vector<int> sizes;      // D[0..L]
@@ -30,16 +49,26 @@ struct MlpShape {
     std::int64_t act_offset(int l, int B) const;
 };
 
-// acts [B x act_per_sample] (layer-major: H_1 for all B, then H_2, ...), theta [param_count],
-// x [B x D0].  Output H_L at acts + act_offset(L, B).
+// GEMM_OWN's weights, packed once per weight update (not per chunk) into the own kernels' panels
+// (gemm_pack_b): per layer W_l^T [D[l-1] x D[l]] for the forward, then W_l [D[l] x D[l-1]] for the
+// backward. pack [mlp_pack_size]. Splits the packing over OpenMP threads when called outside a
+// parallel region.
+std::int64_t mlp_pack_size(const MlpShape& shape, int elem_size);
 template <typename T>
-void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape);
+void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape);
 
-// Accumulates dL/dtheta into dtheta (caller zeroes it). dout [B x D_L] = dL/dH_L.
-// dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x max_width].
+// acts [B x act_per_sample] (layer-major: H_1 for all B, then H_2, ...), theta [param_count],
+// x [B x D0].  Output H_L at acts + act_offset(L, B). pack: mlp_pack_weights(theta) or null (then
+// packed here when GEMM_OWN needs it).
+template <typename T>
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack = nullptr);
+
+// Accumulates dL/dtheta into dtheta (caller zeroes it), or with overwrite = true writes it (no zeroing
+// needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x max_width].
+// pack: as for mlp_forward.
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,
-                  const MlpShape& shape, T* scratch);
+                  const MlpShape& shape, T* scratch, bool overwrite = false, const T* pack = nullptr);
 
 // Naive twins: plain loops, one sample at a time; the reference for the fast versions.
 template <typename T>

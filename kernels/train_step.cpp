@@ -18,6 +18,14 @@ void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t 
         for (int a = 0; a < n; ++a) in[s * n + a] = T(xt[i * n + a] * inv);
     }
 }
+// the own kernels' weight panels, once per call (shared by all chunks); null for the other paths
+template <typename T>
+const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
+    if (gemm_path() != GEMM_OWN) return nullptr;
+    ws.pack.resize(mlp_pack_size(sh, sizeof(T)));
+    mlp_pack_weights(ws.pack.data(), theta, sh);
+    return ws.pack.data();
+}
 }  // namespace
 
 template <typename T>
@@ -46,6 +54,8 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     const std::int64_t P = sh.param_count();
     ws.reserve(cfg, M);
     if (std::int64_t(ws.partial.size()) < chunks * P) ws.partial.assign(chunks * P, T(0));
+    gemm_prepare();
+    const T* wt = pack(ws, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 
     // pass 1: forward, head, per-sample loss pieces
@@ -55,7 +65,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
         load_inputs(in, sys.xt, idx, b0, B, n, cfg.input_scale);
-        mlp_forward(acts, theta, in, B, sh);
+        mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
@@ -97,16 +107,21 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
                           sys.xt + i * n, cfg.head);
         }
         T* part = ws.partial.data() + std::int64_t(c) * P;
-        std::fill(part, part + P, T(0));
         T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
-        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch);
+        mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
-    // partial gradients summed in chunk order
+    // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in
+    // blocks of components so that the inner loop runs along contiguous memory (vectorised)
+    constexpr std::int64_t kBlock = 2048;
+    const std::int64_t blocks = (P + kBlock - 1) / kBlock;
 #pragma omp parallel for schedule(static)
-    for (std::int64_t j = 0; j < P; ++j) {
-        T g = T(0);
-        for (int c = 0; c < chunks; ++c) g += ws.partial[std::int64_t(c) * P + j];
-        grad[j] = g;
+    for (std::int64_t b = 0; b < blocks; ++b) {
+        const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
+        for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
+        for (int c = 0; c < chunks; ++c) {
+            const T* part = ws.partial.data() + std::int64_t(c) * P;
+            for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
+        }
     }
     return loss;
 }
@@ -117,6 +132,8 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
     const MlpShape& sh = cfg.shape;
     const int n = cfg.head.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     ws.reserve(cfg, static_cast<int>(count));
+    gemm_prepare();
+    const T* wt = pack(ws, theta, sh);
     const int chunks = static_cast<int>((count + C - 1) / C);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 #pragma omp parallel for schedule(static) if (chunks > 1)
@@ -126,7 +143,7 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
         T* in = ws.input.data() + b0 * D0;
         T* acts = ws.acts.data() + b0 * sh.act_per_sample();
         load_inputs<T>(in, xt, nullptr, b0, B, n, cfg.input_scale);
-        mlp_forward(acts, theta, in, B, sh);
+        mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         double Ptmp[kMax * kMax];
         for (int s = 0; s < B; ++s) {

@@ -27,6 +27,7 @@ template <typename T>
 struct StepWorkspace {
     int capacity = 0;  // samples
     std::vector<T> input, acts, dout, scratch, partial;
+    std::vector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
     std::vector<double> p, P;
     std::vector<HjieSampleValue> values;
     void reserve(const StepConfig& cfg, int max_batch);

@@ -20,7 +20,7 @@ std::vector<std::string> split(const std::string& s) {
 
 void add_bench_command(CLI::App& app) {
     struct Args {
-        std::string threads = "1,2", precision = "f32,f64", variant = "paper", out = "runs/out/bench";
+        std::string threads = "1,2", precision = "f32,f64", variant = "paper", out = "runs/out/bench", gemm = "default";
         std::string expr_config = "runs/missile_expr.toml";
         int batch = 800, repeats = 40;
     };
@@ -34,6 +34,8 @@ void add_bench_command(CLI::App& app) {
     b->add_option("--out", a->out, "Output directory for bench.h5 (default runs/out/bench)");
     b->add_option("--expr-config", a->expr_config,
                   "Expression system whose evaluation cost is timed (default runs/missile_expr.toml; \"\" to skip)");
+    b->add_option("--gemm", a->gemm, "GEMM kernels, comma-separated and timed interleaved: default (own where built, else openblas), own, "
+                  "openblas, eigen");
     b->callback([a]() {
         BenchOptions opt;
         opt.threads.clear();
@@ -57,6 +59,7 @@ void add_bench_command(CLI::App& app) {
         std::error_code ec;
         if (a->expr_config == "runs/missile_expr.toml" && !std::filesystem::exists(a->expr_config, ec))
             opt.expr_config = std::string(HINF_SOURCE_DIR) + "/runs/missile_expr.toml";
+        opt.gemm = a->gemm;
         bench_run(opt);
     });
 }

@@ -8,12 +8,17 @@
 #include "hinf/error.hpp"
 
 int main(int argc, char** argv) {
-    // OpenMP threads that spin at barriers are disastrous when the cores are shared (measured: 1060 vs
-    // 138 ms per training time step at load 8). libgomp reads OMP_WAIT_POLICY when it loads, so when the
-    // user has not chosen, set PASSIVE and re-execute once.
-    if (std::getenv("OMP_WAIT_POLICY") == nullptr) {
-        setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
-        execv("/proc/self/exe", argv);  // returns only on failure: then carry on with the default policy
+    // OpenMP threads that spin long at barriers are disastrous when the cores are shared (measured: 1060 vs
+    // 138 ms per training time step at load 8 with libgomp's default spin of 300000), and threads that
+    // sleep at once (OMP_WAIT_POLICY=PASSIVE) pay a futex wake-up at each of a training step's parallel
+    // regions (measured: 0.81 -> 1.1-1.6 ms per step on two cores). So, unless the user has chosen, spin
+    // briefly and then sleep: GOMP_SPINCOUNT for libgomp, KMP_BLOCKTIME (ms) for LLVM's libomp. The
+    // runtime reads these when it loads, so set them and re-execute once. docs/method.md section 11.
+    if (std::getenv("OMP_WAIT_POLICY") == nullptr && std::getenv("GOMP_SPINCOUNT") == nullptr &&
+        std::getenv("KMP_BLOCKTIME") == nullptr) {
+        setenv("GOMP_SPINCOUNT", "1000", 1);
+        setenv("KMP_BLOCKTIME", "1", 1);
+        execv("/proc/self/exe", argv);  // returns only on failure: then carry on with the runtime's default
     }
     CLI::App app{"hinf: robust nonlinear filters by deep-network solutions of the Hamilton-Jacobi-Isaacs equation"};
     app.set_version_flag("--version", "hinf 0.1.0");

@@ -4,16 +4,18 @@
 
 #include <omp.h>
 
-#include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 
 #include "adam.hpp"
 #include "hinf/config.hpp"
 #include "models/expr_system.hpp"
 #include "models/missile.hpp"
+#include "gemm.hpp"
+#include "mlp.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "peak.hpp"
@@ -65,8 +67,19 @@ RunConfig bench_config(const BenchOptions& opt) {
     return load_run_config(ConfigDoc::from_text(text, "bench"));
 }
 
+kern::GemmPath parse_gemm(const std::string& g) {
+    return g == "eigen" ? kern::GEMM_EIGEN : g == "openblas" ? kern::GEMM_OPENBLAS : g == "own" ? kern::GEMM_OWN
+                                                                                              : kern::default_gemm_path();
+}
+
+std::string gemm_name(kern::GemmPath p) {
+    return p == kern::GEMM_EIGEN ? "eigen" : p == kern::GEMM_OPENBLAS ? "openblas" : "own";
+}
+
+// One row per GEMM path; the paths' steps are interleaved (A, B, A, B, ...) so that the machine's
+// load drifts alike over all of them.
 template <typename T>
-BenchRow time_step(const BenchOptions& opt, int threads) {
+std::vector<BenchRow> time_step(const BenchOptions& opt, int threads, const std::vector<kern::GemmPath>& paths) {
     RunConfig cfg = bench_config(opt);
     Network<T> net = network_create<T>(cfg);
     TimeStepSamples s;
@@ -79,37 +92,46 @@ BenchRow time_step(const BenchOptions& opt, int threads) {
     kern::StepWorkspace<T> ws;
     kern::AdamParams ap{cfg.learning_rate, cfg.beta1, cfg.beta2, cfg.tau};
     omp_set_num_threads(threads);
-    std::vector<double> ms;
-    for (int r = 0; r < opt.repeats + 5; ++r) {
-        auto t0 = Clock::now();
-        kern::step_gradient(grad.data(), net.theta.data(), view, idx.data(), opt.batch, net.step, ws);
-        kern::adam_update(net.theta.data(), m.data(), v.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1, ap);
-        double dt = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-        if (r >= 5) ms.push_back(dt);  // the first five are warm-up
-    }
-    BenchRow row;
-    row.precision = sizeof(T) == 4 ? "f32" : "f64";
-    row.variant = opt.variant;
-    row.threads = threads;
-    row.median_ms = median(ms);
-    row.min_ms = *std::min_element(ms.begin(), ms.end());
-    row.max_ms = *std::max_element(ms.begin(), ms.end());
-    row.gflops = step_flops(net.step.shape, opt.batch) / (row.median_ms * 1e-3) * 1e-9;
+    std::vector<std::vector<double>> ms(paths.size());
+    for (int r = 0; r < opt.repeats + 5; ++r)
+        for (std::size_t k = 0; k < paths.size(); ++k) {
+            kern::set_gemm_path(paths[k]);
+            auto t0 = Clock::now();
+            kern::step_gradient(grad.data(), net.theta.data(), view, idx.data(), opt.batch, net.step, ws);
+            kern::adam_update(net.theta.data(), m.data(), v.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1,
+                              ap);
+            double dt = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+            if (r >= 5) ms[k].push_back(dt);  // the first five rounds are warm-up
+        }
+    std::vector<BenchRow> rows;
+    for (std::size_t k = 0; k < paths.size(); ++k) {
+        BenchRow row;
+        row.precision = sizeof(T) == 4 ? "f32" : "f64";
+        row.variant = opt.variant;
+        row.gemm = gemm_name(paths[k]);
+        row.threads = threads;
+        row.median_ms = median(ms[k]);
+        row.min_ms = *std::min_element(ms[k].begin(), ms[k].end());
+        row.max_ms = *std::max_element(ms[k].begin(), ms[k].end());
+        row.gflops = step_flops(net.step.shape, opt.batch) / (row.median_ms * 1e-3) * 1e-9;
 
-    // per-time-step work outside the Adam steps: a time step with K = 1, minus one step
-    std::string dir = opt.out_dir + "/bench-train-tmp";
-    RunConfig one = bench_config(opt);
-    one.adam_steps = 1;
-    one.checkpoint_every = 1000000000;
-    one.precision = sizeof(T) == 4 ? "float" : "double";
-    TrainOptions to;
-    to.out_dir = dir;
-    to.until = 20 * one.dt;
-    to.quiet = true;
-    TrainSummary ts = train_start(one, to);
-    std::filesystem::remove_all(dir);
-    row.outside_ms = std::max(0.0, 1e3 * ts.wall_seconds / double(ts.last_step - ts.first_step) - row.median_ms);
-    return row;
+        // per-time-step work outside the Adam steps: a time step with K = 1, minus one step
+        kern::set_gemm_path(paths[k]);
+        std::string dir = opt.out_dir + "/bench-train-tmp";
+        RunConfig one = bench_config(opt);
+        one.adam_steps = 1;
+        one.checkpoint_every = 1000000000;
+        one.precision = sizeof(T) == 4 ? "float" : "double";
+        TrainOptions to;
+        to.out_dir = dir;
+        to.until = 20 * one.dt;
+        to.quiet = true;
+        TrainSummary ts = train_start(one, to);
+        std::filesystem::remove_all(dir);
+        row.outside_ms = std::max(0.0, 1e3 * ts.wall_seconds / double(ts.last_step - ts.first_step) - row.median_ms);
+        rows.push_back(row);
+    }
+    return rows;
 }
 
 // Expression systems (issue 7): f, g, h evaluated over the N sample states of a training time step,
@@ -208,38 +230,67 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
     for (int t : opt.threads) HINF_CHECK(t >= 1 && t <= 1024, "--threads entries must be between 1 and 1024");
     for (const auto& p : opt.precisions)
         HINF_CHECK(p == "f32" || p == "f64", "--precision '" + p + "' is not one of: f32, f64");
+    std::vector<kern::GemmPath> paths;
+    std::stringstream gs(opt.gemm);
+    for (std::string g; std::getline(gs, g, ',');) {
+        HINF_CHECK(g == "default" || g == "own" || g == "openblas" || g == "eigen",
+                   "--gemm '" + g + "' is not one of: default, own, openblas, eigen");
+        HINF_CHECK(g != "own" || kern::gemm_own_available(),
+                   "--gemm own: this build has no AVX-512 kernels (configure on an AVX-512 machine with HINF_NATIVE=ON), "
+                   "use --gemm openblas");
+        paths.push_back(parse_gemm(g));
+    }
+    HINF_CHECK(!paths.empty(), "--gemm needs at least one of: default, own, openblas, eigen");
     std::filesystem::create_directories(opt.out_dir);
-    std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, GEMMs by Eigen %d.%d.%d's own kernels (%s, "
-                "no BLAS), %d repeats after 5 warm-up steps\n",
-                opt.variant.c_str(), opt.batch, EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION,
-                kern::simd_name().c_str(), opt.repeats);
+    const kern::GemmPath previous = kern::gemm_path();
+    struct Restore {
+        kern::GemmPath p;
+        ~Restore() { kern::set_gemm_path(p); }
+    } restore{previous};
+    std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, %d repeats after 5 warm-up steps%s\n",
+                opt.variant.c_str(), opt.batch, opt.repeats, paths.size() > 1 ? ", GEMM paths interleaved" : "");
+    std::vector<std::string> descriptions;
+    for (kern::GemmPath p : paths) {
+        kern::set_gemm_path(p);
+        descriptions.push_back(kern::gemm_description());
+        std::printf("GEMMs (%s): %s\n", gemm_name(p).c_str(), descriptions.back().c_str());
+    }
+    std::printf("other loops compiled for %s\n", kern::simd_name().c_str());
     std::vector<BenchRow> rows;
     for (const auto& p : opt.precisions)
         for (int t : opt.threads) {
-            BenchRow r = p == "f32" ? time_step<float>(opt, t) : time_step<double>(opt, t);
-            r.peak_gflops = measure_peak(t, p == "f64");
-            rows.push_back(r);
+            std::vector<BenchRow> rs = p == "f32" ? time_step<float>(opt, t, paths) : time_step<double>(opt, t, paths);
+            const double peak = measure_peak(t, p == "f64");
+            for (auto& r : rs) {
+                r.peak_gflops = peak;
+                rows.push_back(r);
+            }
         }
-    std::printf("%-5s %-7s %10s %17s %9s %11s %9s %16s\n", "prec", "threads", "ms/step", "min-max", "GFLOP/s",
-                "peak GF/s", "of peak", "outside ms/tstep");
+    std::printf("%-5s %-8s %-7s %10s %17s %9s %11s %9s %16s\n", "prec", "gemm", "threads", "ms/step", "min-max",
+                "GFLOP/s", "peak GF/s", "of peak", "outside ms/tstep");
     for (const auto& r : rows)
-        std::printf("%-5s %-7d %10.3f %8.3f-%-8.3f %9.1f %11.1f %8.1f%% %16.2f\n", r.precision.c_str(), r.threads,
-                    r.median_ms, r.min_ms, r.max_ms, r.gflops, r.peak_gflops, 100 * r.gflops / r.peak_gflops,
-                    r.outside_ms);
+        std::printf("%-5s %-8s %-7d %10.3f %8.3f-%-8.3f %9.1f %11.1f %8.1f%% %16.2f\n", r.precision.c_str(),
+                    r.gemm.c_str(), r.threads, r.median_ms, r.min_ms, r.max_ms, r.gflops, r.peak_gflops,
+                    100 * r.gflops / r.peak_gflops, r.outside_ms);
     h5::Handle f = h5::create_file(opt.out_dir + "/bench.h5");
     h5::set_attr(f.get(), "format", "hinf-bench");
     h5::set_attr(f.get(), "variant", opt.variant);
     h5::set_attr(f.get(), "batch", std::int64_t(opt.batch));
     h5::set_attr(f.get(), "simd", kern::simd_name());
-    h5::set_attr(f.get(), "gemm", "Eigen " + std::to_string(EIGEN_WORLD_VERSION) + "." +
-                                      std::to_string(EIGEN_MAJOR_VERSION) + "." + std::to_string(EIGEN_MINOR_VERSION));
+    h5::set_attr(f.get(), "gemm", descriptions.front());
     h5::set_attr(f.get(), "meaning",
                  "step_ms_<prec>_<threads>t: median ms of one training step (forward, loss, backward, Adam) on M "
                  "samples; peak_gflops_*: register-FMA loop; gflops_*: GEMM flops (2 per multiply-add) / median; "
                  "outside_ms_*: per time step outside the Adam steps (sampling, constants, statistics, gain, "
-                 "propagation, HDF5 row)");
+                 "propagation, HDF5 row); gemm: the first GEMM path's kernels, whose rows carry the plain names; "
+                 "further paths of --gemm (timed interleaved with it) append _<path> (own, openblas, eigen)");
+    std::string others;
+    for (std::size_t k = 1; k < paths.size(); ++k) others += (others.empty() ? "" : ",") + gemm_name(paths[k]);
+    h5::set_attr(f.get(), "gemm_paths", gemm_name(paths.front()) + (others.empty() ? "" : "," + others));
     for (const auto& r : rows) {
-        std::string key = r.precision + "_" + std::to_string(r.threads) + "t";
+        // the first GEMM path's rows under the plain names; the others' with the path appended
+        std::string key = r.precision + "_" + std::to_string(r.threads) + "t" +
+                          (r.gemm == gemm_name(paths.front()) ? "" : "_" + r.gemm);
         h5::set_attr(f.get(), "step_ms_" + key, r.median_ms);
         h5::set_attr(f.get(), "step_ms_min_" + key, r.min_ms);
         h5::set_attr(f.get(), "step_ms_max_" + key, r.max_ms);

@@ -14,10 +14,12 @@ struct BenchOptions {
     std::string variant = "paper";  // "paper" (the paper's network and loss) or "dissipative"
     std::string out_dir = "runs/out/bench";
     std::string expr_config = "runs/missile_expr.toml";  // expression system to time ("" = skip that section)
+    // GEMM paths, comma-separated, timed interleaved: "default", "own", "openblas", "eigen" (kern::GemmPath)
+    std::string gemm = "default";
 };
 
 struct BenchRow {
-    std::string precision, variant;
+    std::string precision, variant, gemm;
     int threads = 1;
     double median_ms = 0, min_ms = 0, max_ms = 0;
     double gflops = 0, peak_gflops = 0;

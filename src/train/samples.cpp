@@ -1,6 +1,8 @@
 // Sampling around x~(t) and the per-sample constants of one time step (see samples.hpp).
 #include "train/samples.hpp"
 
+#include <algorithm>
+
 #include "sampling.hpp"
 #include "train/filter_math.hpp"
 
@@ -33,15 +35,23 @@ void samples_build(TimeStepSamples* s, const RunConfig& cfg, const std::vector<d
     kern::sample_errors(s->xt.data(), xtilde.data(), cfg.error_floor.data(), n, N, sp, cfg.seed, step);
     sys.drift(s->a_hat.data(), xhat.data(), t, 1);
     sys.measurement(s->c_hat.data(), xhat.data(), t, 1);
-    for (std::int64_t i = 0; i < N; ++i)
-        for (int j = 0; j < n; ++j) s->xs[i * n + j] = xhat[j] + s->xt[i * n + j];
-    sys.drift(s->dA.data(), s->xs.data(), t, N);
-    sys.disturbance_gain(s->Bm.data(), s->xs.data(), t, N);
-    sys.measurement(s->dC.data(), s->xs.data(), t, N);
-    for (std::int64_t i = 0; i < N; ++i) {
-        for (int j = 0; j < n; ++j) s->dA[i * n + j] -= s->a_hat[j];
-        for (int j = 0; j < m; ++j) s->dC[i * m + j] -= s->c_hat[j];
-        s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
+    // the model per block of samples over threads: each sample's constants are its own (System's
+    // batch calls are per-sample and const), so the bits do not depend on the split
+    constexpr std::int64_t kBlock = 256;
+    const std::int64_t blocks = (N + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t b = 0; b < blocks; ++b) {
+        const std::int64_t i0 = b * kBlock, cnt = std::min(kBlock, N - i0);
+        for (std::int64_t i = i0; i < i0 + cnt; ++i)
+            for (int j = 0; j < n; ++j) s->xs[i * n + j] = xhat[j] + s->xt[i * n + j];
+        sys.drift(s->dA.data() + i0 * n, s->xs.data() + i0 * n, t, cnt);
+        sys.disturbance_gain(s->Bm.data() + i0 * n * nv, s->xs.data() + i0 * n, t, cnt);
+        sys.measurement(s->dC.data() + i0 * m, s->xs.data() + i0 * n, t, cnt);
+        for (std::int64_t i = i0; i < i0 + cnt; ++i) {
+            for (int j = 0; j < n; ++j) s->dA[i * n + j] -= s->a_hat[j];
+            for (int j = 0; j < m; ++j) s->dC[i * m + j] -= s->c_hat[j];
+            s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
+        }
     }
 }
 

@@ -231,15 +231,23 @@ private:
         std::vector<double> rel(N), rel2(N);
         double viol2 = 0;
         double viol = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
+        // per-sample values over threads, then every sum in sample order (bits independent of threads)
+        vals_.resize(N);
+        cos_.resize(N);
+#pragma omp parallel for schedule(static)
         for (std::int64_t i = 0; i < N; ++i) {
-            kern::HjieSampleValue v = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n,
-                                                                view, i, ck_.net.step.hjie, ck_.net.step.objective);
+            vals_[i] = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n, view, i,
+                                                 ck_.net.step.hjie, ck_.net.step.objective);
+            cos_[i] = cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
+        }
+        for (std::int64_t i = 0; i < N; ++i) {
+            const kern::HjieSampleValue& v = vals_[i];
             rel[i] = v.abs_sum > 0 ? std::fabs(v.residual) / v.abs_sum : 0.0;
             viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
             rel2[i] = v.abs_sum2 > 0 ? std::fabs(v.residual2) / v.abs_sum2 : 0.0;
             viol2 += v.residual2 > 0.01 * v.abs_sum2 ? 1 : 0;
             pos += v.residual > 0 ? 1 : 0;
-            cos_sum += cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
+            cos_sum += cos_[i];
             loss_hinge += v.hinge;
             loss_h2 += v.h2;
         }
@@ -401,7 +409,8 @@ private:
     TrajectoryWriter traj_;
     kern::StepWorkspace<T> ws_;
     TimeStepSamples smp_;  // this time step's samples and their constants
-    std::vector<double> work_, p_all_, P_all_;
+    std::vector<double> work_, p_all_, P_all_, cos_;
+    std::vector<kern::HjieSampleValue> vals_;  // per-sample statistics of the time step
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
     double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite

@@ -32,14 +32,50 @@ static void check_against_naive(const std::vector<int>& sizes, int B, double tol
     CHECK(hinf::test::max_rel_diff(dx, dx_ref, 1e-3) < tol);
 }
 
+// every GEMM path this build has, restoring the default afterwards
+struct PathGuard {
+    GemmPath saved = gemm_path();
+    ~PathGuard() { set_gemm_path(saved); }
+};
+
 TEST_CASE("mlp forward/backward match the naive twins", "[kernel][mlp]") {
-    SECTION("double, paper shape") { check_against_naive<double>({6, 256, 128, 32, 6}, 37, 1e-10); }
-    SECTION("double, odd sizes") { check_against_naive<double>({3, 5, 7, 21}, 13, 1e-10); }
-    SECTION("float, paper shape") { check_against_naive<float>({6, 256, 128, 32, 21}, 50, 2e-3); }
-    SECTION("float, one hidden layer") { check_against_naive<float>({2, 9, 1}, 4, 1e-4); }
+    PathGuard guard;
+    for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
+        set_gemm_path(path);
+        INFO("GEMM path " << int(gemm_path()));
+        check_against_naive<double>({6, 256, 128, 32, 6}, 37, 1e-10);
+        check_against_naive<double>({3, 5, 7, 21}, 13, 1e-10);
+        check_against_naive<float>({6, 256, 128, 32, 21}, 50, 2e-3);
+        check_against_naive<float>({2, 9, 1}, 4, 1e-4);
+    }
+}
+
+TEST_CASE("backward with overwrite equals zeroing then accumulating", "[kernel][mlp]") {
+    PathGuard guard;
+    MlpShape sh;
+    sh.sizes = {3, 40, 17, 5};
+    std::mt19937 gen(3);
+    std::uniform_real_distribution<float> u(-1, 1);
+    const int B = 23;
+    std::vector<float> theta(sh.param_count()), x(B * 3), dout(B * 5);
+    for (auto* v : {&theta, &x, &dout})
+        for (auto& e : *v) e = u(gen);
+    for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
+        set_gemm_path(path);
+        std::vector<float> acts(B * sh.act_per_sample()), scratch(2 * B * sh.max_width());
+        mlp_forward(acts.data(), theta.data(), x.data(), B, sh);
+        std::vector<float> g1(theta.size(), 0.f), g2(theta.size(), 123.f);
+        mlp_backward(g1.data(), (float*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
+        mlp_backward(g2.data(), (float*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data(),
+                     true);
+        for (std::size_t i = 0; i < g1.size(); ++i) REQUIRE(g1[i] == g2[i]);
+    }
 }
 
 TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
+    PathGuard guard;
+    for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
+    set_gemm_path(path);
     MlpShape sh;
     sh.sizes = {2, 4, 3};
     std::vector<double> theta(sh.param_count(), 0.3), x = {0.5, -1.0, 2.0, 0.1}, dout(6, 1.0);
@@ -50,4 +86,5 @@ TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
     mlp_backward(g2.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
     mlp_backward(g2.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
     for (std::size_t i = 0; i < g1.size(); ++i) CHECK(g2[i] == Approx(2 * g1[i]));
+    }
 }
