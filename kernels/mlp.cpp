@@ -29,15 +29,26 @@ std::int64_t MlpShape::weight_offset(int l) const {
     return n;
 }
 
+int MlpShape::act_ld(int l) const {
+    const int d = sizes[l];
+    return (l < layers() && d % 64 == 0) ? d + 16 : d;
+}
+
+int MlpShape::scratch_width() const {
+    int w = 0;
+    for (int l = 0; l <= layers(); ++l) w = std::max(w, l == 0 ? sizes[0] : act_ld(l));
+    return w;
+}
+
 std::int64_t MlpShape::act_per_sample() const {
     std::int64_t n = 0;
-    for (int l = 1; l <= layers(); ++l) n += sizes[l];
+    for (int l = 1; l <= layers(); ++l) n += act_ld(l);
     return n;
 }
 
 std::int64_t MlpShape::act_offset(int l, int B) const {
     std::int64_t n = 0;
-    for (int k = 1; k < l; ++k) n += std::int64_t(sizes[k]) * B;
+    for (int k = 1; k < l; ++k) n += std::int64_t(act_ld(k)) * B;
     return n;
 }
 
@@ -46,9 +57,9 @@ namespace {
 template <typename T>
 using RowMat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 template <typename T>
-using MapM = Eigen::Map<RowMat<T>>;
+using MapM = Eigen::Map<RowMat<T>, 0, Eigen::OuterStride<>>;
 template <typename T>
-using MapCM = Eigen::Map<const RowMat<T>>;
+using MapCM = Eigen::Map<const RowMat<T>, 0, Eigen::OuterStride<>>;
 template <typename T>
 using MapCV = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>>;
 template <typename T>
@@ -73,9 +84,9 @@ inline void gemm(bool ta, bool tb, int m, int n, int k, const double* A, int lda
 
 // H [B x d] <- LeakyReLU(H + 1 b^T) (hidden layers) or H + 1 b^T (output layer): the GEMM's epilogue.
 template <typename T>
-void bias_activation(T* H, const T* b, int B, int d, bool hidden, T a1, T a2) {
+void bias_activation(T* H, int ld, const T* b, int B, int d, bool hidden, T a1, T a2) {
     for (int s = 0; s < B; ++s) {
-        T* h = H + std::int64_t(s) * d;
+        T* h = H + std::int64_t(s) * ld;
         if (hidden) {
             for (int o = 0; o < d; ++o) {
                 const T z = h[o] + b[o];
@@ -167,6 +178,7 @@ template <typename T>
 void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const T* in = x;
+    int ldi = shape.inputs();  // row stride of `in`
     if (gemm_path() == GEMM_OWN) {
         std::vector<T> own;
         if (!pack) {
@@ -185,8 +197,9 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
             std::int64_t of = 0, ob = 0;
             pack_offsets<T>(shape, l, &of, &ob);
             // H_l = act(H_{l-1} W_l^T + 1 b_l^T), W_l^T from the pack
-            gemm_own_packed(B, dout, din, in, din, 1, pack + of, H, dout, false, e);
+            gemm_own_packed(B, dout, din, in, ldi, 1, pack + of, H, shape.act_ld(l), false, e);
             in = H;
+            ldi = shape.act_ld(l);
         }
         return;
     }
@@ -196,9 +209,10 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
             const T* W = theta + shape.weight_offset(l);
             T* H = acts + shape.act_offset(l, B);
             // H_l = act(H_{l-1} W_l^T + 1 b_l^T)
-            gemm(false, true, B, dout, din, in, din, W, din, T(0), H, dout);
-            bias_activation(H, W + std::int64_t(dout) * din, B, dout, l < shape.layers(), a1, a2);
+            gemm(false, true, B, dout, din, in, ldi, W, din, T(0), H, shape.act_ld(l));
+            bias_activation(H, shape.act_ld(l), W + std::int64_t(dout) * din, B, dout, l < shape.layers(), a1, a2);
             in = H;
+            ldi = shape.act_ld(l);
         }
         return;
     }
@@ -207,15 +221,20 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
         const T* W = theta + shape.weight_offset(l);
         const T* b = W + std::int64_t(dout) * din;
         T* H = acts + shape.act_offset(l, B);
-        MapM<T> Hm(H, B, dout);
+        const int ldo = shape.act_ld(l);
+        MapM<T> Hm(H, B, dout, Eigen::OuterStride<>(ldo));
         // H_l = H_{l-1} W_l^T + 1 b_l^T
-        Hm.noalias() = MapCM<T>(in, B, din) * MapCM<T>(W, dout, din).transpose();
+        Hm.noalias() = MapCM<T>(in, B, din, Eigen::OuterStride<>(ldi)) *
+                       MapCM<T>(W, dout, din, Eigen::OuterStride<>(din)).transpose();
         Hm.rowwise() += MapCV<T>(b, dout).transpose();
-        if (l < shape.layers()) {
-            const std::int64_t cnt = std::int64_t(B) * dout;
-            for (std::int64_t i = 0; i < cnt; ++i) H[i] = H[i] > T(0) ? a1 * H[i] : a2 * H[i];
-        }
+        if (l < shape.layers())
+            for (int s = 0; s < B; ++s)
+                for (int o = 0; o < dout; ++o) {
+                    T& h = H[std::int64_t(s) * ldo + o];
+                    h = h > T(0) ? a1 * h : a2 * h;
+                }
         in = H;
+        ldi = ldo;
     }
 }
 
@@ -223,7 +242,7 @@ template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout_in, int B,
                   const MlpShape& shape, T* scratch, bool overwrite, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
-    const int L = shape.layers(), wmax = shape.max_width();
+    const int L = shape.layers(), wmax = shape.scratch_width();
     T* G = scratch;                             // dL/dz_l   [B x D_l]
     T* Gprev = scratch + std::int64_t(B) * wmax;  // dL/dz_{l-1}
     if (gemm_path() == GEMM_OWN) {
@@ -234,11 +253,13 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
             pack = own.data();
         }
         const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
+        int ldg = shape.outputs();  // row stride of Gc
         for (int l = L; l >= 1; --l) {
             const int din = shape.sizes[l - 1], dl = shape.sizes[l];
             T* dW = dtheta + shape.weight_offset(l);
             T* db = dW + std::int64_t(dl) * din;
             const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
+            const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
             // dW_l (+)= G_l^T H_{l-1}  (A = G_l read transposed); db_l (+)= column sums of G_l in order
             if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
                 // rows narrower than a vector (the input layer): dW_l^T = H_{l-1}^T G_l fills the vectors;
@@ -247,31 +268,32 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
                 if (!overwrite)
                     for (int o = 0; o < dl; ++o)
                         for (int i = 0; i < din; ++i) t[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
-                gemm_own(din, dl, B, Hin, 1, din, Gc, dl, t.data(), dl, !overwrite, GemmEpi<T>{});
+                gemm_own(din, dl, B, Hin, 1, ldh, Gc, ldg, t.data(), dl, !overwrite, GemmEpi<T>{});
                 for (int o = 0; o < dl; ++o)
                     for (int i = 0; i < din; ++i) dW[std::int64_t(o) * din + i] = t[std::size_t(i) * dl + o];
             } else {
-                gemm_own(dl, din, B, Gc, 1, dl, Hin, din, dW, din, !overwrite, GemmEpi<T>{});
+                gemm_own(dl, din, B, Gc, 1, ldg, Hin, ldh, dW, din, !overwrite, GemmEpi<T>{});
             }
             if (overwrite) std::fill(db, db + dl, T(0));
             for (int s = 0; s < B; ++s)
-                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * dl + o];
+                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * ldg + o];
             if (l == 1 && !dx) break;
             // dL/dH_{l-1} = G_l W_l, times LeakyReLU's slope (H and z share their sign) in the store
             GemmEpi<T> e;
             if (l > 1) {
                 e.kind = EPI_LEAKY_GRAD;
                 e.H = Hin;
-                e.ldh = din;
+                e.ldh = ldh;
                 e.a1 = a1;
                 e.a2 = a2;
             }
             T* target = (l == 1) ? dx : Gprev;
             std::int64_t of = 0, ob = 0;
             pack_offsets<T>(shape, l, &of, &ob);
-            gemm_own_packed(B, din, dl, Gc, dl, 1, pack + ob, target, din, false, e);
+            gemm_own_packed(B, din, dl, Gc, ldg, 1, pack + ob, target, ldh, false, e);
             if (l > 1) {
                 Gc = Gprev;
+                ldg = ldh;
                 std::swap(G, Gprev);
             }
         }
@@ -279,25 +301,29 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
     }
     if (gemm_path() == GEMM_OPENBLAS) {
         const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
+        int ldg = shape.outputs();  // row stride of Gc
         for (int l = L; l >= 1; --l) {
             const int din = shape.sizes[l - 1], dl = shape.sizes[l];
             const T* W = theta + shape.weight_offset(l);
             T* dW = dtheta + shape.weight_offset(l);
             T* db = dW + std::int64_t(dl) * din;
             const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
+            const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
             // dW_l (+)= G_l^T H_{l-1}; db_l (+)= column sums of G_l, samples in order
-            gemm(true, false, dl, din, B, Gc, dl, Hin, din, overwrite ? T(0) : T(1), dW, din);
+            gemm(true, false, dl, din, B, Gc, ldg, Hin, ldh, overwrite ? T(0) : T(1), dW, din);
             if (overwrite) std::fill(db, db + dl, T(0));
             for (int s = 0; s < B; ++s)
-                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * dl + o];
+                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * ldg + o];
             if (l == 1 && !dx) break;
             // dL/dH_{l-1} = G_l W_l, then through LeakyReLU (H and z share their sign: both slopes positive)
             T* target = (l == 1) ? dx : Gprev;
-            gemm(false, false, B, din, dl, Gc, dl, W, din, T(0), target, din);
+            gemm(false, false, B, din, dl, Gc, ldg, W, din, T(0), target, ldh);
             if (l > 1) {
-                const std::int64_t cnt = std::int64_t(B) * din;
-                for (std::int64_t i = 0; i < cnt; ++i) Gprev[i] *= Hin[i] > T(0) ? a1 : a2;
+                for (int s = 0; s < B; ++s)
+                    for (int i = 0; i < din; ++i)
+                        Gprev[std::int64_t(s) * ldh + i] *= Hin[std::int64_t(s) * ldh + i] > T(0) ? a1 : a2;
                 Gc = Gprev;
+                ldg = ldh;
                 std::swap(G, Gprev);
             }
         }
@@ -305,27 +331,32 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
     }
     if (overwrite) std::fill(dtheta, dtheta + shape.param_count(), T(0));
     std::memcpy(G, dout_in, sizeof(T) * std::size_t(B) * shape.outputs());
+    int ldg = shape.outputs();  // row stride of G
     for (int l = L; l >= 1; --l) {
         const int din = shape.sizes[l - 1], dl = shape.sizes[l];
         const T* W = theta + shape.weight_offset(l);
         T* dW = dtheta + shape.weight_offset(l);
         T* db = dW + std::int64_t(dl) * din;
         const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
-        MapCM<T> Gm(G, B, dl);
+        const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
+        MapCM<T> Gm(G, B, dl, Eigen::OuterStride<>(ldg));
         // dW_l += G_l^T H_{l-1};  db_l += column sums of G_l
-        MapM<T>(dW, dl, din).noalias() += Gm.transpose() * MapCM<T>(Hin, B, din);
+        MapM<T>(dW, dl, din, Eigen::OuterStride<>(din)).noalias() +=
+            Gm.transpose() * MapCM<T>(Hin, B, din, Eigen::OuterStride<>(ldh));
         // plain loop, not Eigen's colwise().sum(): a vectorised reduction peels by address alignment,
         // which would make the bits depend on where the buffers happen to live
         for (int s = 0; s < B; ++s)
-            for (int o = 0; o < dl; ++o) db[o] += G[std::int64_t(s) * dl + o];
+            for (int o = 0; o < dl; ++o) db[o] += G[std::int64_t(s) * ldg + o];
         if (l == 1 && !dx) break;
         // dL/dH_{l-1} = G_l W_l
         T* target = (l == 1) ? dx : Gprev;
-        MapM<T>(target, B, din).noalias() = Gm * MapCM<T>(W, dl, din);
+        MapM<T>(target, B, din, Eigen::OuterStride<>(ldh)).noalias() = Gm * MapCM<T>(W, dl, din, Eigen::OuterStride<>(din));
         if (l > 1) {
             // through LeakyReLU: H and z share their sign (both slopes positive)
-            const std::int64_t cnt = std::int64_t(B) * din;
-            for (std::int64_t i = 0; i < cnt; ++i) Gprev[i] *= Hin[i] > T(0) ? a1 : a2;
+            for (int s = 0; s < B; ++s)
+                for (int i = 0; i < din; ++i)
+                    Gprev[std::int64_t(s) * ldh + i] *= Hin[std::int64_t(s) * ldh + i] > T(0) ? a1 : a2;
+            ldg = ldh;
             std::swap(G, Gprev);
         }
     }
@@ -339,8 +370,9 @@ void mlp_forward_naive(T* acts, const T* theta, const T* x, int B, const MlpShap
             const int din = shape.sizes[l - 1], dout = shape.sizes[l];
             const T* W = theta + shape.weight_offset(l);
             const T* b = W + std::int64_t(dout) * din;
-            const T* in = (l == 1) ? x + std::int64_t(s) * din : acts + shape.act_offset(l - 1, B) + std::int64_t(s) * din;
-            T* out = acts + shape.act_offset(l, B) + std::int64_t(s) * dout;
+            const T* in = (l == 1) ? x + std::int64_t(s) * din
+                                   : acts + shape.act_offset(l - 1, B) + std::int64_t(s) * shape.act_ld(l - 1);
+            T* out = acts + shape.act_offset(l, B) + std::int64_t(s) * shape.act_ld(l);
             for (int o = 0; o < dout; ++o) {
                 T z = b[o];
                 for (int i = 0; i < din; ++i) z += W[std::int64_t(o) * din + i] * in[i];
@@ -363,7 +395,8 @@ void mlp_backward_naive(T* dtheta, T* dx, const T* theta, const T* x, const T* a
             const T* W = theta + shape.weight_offset(l);
             T* dW = dtheta + shape.weight_offset(l);
             T* db = dW + std::int64_t(dl) * din;
-            const T* in = (l == 1) ? x + std::int64_t(s) * din : acts + shape.act_offset(l - 1, B) + std::int64_t(s) * din;
+            const T* in = (l == 1) ? x + std::int64_t(s) * din
+                                   : acts + shape.act_offset(l - 1, B) + std::int64_t(s) * shape.act_ld(l - 1);
             gprev.assign(din, T(0));
             for (int o = 0; o < dl; ++o) {
                 db[o] += g[o];

@@ -40,10 +40,17 @@ struct MlpShape {
     int inputs() const { return sizes.front(); }
     int outputs() const { return sizes.back(); }
     int max_width() const;
+    /// Row stride (elements) of H_l in the activation buffer: D[l], padded by 16 elements for the
+    /// hidden layers whose width is a multiple of 64 (rows 1 KB apart in f32 map to a quarter of L1's
+    /// sets; see docs/method.md section 11). The output layer H_L is never padded. Padding changes no
+    /// result: every product is the same sum in the same order.
+    int act_ld(int l) const;
+    /// Row stride of mlp_backward's scratch: max over l of act_ld(l).
+    int scratch_width() const;
     std::int64_t param_count() const;
     /// Offset of W_l (l = 1..L) in the flat parameter array; b_l follows W_l.
     std::int64_t weight_offset(int l) const;
-    /// Activation floats per sample (sum of D[1..L]).
+    /// Activation elements per sample (sum of act_ld(1..L)).
     std::int64_t act_per_sample() const;
     /// Offset of H_l in a chunk's activation buffer with B samples.
     std::int64_t act_offset(int l, int B) const;
@@ -57,14 +64,14 @@ std::int64_t mlp_pack_size(const MlpShape& shape, int elem_size);
 template <typename T>
 void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape);
 
-// acts [B x act_per_sample] (layer-major: H_1 for all B, then H_2, ...), theta [param_count],
+// acts [B x act_per_sample] (layer-major: H_1 for all B with row stride act_ld(1), then H_2, ...), theta [param_count],
 // x [B x D0].  Output H_L at acts + act_offset(L, B). pack: mlp_pack_weights(theta) or null (then
 // packed here when GEMM_OWN needs it).
 template <typename T>
 void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack = nullptr);
 
 // Accumulates dL/dtheta into dtheta (caller zeroes it), or with overwrite = true writes it (no zeroing
-// needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x max_width].
+// needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x scratch_width].
 // pack: as for mlp_forward.
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,

@@ -38,7 +38,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     input.assign(padded * cfg.shape.inputs(), T(0));
     acts.assign(padded * cfg.shape.act_per_sample(), T(0));
     dout.assign(padded * cfg.shape.outputs(), T(0));
-    scratch.assign(std::int64_t(chunks) * 2 * C * cfg.shape.max_width(), T(0));
+    scratch.assign(std::int64_t(chunks) * 2 * C * cfg.shape.scratch_width(), T(0));
     partial.clear();  // grown lazily by step_gradient (not needed for evaluation)
     p.assign(padded * n, 0.0);
     P.assign(padded * n * n, 0.0);
@@ -107,7 +107,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
                           sys.xt + i * n, cfg.head);
         }
         T* part = ws.partial.data() + std::int64_t(c) * P;
-        T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.max_width();
+        T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.scratch_width();
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
     // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in

@@ -25,7 +25,7 @@ static void check_against_naive(const std::vector<int>& sizes, int B, double tol
     mlp_forward_naive(acts_ref.data(), theta.data(), x.data(), B, sh);
     CHECK(hinf::test::max_rel_diff(acts, acts_ref, 1e-3) < tol);
     std::vector<T> g(theta.size(), T(0)), g_ref(theta.size(), T(0)), dx(x.size()), dx_ref(x.size());
-    std::vector<T> scratch(2 * std::size_t(B) * sh.max_width());
+    std::vector<T> scratch(2 * std::size_t(B) * sh.scratch_width());
     mlp_backward(g.data(), dx.data(), theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
     mlp_backward_naive(g_ref.data(), dx_ref.data(), theta.data(), x.data(), acts_ref.data(), dout.data(), B, sh);
     CHECK(hinf::test::max_rel_diff(g, g_ref, 1e-3) < tol);
@@ -62,7 +62,7 @@ TEST_CASE("backward with overwrite equals zeroing then accumulating", "[kernel][
         for (auto& e : *v) e = u(gen);
     for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
         set_gemm_path(path);
-        std::vector<float> acts(B * sh.act_per_sample()), scratch(2 * B * sh.max_width());
+        std::vector<float> acts(B * sh.act_per_sample()), scratch(2 * B * sh.scratch_width());
         mlp_forward(acts.data(), theta.data(), x.data(), B, sh);
         std::vector<float> g1(theta.size(), 0.f), g2(theta.size(), 123.f);
         mlp_backward(g1.data(), (float*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
@@ -79,7 +79,7 @@ TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
     MlpShape sh;
     sh.sizes = {2, 4, 3};
     std::vector<double> theta(sh.param_count(), 0.3), x = {0.5, -1.0, 2.0, 0.1}, dout(6, 1.0);
-    std::vector<double> acts(2 * sh.act_per_sample()), scratch(2 * 2 * sh.max_width());
+    std::vector<double> acts(2 * sh.act_per_sample()), scratch(2 * 2 * sh.scratch_width());
     mlp_forward(acts.data(), theta.data(), x.data(), 2, sh);
     std::vector<double> g1(theta.size(), 0.0), g2(theta.size(), 0.0);
     mlp_backward(g1.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
@@ -87,4 +87,16 @@ TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
     mlp_backward(g2.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());
     for (std::size_t i = 0; i < g1.size(); ++i) CHECK(g2[i] == Approx(2 * g1[i]));
     }
+}
+
+TEST_CASE("activation rows are padded off 1 KB strides, the output layer never", "[kernel][mlp]") {
+    MlpShape sh;
+    sh.sizes = {6, 256, 128, 32, 64};
+    CHECK(sh.act_ld(1) == 272);
+    CHECK(sh.act_ld(2) == 144);
+    CHECK(sh.act_ld(3) == 32);
+    CHECK(sh.act_ld(4) == 64);  // H_L is read as [B x D_L] by the heads
+    CHECK(sh.scratch_width() == 272);
+    CHECK(sh.act_per_sample() == 272 + 144 + 32 + 64);
+    CHECK(sh.act_offset(3, 10) == (272 + 144) * 10);
 }
