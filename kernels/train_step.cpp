@@ -28,6 +28,11 @@ const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
 }
 }  // namespace
 
+std::int64_t step_acts_stride(const StepConfig& cfg) {
+    return (std::int64_t(cfg.chunk) * cfg.shape.act_per_sample() + 15) / 16 * 16;
+}
+std::int64_t step_partial_stride(const MlpShape& shape) { return (shape.param_count() + 15) / 16 * 16; }
+
 template <typename T>
 void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     if (max_batch <= capacity) return;
@@ -36,7 +41,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     const std::int64_t padded = std::int64_t(chunks) * C;
     capacity = max_batch;
     input.assign(padded * cfg.shape.inputs(), T(0));
-    acts.assign(padded * cfg.shape.act_per_sample(), T(0));
+    acts.assign(chunks * step_acts_stride(cfg), T(0));
     dout.assign(padded * cfg.shape.outputs(), T(0));
     scratch.assign(std::int64_t(chunks) * 2 * C * cfg.shape.scratch_width(), T(0));
     partial.clear();  // grown lazily by step_gradient (not needed for evaluation)
@@ -51,9 +56,9 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     const MlpShape& sh = cfg.shape;
     const int n = sys.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     const int chunks = (M + C - 1) / C;
-    const std::int64_t P = sh.param_count();
+    const std::int64_t P = sh.param_count(), Ps = step_partial_stride(sh), As = step_acts_stride(cfg);
     ws.reserve(cfg, M);
-    if (std::int64_t(ws.partial.size()) < chunks * P) ws.partial.assign(chunks * P, T(0));
+    if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare();
     const T* wt = pack(ws, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
@@ -63,7 +68,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     for (int c = 0; c < chunks; ++c) {
         const int b0 = c * C, B = std::min(C, M - b0);
         T* in = ws.input.data() + std::int64_t(b0) * D0;
-        T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
+        T* acts = ws.acts.data() + std::int64_t(c) * As;
         load_inputs(in, sys.xt, idx, b0, B, n, cfg.input_scale);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
@@ -94,7 +99,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     for (int c = 0; c < chunks; ++c) {
         const int b0 = c * C, B = std::min(C, M - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
-        const T* acts = ws.acts.data() + std::int64_t(b0) * sh.act_per_sample();
+        const T* acts = ws.acts.data() + std::int64_t(c) * As;
         const T* out = acts + sh.act_offset(sh.layers(), B);
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
         double gp[kMax], gP[kMax * kMax];
@@ -106,7 +111,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
             head_backward(dout + std::int64_t(s) * O, gp, quad ? gP : nullptr, out + std::int64_t(s) * O,
                           sys.xt + i * n, cfg.head);
         }
-        T* part = ws.partial.data() + std::int64_t(c) * P;
+        T* part = ws.partial.data() + std::int64_t(c) * Ps;
         T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.scratch_width();
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
@@ -119,7 +124,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
         for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
         for (int c = 0; c < chunks; ++c) {
-            const T* part = ws.partial.data() + std::int64_t(c) * P;
+            const T* part = ws.partial.data() + std::int64_t(c) * Ps;
             for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
         }
     }
@@ -141,7 +146,7 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
         const std::int64_t b0 = std::int64_t(c) * C;
         const int B = static_cast<int>(std::min<std::int64_t>(C, count - b0));
         T* in = ws.input.data() + b0 * D0;
-        T* acts = ws.acts.data() + b0 * sh.act_per_sample();
+        T* acts = ws.acts.data() + std::int64_t(c) * step_acts_stride(cfg);
         load_inputs<T>(in, xt, nullptr, b0, B, n, cfg.input_scale);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);

@@ -6,6 +6,8 @@
 // Shape legend: M = minibatch, C = chunk size, n = states, P = parameters, O = network outputs.
 #pragma once
 #include <cstdint>
+#include <cstdlib>
+#include <new>
 #include <vector>
 
 #include "head.hpp"
@@ -23,11 +25,38 @@ struct StepConfig {
     int chunk = 100;           // samples per chunk: fixed, never derived from the thread count
 };
 
+/// Allocator of cache-line (64 B) aligned storage: the own kernels' vector loads of packed panels and
+/// activation rows then never straddle two lines (std::vector's large blocks start 16 B past a page).
+template <typename T>
+struct LineAligned {
+    using value_type = T;
+    LineAligned() = default;
+    template <typename U>
+    LineAligned(const LineAligned<U>&) {}
+    T* allocate(std::size_t n) {
+        const std::size_t bytes = (n * sizeof(T) + 63) / 64 * 64;
+        if (void* p = std::aligned_alloc(64, bytes ? bytes : 64)) return static_cast<T*>(p);
+        throw std::bad_alloc();
+    }
+    void deallocate(T* p, std::size_t) { std::free(p); }
+    template <typename U>
+    bool operator==(const LineAligned<U>&) const { return true; }
+    template <typename U>
+    bool operator!=(const LineAligned<U>&) const { return false; }
+};
+template <typename T>
+using LineVector = std::vector<T, LineAligned<T>>;
+
+/// Elements per chunk in StepWorkspace::acts (a multiple of 16, so that every chunk starts on a line).
+std::int64_t step_acts_stride(const StepConfig& cfg);
+/// Elements per chunk in StepWorkspace::partial (P rounded up to a multiple of 16).
+std::int64_t step_partial_stride(const MlpShape& shape);
+
 template <typename T>
 struct StepWorkspace {
     int capacity = 0;  // samples
-    std::vector<T> input, acts, dout, scratch, partial;
-    std::vector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
+    LineVector<T> input, acts, dout, scratch, partial;
+    LineVector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
     std::vector<double> p, P;
     std::vector<HjieSampleValue> values;
     void reserve(const StepConfig& cfg, int max_batch);

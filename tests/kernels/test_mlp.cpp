@@ -5,6 +5,7 @@
 
 #include "helpers.hpp"
 #include "mlp.hpp"
+#include "train_step.hpp"
 
 using namespace hinf::kern;
 
@@ -99,4 +100,20 @@ TEST_CASE("activation rows are padded off 1 KB strides, the output layer never",
     CHECK(sh.scratch_width() == 272);
     CHECK(sh.act_per_sample() == 272 + 144 + 32 + 64);
     CHECK(sh.act_offset(3, 10) == (272 + 144) * 10);
+}
+
+TEST_CASE("the step's workspace starts every buffer and every chunk on a cache line", "[kernel][mlp]") {
+    StepConfig cfg;
+    cfg.shape.sizes = {6, 256, 128, 32, 6};
+    cfg.chunk = 100;
+    CHECK(step_acts_stride(cfg) % 16 == 0);
+    CHECK(step_acts_stride(cfg) >= cfg.chunk * cfg.shape.act_per_sample());
+    CHECK(step_partial_stride(cfg.shape) % 16 == 0);
+    CHECK(step_partial_stride(cfg.shape) >= cfg.shape.param_count());
+    for (std::size_t n : {1, 37, 100000}) {
+        LineVector<float> v(n);
+        LineVector<double> w(n);
+        CHECK(reinterpret_cast<std::uintptr_t>(v.data()) % 64 == 0);
+        CHECK(reinterpret_cast<std::uintptr_t>(w.data()) % 64 == 0);
+    }
 }
