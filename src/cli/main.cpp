@@ -47,6 +47,9 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
         std::cerr << "hinf: internal error: " << e.what() << " (please report this with the command you ran)\n";
         return 3;
+    } catch (...) {  // a library's own exception type (e.g. muParser's) that escaped a conversion: still one line
+        std::cerr << "hinf: internal error: an unexpected exception (please report this with the command you ran)\n";
+        return 3;
     }
     return 0;
 }

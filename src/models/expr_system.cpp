@@ -64,8 +64,9 @@ const std::set<std::string>& reserved_names() {
     return names;
 }
 
+// at most 64 characters: muParser refuses identifiers of 100 and more (found by fuzz/fuzz_config.cpp)
 bool is_identifier(const std::string& s) {
-    if (s.empty() || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
+    if (s.empty() || s.size() > 64 || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
     for (char c : s)
         if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
     return true;
@@ -102,8 +103,8 @@ void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, co
     mu::Parser p;
     define_functions(p);
     std::vector<double> dummy(symbols.size(), 1.0);
-    for (std::size_t i = 0; i < symbols.size(); ++i) p.DefineVar(symbols[i], &dummy[i]);
     try {
+        for (std::size_t i = 0; i < symbols.size(); ++i) p.DefineVar(symbols[i], &dummy[i]);
         p.SetExpr(e.text);
         p.Eval();
     } catch (const mu::Parser::exception_type& err) {
@@ -187,7 +188,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     std::vector<std::string> symbols;
     auto add_name = [&](const std::string& name, const std::string& what) {
         HINF_CHECK(is_identifier(name), spec.where + " " + what + " '" + name +
-                                            "' is not a name (letters, digits and _, not starting with a digit)");
+                                            "' is not a name (letters, digits and _, not starting with a digit, at most 64 characters)");
         HINF_CHECK(!reserved_names().count(name),
                    spec.where + " " + what + " '" + name + "' is reserved (t, pi or a function name): rename it");
         HINF_CHECK(seen.insert(name).second, spec.where + " " + what + " '" + name + "' is defined twice: rename one");
