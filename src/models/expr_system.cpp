@@ -147,6 +147,16 @@ GiNaC::ex read_symbolic(const ExprText& e, const GiNaC::symtab& table) {
     } catch (const std::exception& err) {
         HINF_FAIL(quoted(e) + ": GiNaC cannot evaluate it (" + ginac_reason(err) + ")");
     }
+    // GiNaC prints an exact power x^n for muParser by repeated multiplication: with n = 10^20 that never
+    // ends (found by the config fuzzer), so exact exponents are bounded; 2.5e3 or 1e20 (floats) are not
+    for (auto it = out.preorder_begin(); it != out.preorder_end(); ++it) {
+        if (!GiNaC::is_a<GiNaC::power>(*it) || !GiNaC::is_a<GiNaC::numeric>(it->op(1))) continue;
+        const GiNaC::numeric& k = GiNaC::ex_to<GiNaC::numeric>(it->op(1));
+        if (k.is_rational() && (GiNaC::abs(k.numer()) > 1000 || GiNaC::abs(k.denom()) > 1000))
+            HINF_FAIL(quoted(e) + ": the exact exponent " + c_text_plain(it->op(1)) +
+                      " is too large (at most 1000 in numerator and denominator; write it as a float, e.g. 2.5e3, "
+                      "or rescale the quantity)");
+    }
     for (auto it = numeric_form.preorder_begin(); it != numeric_form.preorder_end(); ++it)
         if (GiNaC::is_a<GiNaC::numeric>(*it) && !GiNaC::ex_to<GiNaC::numeric>(*it).is_real())
             HINF_FAIL(quoted(e) + ": has the complex value " + c_text_plain(*it) +
