@@ -7,7 +7,7 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     if (size > 4096) return 0;  // the reader caps files at 1 MiB; long inputs only slow the search

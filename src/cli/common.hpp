@@ -8,7 +8,7 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 namespace hinf::cli {
 

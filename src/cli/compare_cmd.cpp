@@ -6,7 +6,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "eval/compare.hpp"
-#include "cli/filter_set.hpp"
+#include "filters/factory.hpp"
 
 namespace hinf::cli {
 

@@ -5,7 +5,7 @@
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
-#include "cli/filter_set.hpp"
+#include "filters/factory.hpp"
 #include "eval/filter_recorded.hpp"
 #include "io/measurements.hpp"
 

@@ -20,7 +20,7 @@
 #include "hinf/h5.hpp"
 #include "peak.hpp"
 #include "sampling.hpp"
-#include "train/network.hpp"
+#include "net/network.hpp"
 #include "train/samples.hpp"
 #include "train/trainer.hpp"
 

@@ -14,7 +14,7 @@
 #include "hinf/h5.hpp"
 #include "io/progress.hpp"
 #include "random.hpp"
-#include "train/filter_math.hpp"
+#include "filters/gain_law.hpp"
 
 namespace hinf {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "filters/filter.hpp"
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 namespace hinf {
 

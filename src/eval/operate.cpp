@@ -15,7 +15,7 @@
 #include "hjie.hpp"
 #include "random.hpp"
 #include "filters/dnn.hpp"
-#include "train/filter_math.hpp"
+#include "filters/gain_law.hpp"
 
 namespace hinf {
 

@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "train/network.hpp"
-#include "train/run_config.hpp"
+#include "net/network.hpp"
+#include "config/run_config.hpp"
 
 namespace hinf {
 

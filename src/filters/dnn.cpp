@@ -4,7 +4,7 @@
 
 #include <Eigen/Dense>
 
-#include "train/filter_math.hpp"
+#include "filters/gain_law.hpp"
 
 namespace hinf {
 

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "filters/filter.hpp"
-#include "train/network.hpp"
+#include "net/network.hpp"
 
 namespace hinf {
 
@@ -28,7 +28,7 @@ public:
     virtual std::unique_ptr<DnnGainLaw> clone() const = 0;
 };
 
-/// seed 000 eq. (8): k* = 2 rho p dC^T / |p|^2 (zero when p = 0), via train/filter_math.hpp.
+/// seed 000 eq. (8): k* = 2 rho p dC^T / |p|^2 (zero when p = 0), via filters/gain_law.hpp.
 std::unique_ptr<DnnGainLaw> make_hinf_gain_law(double rho);
 
 /// x~ estimated from the innovation e = y - C(x^): least squares through dC/dx at x^ (`measured` input).

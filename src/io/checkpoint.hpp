@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "train/network.hpp"
+#include "net/network.hpp"
 
 namespace hinf {
 

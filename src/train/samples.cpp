@@ -4,7 +4,7 @@
 #include <algorithm>
 
 #include "sampling.hpp"
-#include "train/filter_math.hpp"
+#include "filters/gain_law.hpp"
 
 namespace hinf {
 

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "hjie.hpp"
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 namespace hinf {
 

@@ -17,7 +17,7 @@
 #include "io/progress.hpp"
 #include "io/trajectory.hpp"
 #include "sampling.hpp"
-#include "train/filter_math.hpp"
+#include "filters/gain_law.hpp"
 #include "train/samples.hpp"
 
 namespace hinf {

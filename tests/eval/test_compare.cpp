@@ -8,7 +8,7 @@
 #include "filters/dnn.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
-#include "train/network.hpp"
+#include "net/network.hpp"
 
 using namespace hinf;
 using hinf::test::TempDir;

@@ -6,7 +6,7 @@
 
 #include "filters/dnn.hpp"
 #include "filters/filter.hpp"
-#include "train/network.hpp"
+#include "net/network.hpp"
 #include "random.hpp"
 
 using namespace hinf;

@@ -7,7 +7,7 @@
 
 #include "filters/glf.hpp"
 #include "helpers.hpp"
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 using namespace hinf;
 

@@ -1,5 +1,5 @@
 // Network creation (shapes, scales, initialisation) and the frozen-network wrapper.
-#include "train/network.hpp"
+#include "net/network.hpp"
 
 #include <cmath>
 

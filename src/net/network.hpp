@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 #include "train_step.hpp"
 
 namespace hinf {

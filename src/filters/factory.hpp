@@ -1,6 +1,5 @@
-// Building the on-line filters named on a command line (`hinf compare`, `hinf filter`): EKF, UKF, PF,
-// open loop, GLF and one DNN filter per network and mode. Argument handling only; the filters live in
-// src/filters.
+// The filter factory: the on-line filters named by a list (`hinf compare`, `hinf filter`, the library): EKF, UKF, PF,
+// open loop, GLF and one DNN filter per network and mode. The filters themselves live beside it.
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -8,10 +7,10 @@
 #include <vector>
 
 #include "filters/filter.hpp"
-#include "train/network.hpp"
-#include "train/run_config.hpp"
+#include "net/network.hpp"
+#include "config/run_config.hpp"
 
-namespace hinf::cli {
+namespace hinf {
 
 struct FilterSetArgs {
     std::string filters;                // comma list: dnn, ekf, ukf, pf, open_loop, glf
@@ -35,4 +34,4 @@ std::vector<std::string> split_list(const std::string& s);
 FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,
                            const FilterModel& exact);
 
-}  // namespace hinf::cli
+}  // namespace hinf

@@ -1,5 +1,5 @@
-// See filter_set.hpp.
-#include "cli/filter_set.hpp"
+// See factory.hpp.
+#include "filters/factory.hpp"
 
 #include <cstdio>
 #include <sstream>
@@ -9,7 +9,7 @@
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
 
-namespace hinf::cli {
+namespace hinf {
 
 std::vector<std::string> split_list(const std::string& s) {
     std::vector<std::string> out;
@@ -64,4 +64,4 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
     return set;
 }
 
-}  // namespace hinf::cli
+}  // namespace hinf

@@ -1,5 +1,5 @@
 // load_run_config: reads [filter], [network], [training], [sampling], [objective], [online].
-#include "train/run_config.hpp"
+#include "config/run_config.hpp"
 
 #include <cmath>
 #include <cstdio>
