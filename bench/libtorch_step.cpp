@@ -160,7 +160,7 @@ int main(int argc, char** argv) {
             }
         }
         double mo = median(t_ours), mt = median(t_torch);
-        std::printf("hinf GEMMs: %s\n", kern::gemm_description().c_str());
+        std::printf("hinf GEMMs: %s\n", kern::gemm_description(kern::default_gemm_path()).c_str());
         std::printf("training step, %d threads, M = %d, median of %d interleaved repeats: hinf %.3f ms, LibTorch %s %.3f ms "
                     "(torch threads 1, OpenBLAS threads %d): LibTorch/hinf = %.2f\n",
                     threads, M, repeats, mo, TORCH_VERSION, mt, threads, mt / mo);

@@ -9,7 +9,6 @@
 
 #include <Eigen/Core>
 #include <algorithm>
-#include <atomic>
 #include <cstdlib>
 #include <cstring>
 
@@ -40,6 +39,12 @@ int MlpShape::scratch_width() const {
     return w;
 }
 
+std::int64_t MlpShape::scratch_size(int B) const {
+    std::int64_t tr = 0;  // the own kernels' transposed dW of any layer whose rows are narrower than a vector
+    for (int l = 1; l <= layers(); ++l) tr = std::max(tr, std::int64_t(sizes[l - 1]) * sizes[l]);
+    return 2 * std::int64_t(B) * scratch_width() + tr;
+}
+
 std::int64_t MlpShape::act_per_sample() const {
     std::int64_t n = 0;
     for (int l = 1; l <= layers(); ++l) n += act_ld(l);
@@ -68,7 +73,6 @@ using MapV = Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>>;
 }  // namespace
 
 namespace {
-std::atomic<int> g_gemm_path{gemm_own_available() ? GEMM_OWN : GEMM_OPENBLAS};
 
 // C [m x n] = A' B' + beta C, all row-major; A' = A or A^T, B' = B or B^T. One serial OpenBLAS call.
 inline void gemm(bool ta, bool tb, int m, int n, int k, const float* A, int lda, const float* Bm, int ldb, float beta,
@@ -100,17 +104,17 @@ void bias_activation(T* H, int ld, const T* b, int B, int d, bool hidden, T a1, 
 }  // namespace
 
 GemmPath default_gemm_path() { return gemm_own_available() ? GEMM_OWN : GEMM_OPENBLAS; }
-void set_gemm_path(GemmPath path) { g_gemm_path.store(path == GEMM_OWN && !gemm_own_available() ? GEMM_OPENBLAS : path); }
-GemmPath gemm_path() { return GemmPath(g_gemm_path.load()); }
+GemmPath gemm_path_available(GemmPath path) { return path == GEMM_OWN && !gemm_own_available() ? GEMM_OPENBLAS : path; }
 
-void gemm_prepare() {
-    if (gemm_path() == GEMM_OPENBLAS && openblas_get_num_threads() != 1) openblas_set_num_threads(1);
+void gemm_prepare(GemmPath path) {
+    if (path == GEMM_OPENBLAS && openblas_get_num_threads() != 1) openblas_set_num_threads(1);
 }
 
-std::string gemm_description() {
-    if (gemm_path() == GEMM_OWN)
+std::string gemm_description(GemmPath path) {
+    path = gemm_path_available(path);
+    if (path == GEMM_OWN)
         return "hinf's own AVX-512 register-blocked kernels (8 x 2 vectors, bias/LeakyReLU fused)";
-    if (gemm_path() == GEMM_EIGEN)
+    if (path == GEMM_EIGEN)
         return "Eigen " + std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) + "." +
                std::to_string(EIGEN_MINOR_VERSION) + " own products (no BLAS)";
     std::string d = std::string(openblas_get_config()) + ", " + openblas_get_corename() +
@@ -174,48 +178,55 @@ void mlp_pack_weights(T* pack, const T* theta, const MlpShape& shape) {
     }
 }
 
+namespace {
+
+// GEMM_OWN forward: bias and LeakyReLU fused into the products' store
 template <typename T>
-void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
+void forward_own(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
     const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
     const T* in = x;
     int ldi = shape.inputs();  // row stride of `in`
-    if (gemm_path() == GEMM_OWN) {
-        std::vector<T> own;
-        if (!pack) {
-            own.resize(mlp_pack_size(shape, sizeof(T)));
-            mlp_pack_weights(own.data(), theta, shape);
-            pack = own.data();
-        }
-        for (int l = 1; l <= shape.layers(); ++l) {
-            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
-            T* H = acts + shape.act_offset(l, B);
-            GemmEpi<T> e;
-            e.kind = l < shape.layers() ? EPI_BIAS_LEAKY : EPI_BIAS;
-            e.bias = theta + shape.weight_offset(l) + std::int64_t(dout) * din;
-            e.a1 = a1;
-            e.a2 = a2;
-            std::int64_t of = 0, ob = 0;
-            pack_offsets<T>(shape, l, &of, &ob);
-            // H_l = act(H_{l-1} W_l^T + 1 b_l^T), W_l^T from the pack
-            gemm_own_packed(B, dout, din, in, ldi, 1, pack + of, H, shape.act_ld(l), false, e);
-            in = H;
-            ldi = shape.act_ld(l);
-        }
-        return;
+    for (int l = 1; l <= shape.layers(); ++l) {
+        const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+        T* H = acts + shape.act_offset(l, B);
+        GemmEpi<T> e;
+        e.kind = l < shape.layers() ? EPI_BIAS_LEAKY : EPI_BIAS;
+        e.bias = theta + shape.weight_offset(l) + std::int64_t(dout) * din;
+        e.a1 = a1;
+        e.a2 = a2;
+        std::int64_t of = 0, ob = 0;
+        pack_offsets<T>(shape, l, &of, &ob);
+        // H_l = act(H_{l-1} W_l^T + 1 b_l^T), W_l^T from the pack
+        gemm_own_packed(B, dout, din, in, ldi, 1, pack + of, H, shape.act_ld(l), false, e);
+        in = H;
+        ldi = shape.act_ld(l);
     }
-    if (gemm_path() == GEMM_OPENBLAS) {
-        for (int l = 1; l <= shape.layers(); ++l) {
-            const int din = shape.sizes[l - 1], dout = shape.sizes[l];
-            const T* W = theta + shape.weight_offset(l);
-            T* H = acts + shape.act_offset(l, B);
-            // H_l = act(H_{l-1} W_l^T + 1 b_l^T)
-            gemm(false, true, B, dout, din, in, ldi, W, din, T(0), H, shape.act_ld(l));
-            bias_activation(H, shape.act_ld(l), W + std::int64_t(dout) * din, B, dout, l < shape.layers(), a1, a2);
-            in = H;
-            ldi = shape.act_ld(l);
-        }
-        return;
+}
+
+// GEMM_OPENBLAS forward: one serial OpenBLAS call per layer, then bias and activation
+template <typename T>
+void forward_openblas(T* acts, const T* theta, const T* x, int B, const MlpShape& shape) {
+    const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
+    const T* in = x;
+    int ldi = shape.inputs();
+    for (int l = 1; l <= shape.layers(); ++l) {
+        const int din = shape.sizes[l - 1], dout = shape.sizes[l];
+        const T* W = theta + shape.weight_offset(l);
+        T* H = acts + shape.act_offset(l, B);
+        // H_l = act(H_{l-1} W_l^T + 1 b_l^T)
+        gemm(false, true, B, dout, din, in, ldi, W, din, T(0), H, shape.act_ld(l));
+        bias_activation(H, shape.act_ld(l), W + std::int64_t(dout) * din, B, dout, l < shape.layers(), a1, a2);
+        in = H;
+        ldi = shape.act_ld(l);
     }
+}
+
+// GEMM_EIGEN forward: Eigen's own products
+template <typename T>
+void forward_eigen(T* acts, const T* theta, const T* x, int B, const MlpShape& shape) {
+    const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
+    const T* in = x;
+    int ldi = shape.inputs();
     for (int l = 1; l <= shape.layers(); ++l) {
         const int din = shape.sizes[l - 1], dout = shape.sizes[l];
         const T* W = theta + shape.weight_offset(l);
@@ -238,100 +249,102 @@ void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& sha
     }
 }
 
+}  // namespace
+
 template <typename T>
-void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout_in, int B,
-                  const MlpShape& shape, T* scratch, bool overwrite, const T* pack) {
-    const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
-    const int L = shape.layers(), wmax = shape.scratch_width();
-    T* G = scratch;                             // dL/dz_l   [B x D_l]
-    T* Gprev = scratch + std::int64_t(B) * wmax;  // dL/dz_{l-1}
-    if (gemm_path() == GEMM_OWN) {
-        std::vector<T> own;
+void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack) {
+    switch (gemm_path_available(shape.gemm)) {
+    case GEMM_OWN: {
+        std::vector<T> own;  // only when the caller did not pack (tests, one-off evaluations)
         if (!pack) {
             own.resize(mlp_pack_size(shape, sizeof(T)));
             mlp_pack_weights(own.data(), theta, shape);
             pack = own.data();
         }
-        const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
-        int ldg = shape.outputs();  // row stride of Gc
-        for (int l = L; l >= 1; --l) {
-            const int din = shape.sizes[l - 1], dl = shape.sizes[l];
-            T* dW = dtheta + shape.weight_offset(l);
-            T* db = dW + std::int64_t(dl) * din;
-            const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
-            const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
-            // dW_l (+)= G_l^T H_{l-1}  (A = G_l read transposed); db_l (+)= column sums of G_l in order
-            if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
-                // rows narrower than a vector (the input layer): dW_l^T = H_{l-1}^T G_l fills the vectors;
-                // the same products summed in the same order, so the same bits
-                std::vector<T> t(std::size_t(din) * dl);
-                if (!overwrite)
-                    for (int o = 0; o < dl; ++o)
-                        for (int i = 0; i < din; ++i) t[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
-                gemm_own(din, dl, B, Hin, 1, ldh, Gc, ldg, t.data(), dl, !overwrite, GemmEpi<T>{});
+        forward_own(acts, theta, x, B, shape, pack);
+        return;
+    }
+    case GEMM_OPENBLAS: forward_openblas(acts, theta, x, B, shape); return;
+    case GEMM_EIGEN: forward_eigen(acts, theta, x, B, shape); return;
+    }
+}
+
+namespace {
+
+// dW_l (+)= G_l^T H_{l-1}: dW [dl x din], G [B x dl] (row stride ldg), H [B x din] (row stride ldh).
+// tr [din x dl]: the own kernels' scratch for the transposed input layer.
+template <typename T>
+void backward_weights(GemmPath path, T* dW, int din, int dl, int B, const T* G, int ldg, const T* H, int ldh,
+                      bool overwrite, T* tr) {
+    if (path == GEMM_OWN) {
+        if (2 * din <= gemm_panel_width<T>() && dl >= gemm_panel_width<T>()) {
+            // rows narrower than a vector (the input layer): dW^T = H^T G fills the vectors; the same products
+            // summed in the same order, so the same bits
+            if (!overwrite)
                 for (int o = 0; o < dl; ++o)
-                    for (int i = 0; i < din; ++i) dW[std::int64_t(o) * din + i] = t[std::size_t(i) * dl + o];
-            } else {
-                gemm_own(dl, din, B, Gc, 1, ldg, Hin, ldh, dW, din, !overwrite, GemmEpi<T>{});
-            }
-            if (overwrite) std::fill(db, db + dl, T(0));
-            for (int s = 0; s < B; ++s)
-                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * ldg + o];
-            if (l == 1 && !dx) break;
-            // dL/dH_{l-1} = G_l W_l, times LeakyReLU's slope (H and z share their sign) in the store
-            GemmEpi<T> e;
-            if (l > 1) {
-                e.kind = EPI_LEAKY_GRAD;
-                e.H = Hin;
-                e.ldh = ldh;
-                e.a1 = a1;
-                e.a2 = a2;
-            }
-            T* target = (l == 1) ? dx : Gprev;
-            std::int64_t of = 0, ob = 0;
-            pack_offsets<T>(shape, l, &of, &ob);
-            gemm_own_packed(B, din, dl, Gc, ldg, 1, pack + ob, target, ldh, false, e);
-            if (l > 1) {
-                Gc = Gprev;
-                ldg = ldh;
-                std::swap(G, Gprev);
-            }
+                    for (int i = 0; i < din; ++i) tr[std::size_t(i) * dl + o] = dW[std::int64_t(o) * din + i];
+            gemm_own(din, dl, B, H, 1, ldh, G, ldg, tr, dl, !overwrite, GemmEpi<T>{});
+            for (int o = 0; o < dl; ++o)
+                for (int i = 0; i < din; ++i) dW[std::int64_t(o) * din + i] = tr[std::size_t(i) * dl + o];
+        } else {
+            gemm_own(dl, din, B, G, 1, ldg, H, ldh, dW, din, !overwrite, GemmEpi<T>{});
         }
+    } else if (path == GEMM_OPENBLAS) {
+        gemm(true, false, dl, din, B, G, ldg, H, ldh, overwrite ? T(0) : T(1), dW, din);
+    } else {
+        MapM<T> dWm(dW, dl, din, Eigen::OuterStride<>(din));
+        if (overwrite) dWm.setZero();
+        dWm.noalias() += MapCM<T>(G, B, dl, Eigen::OuterStride<>(ldg)).transpose() *
+                         MapCM<T>(H, B, din, Eigen::OuterStride<>(ldh));
+    }
+}
+
+// target [B x din] (row stride ldh) = G_l W_l, times LeakyReLU's slope where Hin (the layer's input, whose sign is
+// that of its pre-activation: both slopes positive) is given. W [dl x din]; packed: the own kernels' panel of W.
+template <typename T>
+void backward_inputs(GemmPath path, T* target, int ldh, int B, int din, int dl, const T* G, int ldg, const T* W,
+                     const T* packed, const T* Hin, T a1, T a2) {
+    if (path == GEMM_OWN) {
+        GemmEpi<T> e;  // the slope fused into the store
+        if (Hin) {
+            e.kind = EPI_LEAKY_GRAD;
+            e.H = Hin;
+            e.ldh = ldh;
+            e.a1 = a1;
+            e.a2 = a2;
+        }
+        gemm_own_packed(B, din, dl, G, ldg, 1, packed, target, ldh, false, e);
         return;
     }
-    if (gemm_path() == GEMM_OPENBLAS) {
-        const T* Gc = dout_in;  // read in place: no copy of dL/dH_L
-        int ldg = shape.outputs();  // row stride of Gc
-        for (int l = L; l >= 1; --l) {
-            const int din = shape.sizes[l - 1], dl = shape.sizes[l];
-            const T* W = theta + shape.weight_offset(l);
-            T* dW = dtheta + shape.weight_offset(l);
-            T* db = dW + std::int64_t(dl) * din;
-            const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
-            const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
-            // dW_l (+)= G_l^T H_{l-1}; db_l (+)= column sums of G_l, samples in order
-            gemm(true, false, dl, din, B, Gc, ldg, Hin, ldh, overwrite ? T(0) : T(1), dW, din);
-            if (overwrite) std::fill(db, db + dl, T(0));
-            for (int s = 0; s < B; ++s)
-                for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * ldg + o];
-            if (l == 1 && !dx) break;
-            // dL/dH_{l-1} = G_l W_l, then through LeakyReLU (H and z share their sign: both slopes positive)
-            T* target = (l == 1) ? dx : Gprev;
-            gemm(false, false, B, din, dl, Gc, ldg, W, din, T(0), target, ldh);
-            if (l > 1) {
-                for (int s = 0; s < B; ++s)
-                    for (int i = 0; i < din; ++i)
-                        Gprev[std::int64_t(s) * ldh + i] *= Hin[std::int64_t(s) * ldh + i] > T(0) ? a1 : a2;
-                Gc = Gprev;
-                ldg = ldh;
-                std::swap(G, Gprev);
-            }
-        }
-        return;
+    if (path == GEMM_OPENBLAS) gemm(false, false, B, din, dl, G, ldg, W, din, T(0), target, ldh);
+    else
+        MapM<T>(target, B, din, Eigen::OuterStride<>(ldh)).noalias() =
+            MapCM<T>(G, B, dl, Eigen::OuterStride<>(ldg)) * MapCM<T>(W, dl, din, Eigen::OuterStride<>(din));
+    if (Hin)
+        for (int s = 0; s < B; ++s)
+            for (int i = 0; i < din; ++i)
+                target[std::int64_t(s) * ldh + i] *= Hin[std::int64_t(s) * ldh + i] > T(0) ? a1 : a2;
+}
+
+}  // namespace
+
+template <typename T>
+void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout_in, int B,
+                  const MlpShape& shape, T* scratch, bool overwrite, const T* pack) {
+    const GemmPath path = gemm_path_available(shape.gemm);
+    const T a1 = T(shape.slope_positive), a2 = T(shape.slope_negative);
+    const int L = shape.layers(), wmax = shape.scratch_width();
+    std::vector<T> own;  // only when the caller did not pack (tests, one-off evaluations)
+    if (path == GEMM_OWN && !pack) {
+        own.resize(mlp_pack_size(shape, sizeof(T)));
+        mlp_pack_weights(own.data(), theta, shape);
+        pack = own.data();
     }
-    if (overwrite) std::fill(dtheta, dtheta + shape.param_count(), T(0));
-    std::memcpy(G, dout_in, sizeof(T) * std::size_t(B) * shape.outputs());
-    int ldg = shape.outputs();  // row stride of G
+    T* G = scratch;                               // dL/dz_l   [B x D_l]
+    T* Gprev = scratch + std::int64_t(B) * wmax;  // dL/dz_{l-1}
+    T* tr = scratch + 2 * std::int64_t(B) * wmax;  // [din x dl] transposed dW of a narrow layer (own kernels)
+    const T* Gc = dout_in;                        // read in place: no copy of dL/dH_L
+    int ldg = shape.outputs();                    // row stride of Gc
     for (int l = L; l >= 1; --l) {
         const int din = shape.sizes[l - 1], dl = shape.sizes[l];
         const T* W = theta + shape.weight_offset(l);
@@ -339,23 +352,20 @@ void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, c
         T* db = dW + std::int64_t(dl) * din;
         const T* Hin = (l == 1) ? x : acts + shape.act_offset(l - 1, B);
         const int ldh = (l == 1) ? din : shape.act_ld(l - 1);  // row stride of Hin and of Gprev
-        MapCM<T> Gm(G, B, dl, Eigen::OuterStride<>(ldg));
-        // dW_l += G_l^T H_{l-1};  db_l += column sums of G_l
-        MapM<T>(dW, dl, din, Eigen::OuterStride<>(din)).noalias() +=
-            Gm.transpose() * MapCM<T>(Hin, B, din, Eigen::OuterStride<>(ldh));
-        // plain loop, not Eigen's colwise().sum(): a vectorised reduction peels by address alignment,
-        // which would make the bits depend on where the buffers happen to live
+        backward_weights(path, dW, din, dl, B, Gc, ldg, Hin, ldh, overwrite, tr);
+        // db_l (+)= column sums of G_l, samples in order (a plain loop: a vectorised reduction would peel by
+        // address alignment and make the bits depend on where the buffers live)
+        if (overwrite) std::fill(db, db + dl, T(0));
         for (int s = 0; s < B; ++s)
-            for (int o = 0; o < dl; ++o) db[o] += G[std::int64_t(s) * ldg + o];
+            for (int o = 0; o < dl; ++o) db[o] += Gc[std::int64_t(s) * ldg + o];
         if (l == 1 && !dx) break;
-        // dL/dH_{l-1} = G_l W_l
-        T* target = (l == 1) ? dx : Gprev;
-        MapM<T>(target, B, din, Eigen::OuterStride<>(ldh)).noalias() = Gm * MapCM<T>(W, dl, din, Eigen::OuterStride<>(din));
+        std::int64_t of = 0, ob = 0;
+        if (path == GEMM_OWN) pack_offsets<T>(shape, l, &of, &ob);
+        // dL/dH_{l-1} = G_l W_l, through LeakyReLU for hidden layers
+        backward_inputs(path, (l == 1) ? dx : Gprev, ldh, B, din, dl, Gc, ldg, W, pack + ob, l > 1 ? Hin : nullptr,
+                        a1, a2);
         if (l > 1) {
-            // through LeakyReLU: H and z share their sign (both slopes positive)
-            for (int s = 0; s < B; ++s)
-                for (int i = 0; i < din; ++i)
-                    Gprev[std::int64_t(s) * ldh + i] *= Hin[std::int64_t(s) * ldh + i] > T(0) ? a1 : a2;
+            Gc = Gprev;
             ldg = ldh;
             std::swap(G, Gprev);
         }

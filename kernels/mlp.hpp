@@ -17,24 +17,24 @@ namespace hinf::kern {
 // register-blocked AVX-512 kernels with fused epilogues (gemm.hpp; the default where built);
 // GEMM_OPENBLAS: OpenBLAS called directly, serially, once per product (the default without AVX-512);
 // GEMM_EIGEN: Eigen's own products. All run one chunk on the calling thread (the caller splits chunks
-// over OpenMP threads), so the bits do not depend on the thread count. Process-wide; set it before a
-// run, never during one. `hinf bench --gemm` measures each.
+// over OpenMP threads), so the bits do not depend on the thread count. A field of MlpShape, so it
+// travels with the network it computes (no process-wide state). `hinf bench --gemm` measures each.
 enum GemmPath { GEMM_OPENBLAS = 0, GEMM_EIGEN = 1, GEMM_OWN = 2 };
 /// GEMM_OWN where gemm_own_available(), else GEMM_OPENBLAS.
 GemmPath default_gemm_path();
-/// Selecting GEMM_OWN where it is not built selects GEMM_OPENBLAS.
-void set_gemm_path(GemmPath path);
-GemmPath gemm_path();
+/// The path that runs when `path` is asked for: GEMM_OWN where it is not built runs GEMM_OPENBLAS.
+GemmPath gemm_path_available(GemmPath path);
 /// e.g. "OpenBLAS 0.3.21 SkylakeX kernels (serial per chunk)"; names an OPENBLAS_CORETYPE override.
-std::string gemm_description();
+std::string gemm_description(GemmPath path);
 /// Makes OpenBLAS run each call on the calling thread. Call outside parallel regions before a
 /// parallel loop of fast-kernel calls (step_gradient and network_eval do); cheap when already set.
-void gemm_prepare();
+void gemm_prepare(GemmPath path);
 
 struct MlpShape {
     std::vector<int> sizes;      // D[0..L]
     double slope_positive = 1.0; // LeakyReLU alpha_1 (input > 0)
     double slope_negative = 0.01;// LeakyReLU alpha_2 (input <= 0)
+    GemmPath gemm = default_gemm_path();  // the GEMM kernels forward/backward use
 
     int layers() const { return static_cast<int>(sizes.size()) - 1; }
     int inputs() const { return sizes.front(); }
@@ -47,6 +47,9 @@ struct MlpShape {
     int act_ld(int l) const;
     /// Row stride of mlp_backward's scratch: max over l of act_ld(l).
     int scratch_width() const;
+    /// Elements of mlp_backward's scratch for B samples: 2 x B x scratch_width, plus max over l of D[l-1] x D[l]
+    /// for the own kernels' transposed dW of a layer narrower than a vector (no allocation inside the backward).
+    std::int64_t scratch_size(int B) const;
     std::int64_t param_count() const;
     /// Offset of W_l (l = 1..L) in the flat parameter array; b_l follows W_l.
     std::int64_t weight_offset(int l) const;
@@ -71,7 +74,7 @@ template <typename T>
 void mlp_forward(T* acts, const T* theta, const T* x, int B, const MlpShape& shape, const T* pack = nullptr);
 
 // Accumulates dL/dtheta into dtheta (caller zeroes it), or with overwrite = true writes it (no zeroing
-// needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [2 x B x scratch_width].
+// needed). dout [B x D_L] = dL/dH_L. dx [B x D0] (may be null) receives dL/dx. scratch [shape.scratch_size(B)].
 // pack: as for mlp_forward.
 template <typename T>
 void mlp_backward(T* dtheta, T* dx, const T* theta, const T* x, const T* acts, const T* dout, int B,

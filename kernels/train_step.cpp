@@ -21,7 +21,7 @@ void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t 
 // the own kernels' weight panels, once per call (shared by all chunks); null for the other paths
 template <typename T>
 const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
-    if (gemm_path() != GEMM_OWN) return nullptr;
+    if (gemm_path_available(sh.gemm) != GEMM_OWN) return nullptr;
     ws.pack.resize(mlp_pack_size(sh, sizeof(T)));
     mlp_pack_weights(ws.pack.data(), theta, sh);
     return ws.pack.data();
@@ -43,7 +43,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     input.assign(padded * cfg.shape.inputs(), T(0));
     acts.assign(chunks * step_acts_stride(cfg), T(0));
     dout.assign(padded * cfg.shape.outputs(), T(0));
-    scratch.assign(std::int64_t(chunks) * 2 * C * cfg.shape.scratch_width(), T(0));
+    scratch.assign(std::int64_t(chunks) * cfg.shape.scratch_size(C), T(0));
     partial.clear();  // grown lazily by step_gradient (not needed for evaluation)
     p.assign(padded * n, 0.0);
     P.assign(padded * n * n, 0.0);
@@ -59,7 +59,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     const std::int64_t P = sh.param_count(), Ps = step_partial_stride(sh), As = step_acts_stride(cfg);
     ws.reserve(cfg, M);
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
-    gemm_prepare();
+    gemm_prepare(sh.gemm);
     const T* wt = pack(ws, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 
@@ -112,7 +112,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
                           sys.xt + i * n, cfg.head);
         }
         T* part = ws.partial.data() + std::int64_t(c) * Ps;
-        T* scratch = ws.scratch.data() + std::int64_t(c) * 2 * C * sh.scratch_width();
+        T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
     // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in
@@ -137,7 +137,7 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
     const MlpShape& sh = cfg.shape;
     const int n = cfg.head.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     ws.reserve(cfg, static_cast<int>(count));
-    gemm_prepare();
+    gemm_prepare(sh.gemm);
     const T* wt = pack(ws, theta, sh);
     const int chunks = static_cast<int>((count + C - 1) / C);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;

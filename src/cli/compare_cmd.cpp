@@ -52,17 +52,16 @@ void add_compare_command(CLI::App& app) {
         HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
         RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         CompareOptions opt;
-        opt.scenario = compare_scenario(a->scenario);
+        opt.scenario = scenario_named(a->scenario);
         opt.runs = a->runs;
         opt.until = a->until;
         opt.quiet = a->quiet;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "compare-" + a->scenario) : a->out;
         // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
-        FilterModel told{cfg.system.get(), cfg.dt, cfg.disturbance_std * std::sqrt(opt.scenario.told_disturbance_factor),
-                         cfg.noise_std * std::sqrt(opt.scenario.told_noise_factor)};
-        FilterModel exact{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+        const FilterModel told = scenario_told_model(cfg, opt.scenario), exact = filter_model(cfg);
         FilterSet set = build_filter_set(
             cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, a->roughening, a->glf_vertices}, told, exact);
+        for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());
         CompareSummary s = compare_run(cfg, filters, opt);

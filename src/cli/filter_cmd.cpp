@@ -81,6 +81,7 @@ void add_filter_command(CLI::App& app) {
         FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->particles, a->roughening,
                                                             a->glf_vertices},
                                          model, model);
+        for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<OnlineFilter*> filters;
         for (auto& f : set.filters) filters.push_back(f.get());
         std::printf("filter: %lld measurements of %d output(s) from %s, t = %g .. %g s, dt = %g s%s\n",

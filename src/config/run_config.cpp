@@ -9,7 +9,9 @@
 
 namespace hinf {
 
-std::int64_t RunConfig::total_steps() const { return static_cast<std::int64_t>(std::llround(t_final / dt)); }
+std::int64_t RunConfig::steps_until(double until) const {
+    return static_cast<std::int64_t>(std::llround(final_time(until) / dt));
+}
 
 double RunConfig::resolved_input_scale() const {
     if (input_scale > 0) return input_scale;
@@ -93,6 +95,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
     c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
+    c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();
 
     ConfigSection t(doc, "training");

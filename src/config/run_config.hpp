@@ -32,6 +32,7 @@ struct RunConfig {
     double output_scale = 0.0;  // 0: auto
     double eps = 0.0;  // 0: auto from max_step_correction
     int chunk = 100;
+    std::string gemm = "auto";  // GEMM kernels: "auto" (own where built, else openblas), "own", "openblas", "eigen"
 
     // [training]
     std::int64_t samples = 2000, batch = 800, adam_steps = 30;
@@ -60,7 +61,12 @@ struct RunConfig {
     std::uint64_t online_seed = 7;
     double settle_time = 5.0;  // error statistics are also reported over t >= settle_time [s]
 
-    std::int64_t total_steps() const;
+    /// The horizon of a run asked to stop at `until`: min(until, t_final); until < 0 means t_final.
+    double final_time(double until = -1) const { return until >= 0 && until < t_final ? until : t_final; }
+    /// The one place times become steps: llround(final_time(until) / dt).
+    std::int64_t steps_until(double until = -1) const;
+    /// t_k = k dt, the time of step k.
+    double time_of(std::int64_t step) const { return double(step) * dt; }
     /// Resolved scales (auto values filled from x0, xhat0, rho).
     double resolved_input_scale() const;
     double resolved_output_scale() const;

@@ -93,11 +93,12 @@ std::vector<BenchRow> time_step(const BenchOptions& opt, int threads, const std:
     kern::AdamParams ap{cfg.learning_rate, cfg.beta1, cfg.beta2, cfg.tau};
     omp_set_num_threads(threads);
     std::vector<std::vector<double>> ms(paths.size());
+    std::vector<kern::StepConfig> steps(paths.size(), net.step);  // the same network on each GEMM path
+    for (std::size_t k = 0; k < paths.size(); ++k) steps[k].shape.gemm = paths[k];
     for (int r = 0; r < opt.repeats + 5; ++r)
         for (std::size_t k = 0; k < paths.size(); ++k) {
-            kern::set_gemm_path(paths[k]);
             auto t0 = Clock::now();
-            kern::step_gradient(grad.data(), net.theta.data(), view, idx.data(), opt.batch, net.step, ws);
+            kern::step_gradient(grad.data(), net.theta.data(), view, idx.data(), opt.batch, steps[k], ws);
             kern::adam_update(net.theta.data(), m.data(), v.data(), grad.data(), std::int64_t(grad.size()), r % 30 + 1,
                               ap);
             double dt = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -116,9 +117,9 @@ std::vector<BenchRow> time_step(const BenchOptions& opt, int threads, const std:
         row.gflops = step_flops(net.step.shape, opt.batch) / (row.median_ms * 1e-3) * 1e-9;
 
         // per-time-step work outside the Adam steps: a time step with K = 1, minus one step
-        kern::set_gemm_path(paths[k]);
         std::string dir = opt.out_dir + "/bench-train-tmp";
         RunConfig one = bench_config(opt);
+        one.gemm = gemm_name(paths[k]);
         one.adam_steps = 1;
         one.checkpoint_every = 1000000000;
         one.precision = sizeof(T) == 4 ? "float" : "double";
@@ -242,17 +243,11 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
     }
     HINF_CHECK(!paths.empty(), "--gemm needs at least one of: default, own, openblas, eigen");
     std::filesystem::create_directories(opt.out_dir);
-    const kern::GemmPath previous = kern::gemm_path();
-    struct Restore {
-        kern::GemmPath p;
-        ~Restore() { kern::set_gemm_path(p); }
-    } restore{previous};
     std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, %d repeats after 5 warm-up steps%s\n",
                 opt.variant.c_str(), opt.batch, opt.repeats, paths.size() > 1 ? ", GEMM paths interleaved" : "");
     std::vector<std::string> descriptions;
     for (kern::GemmPath p : paths) {
-        kern::set_gemm_path(p);
-        descriptions.push_back(kern::gemm_description());
+        descriptions.push_back(kern::gemm_description(p));
         std::printf("GEMMs (%s): %s\n", gemm_name(p).c_str(), descriptions.back().c_str());
     }
     std::printf("other loops compiled for %s\n", kern::simd_name().c_str());

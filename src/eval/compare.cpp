@@ -1,5 +1,5 @@
-// Monte Carlo comparison of on-line filters: one truth + measurement stream per run (Philox keyed by
-// (online seed, run, step), exactly the draws of eval/operate.cpp), fed identically to every filter.
+// Monte Carlo comparison of on-line filters: the engine's runs (one truth per run, fed identically to every
+// filter) reduced to the comparison table, compare.h5 and compare.csv.
 #include "eval/compare.hpp"
 
 #include <algorithm>
@@ -8,189 +8,44 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <omp.h>
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
-#include "io/progress.hpp"
-#include "random.hpp"
-#include "filters/gain_law.hpp"
+#include "eval/engine.hpp"
 
 namespace hinf {
 
-std::uint64_t compare_hash(std::uint64_t h, const void* data, std::size_t bytes) {
-    const unsigned char* p = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < bytes; ++i) {
-        h ^= p[i];
-        h *= 1099511628211ull;
-    }
-    return h;
-}
-
-std::vector<std::string> compare_scenario_names() {
-    return {"nominal",     "cov_small",   "cov_large", "v_cov_small", "v_cov_large",
-            "n_cov_small", "n_cov_large", "student_t", "bias",        "energy_pulse"};
-}
-
-CompareScenario compare_scenario(const std::string& name) {
-    CompareScenario s;
-    s.name = name;
-    if (name == "nominal") return s;
-    if (name == "cov_small") s.told_disturbance_factor = s.told_noise_factor = 0.1;
-    else if (name == "cov_large") s.told_disturbance_factor = s.told_noise_factor = 10.0;
-    else if (name == "v_cov_small") s.told_disturbance_factor = 0.1;
-    else if (name == "v_cov_large") s.told_disturbance_factor = 10.0;
-    else if (name == "n_cov_small") s.told_noise_factor = 0.1;
-    else if (name == "n_cov_large") s.told_noise_factor = 10.0;
-    else if (name == "student_t") s.student_t = true;
-    else if (name == "bias") s.noise_bias = 1.0;
-    else if (name == "energy_pulse") s.energy_pulse = true;
-    else {
-        std::string all;
-        for (const auto& n : compare_scenario_names()) all += (all.empty() ? "" : ", ") + n;
-        HINF_FAIL("--scenario '" + name + "' is not one of: " + all);
-    }
-    return s;
-}
-
 namespace {
 
-struct Truth {
-    std::vector<double> x, y;  // [steps x n], [steps x m]
-    std::vector<double> energy;  // [steps] v'v + n'n
-};
-
-// Euler truth of eq. (18) with the draws of operate.cpp; scenarios change n or v (compare.hpp).
-Truth simulate_truth(const RunConfig& cfg, const CompareScenario& sc, std::int64_t run, std::int64_t steps) {
-    const System& sys = *cfg.system;
-    const int n = cfg.n, nv = cfg.nv, m = cfg.m;
-    Truth tr;
-    tr.x.resize(steps * n);
-    tr.y.resize(steps * m);
-    tr.energy.resize(steps);
-    std::vector<double> x = cfg.x0, noise(nv + m), a(n), B(n * nv), c(m), chi(3 * m);
-    const double T = double(steps) * cfg.dt, pulse = cfg.disturbance_std * std::sqrt(T / 5.0);
-    for (std::int64_t s = 0; s < steps; ++s) {
-        const double t = double(s) * cfg.dt;
-        kern::rng_normal(noise.data(), nv + m, cfg.online_seed, kern::RNG_STREAM_NOISE, std::uint64_t(run),
-                         std::uint64_t(s));
-        double* v = noise.data();
-        double* nn = noise.data() + nv;
-        for (int j = 0; j < nv; ++j) v[j] *= cfg.disturbance_std;
-        if (sc.energy_pulse)
-            for (int j = 0; j < nv; ++j) v[j] = (t >= 20.0 && t < 25.0) ? pulse : 0.0;
-        if (sc.student_t) {
-            // t_3 = z / sqrt(chi2_3 / 3) has variance 3: scaled by 1/sqrt(3) to unit variance
-            kern::rng_normal(chi.data(), 3 * m, cfg.online_seed, kern::RNG_STREAM_HEAVY_TAIL, std::uint64_t(run),
-                             std::uint64_t(s));
-            for (int j = 0; j < m; ++j) {
-                const double c2 = chi[3 * j] * chi[3 * j] + chi[3 * j + 1] * chi[3 * j + 1] + chi[3 * j + 2] * chi[3 * j + 2];
-                nn[j] = nn[j] / std::sqrt(c2 / 3.0) / std::sqrt(3.0);
-            }
-        }
-        for (int j = 0; j < m; ++j) nn[j] = (nn[j] + sc.noise_bias) * cfg.noise_std;
-        sys.drift(a.data(), x.data(), t, 1);
-        sys.disturbance_gain(B.data(), x.data(), t, 1);
-        sys.measurement(c.data(), x.data(), t, 1);
-        double e = 0;
-        for (int j = 0; j < nv; ++j) e += v[j] * v[j];
-        for (int j = 0; j < m; ++j) {
-            tr.y[s * m + j] = c[j] + nn[j];
-            e += nn[j] * nn[j];
-        }
-        tr.energy[s] = e;
-        std::copy(x.begin(), x.end(), tr.x.begin() + s * n);
-        for (int i = 0; i < n; ++i) {
-            double bv = 0;
-            for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * v[j];
-            x[i] += cfg.dt * (a[i] + bv);
-        }
-    }
-    return tr;
-}
-
+// One run of one filter reduced to what the table reports: per-state mean and std over time, mean squared errors
+// per unit group, the attenuation ratio.
 struct FilterRun {
     double diverged_at = -1;
     std::vector<double> mean, sd, mean_settled, sd_settled;  // [n] within the run
     double sq_pos = 0, sq_vel = 0, sq_pos_settled = 0, sq_vel_settled = 0;  // mean over steps of |e|^2
     double ratio = 0;
-    double seconds = 0;
-    std::uint64_t hash = compare_hash_start;
-    std::vector<double> err_sub;  // [sub x n] error every `stride` steps
-    std::vector<double> xhat;     // run 0 only: [steps x n]
 };
 
-FilterRun run_filter(const RunConfig& cfg, OnlineFilter& f, const Truth& tr, std::uint64_t run, std::int64_t steps,
-                     std::int64_t stride, bool keep_path) {
-    const int n = cfg.n, m = cfg.m;
-    // "position" and "velocity": the states of the first and second unit (x, y, z and vx, vy, vz for the missile)
-    const std::vector<int> pos = state_unit_group(*cfg.system, 0), vel = state_unit_group(*cfg.system, 1);
+FilterRun reduce_run(const FilterRunStats& s, std::int64_t steps, int n) {
     FilterRun r;
-    std::vector<double> s1(n, 0), s2(n, 0), t1(n, 0), t2(n, 0), e(n);
-    double num = 0, den = 0, settled = 0;
-    FilterStart start;
-    start.xhat0 = cfg.xhat0;
-    start.P0.assign(n * n, 0.0);
-    for (int i = 0; i < n; ++i) {
-        // the initial estimate's error variance: the actual squared initial error (floor 1), the same for all
-        const double d = cfg.x0[i] - cfg.xhat0[i];
-        start.P0[i * n + i] = std::max(d * d, 1.0);
-    }
-    start.seed = cfg.online_seed;
-    start.run = run;
-    f.reset(start);
-    double seconds = 0;
-    for (std::int64_t s = 0; s < steps; ++s) {
-        const double t = double(s) * cfg.dt;
-        const double* x = tr.x.data() + s * n;
-        const double* xh = f.estimate();
-        for (int i = 0; i < n; ++i) e[i] = x[i] - xh[i];
-        if (keep_path) r.xhat.insert(r.xhat.end(), xh, xh + n);
-        if (s % stride == 0) r.err_sub.insert(r.err_sub.end(), e.begin(), e.end());
-        num += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
-        den += cfg.dt * tr.energy[s];
-        double pp = 0, vv = 0;
-        for (int i : pos) pp += e[i] * e[i];
-        for (int i : vel) vv += e[i] * e[i];
-        r.sq_pos += pp;
-        r.sq_vel += vv;
-        for (int i = 0; i < n; ++i) {
-            s1[i] += e[i];
-            s2[i] += e[i] * e[i];
-        }
-        if (t >= cfg.settle_time) {
-            settled += 1;
-            r.sq_pos_settled += pp;
-            r.sq_vel_settled += vv;
-            for (int i = 0; i < n; ++i) {
-                t1[i] += e[i];
-                t2[i] += e[i] * e[i];
-            }
-        }
-        const double* y = tr.y.data() + s * m;
-        r.hash = compare_hash(r.hash, y, sizeof(double) * m);  // the stream offered to this filter
-        if (r.diverged_at >= 0) continue;  // frozen at its last finite estimate, counted as diverged
-        auto c0 = std::chrono::steady_clock::now();
-        FilterStatus st = f.step(FilterInput{y, t, s, x});
-        seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-        if (st != FILTER_OK) r.diverged_at = t;
-    }
-    r.seconds = seconds;
-    r.ratio = num / den;
-    const double cnt = double(steps);
-    r.sq_pos /= cnt;
-    r.sq_vel /= cnt;
-    r.sq_pos_settled = settled > 0 ? r.sq_pos_settled / settled : NAN;
-    r.sq_vel_settled = settled > 0 ? r.sq_vel_settled / settled : NAN;
+    r.diverged_at = s.diverged_at;
+    r.ratio = s.error_energy / s.signal_energy;
+    const double cnt = double(steps), settled = s.settled_steps;
+    r.sq_pos = s.sq_pos / cnt;
+    r.sq_vel = s.sq_vel / cnt;
+    r.sq_pos_settled = settled > 0 ? s.sq_pos_settled / settled : NAN;
+    r.sq_vel_settled = settled > 0 ? s.sq_vel_settled / settled : NAN;
     r.mean.resize(n);
     r.sd.resize(n);
     r.mean_settled.resize(n);
     r.sd_settled.resize(n);
     for (int i = 0; i < n; ++i) {
-        r.mean[i] = s1[i] / cnt;
-        r.sd[i] = std::sqrt(std::max(0.0, s2[i] / cnt - r.mean[i] * r.mean[i]));
-        r.mean_settled[i] = settled > 0 ? t1[i] / settled : NAN;
-        r.sd_settled[i] = settled > 0 ? std::sqrt(std::max(0.0, t2[i] / settled - r.mean_settled[i] * r.mean_settled[i])) : NAN;
+        r.mean[i] = s.err_sum[i] / cnt;
+        r.sd[i] = std::sqrt(std::max(0.0, s.err_sq[i] / cnt - r.mean[i] * r.mean[i]));
+        r.mean_settled[i] = settled > 0 ? s.err_sum_settled[i] / settled : NAN;
+        r.sd_settled[i] = settled > 0 ? std::sqrt(std::max(0.0, s.err_sq_settled[i] / settled -
+                                                                      r.mean_settled[i] * r.mean_settled[i]))
+                                      : NAN;
     }
     return r;
 }
@@ -220,64 +75,52 @@ std::string hex(std::uint64_t h) {
 
 CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                            const CompareOptions& opt) {
-    HINF_CHECK(!filters.empty(), "compare: no filters to compare (--filters)");
-    HINF_CHECK(opt.runs >= 1, "compare: --runs must be >= 1");
     auto t0 = std::chrono::steady_clock::now();
     const int n = cfg.n, F = static_cast<int>(filters.size());
-    const double tf = opt.until >= 0 ? std::min(opt.until, cfg.t_final) : cfg.t_final;
-    const std::int64_t steps = static_cast<std::int64_t>(std::llround(tf / cfg.dt));
-    HINF_CHECK(steps >= 1, "compare: --until " + std::to_string(tf) + " s is shorter than one time step");
+    const std::int64_t steps = cfg.steps_until(opt.until);
+    const double tf = cfg.final_time(opt.until);
     const std::int64_t stride = std::max<std::int64_t>(1, (steps + 999) / 1000), nsub = (steps + stride - 1) / stride;
     const std::int64_t R = opt.runs;
 
-    std::vector<std::vector<FilterRun>> res(F, std::vector<FilterRun>(R));
-    std::vector<std::uint64_t> truth_hash(R);
-    Truth truth0;
-    Progress progress("compare", 0, R, opt.quiet);
-    std::int64_t done = 0;
-#pragma omp parallel
-    {
-        std::vector<std::unique_ptr<OnlineFilter>> local;
-        for (const OnlineFilter* f : filters) local.push_back(f->clone());
-#pragma omp for schedule(dynamic)
-        for (std::int64_t r = 0; r < R; ++r) {
-            Truth tr = simulate_truth(cfg, opt.scenario, r, steps);
-            truth_hash[r] = compare_hash(compare_hash_start, tr.y.data(), sizeof(double) * tr.y.size());
-            for (int k = 0; k < F; ++k) res[k][r] = run_filter(cfg, *local[k], tr, std::uint64_t(r), steps, stride, r == 0);
-            if (r == 0) truth0 = std::move(tr);
-#pragma omp critical
-            progress.update(++done, "runs |");
-        }
-    }
+    EngineOptions eo;
+    eo.runs = R;
+    eo.steps = steps;
+    eo.stride = stride;
+    eo.scenario = opt.scenario;
+    eo.label = "compare";
+    eo.quiet = opt.quiet;
+    EngineResult er = engine_run(cfg, filters, eo);
+    const TruthRun& truth0 = er.truth0;
     CompareSummary sum;
     sum.scenario = opt.scenario.name;
     sum.runs = R;
     sum.steps = steps;
-    sum.truth_stream_hash = compare_hash_start;
-    for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = compare_hash(sum.truth_stream_hash, &truth_hash[r], 8);
+    sum.truth_stream_hash = hash_start;
+    for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = hash_bytes(sum.truth_stream_hash, &er.truth_hash[r], 8);
 
     std::filesystem::create_directories(opt.out_dir);
     const std::string path = opt.out_dir + "/compare.h5";
     h5::Handle file = h5::create_file(path + ".tmp");
     hid_t root = file.get();
-    std::vector<double> tt(steps), tsub(nsub);
-    for (std::int64_t s = 0; s < steps; ++s) tt[s] = double(s) * cfg.dt;
-    for (std::int64_t s = 0; s < nsub; ++s) tsub[s] = double(s * stride) * cfg.dt;
+    const std::vector<double>& tt = er.t;
+    std::vector<double> tsub(nsub);
+    for (std::int64_t s = 0; s < nsub; ++s) tsub[s] = cfg.time_of(s * stride);
 
     for (int k = 0; k < F; ++k) {
         CompareFilterResult fr;
         fr.name = filters[k]->name();
         fr.mode = filters[k]->uses_true_state() ? "oracle" : "measured";
-        std::vector<FilterRun>& runs = res[k];
+        std::vector<FilterRun> runs(R);
+        for (std::int64_t r = 0; r < R; ++r) runs[r] = reduce_run(er.runs[k][r], steps, n);
         std::vector<double> ratio_all(R), diverged_at(R);
         double secs = 0;
-        fr.stream_hash = compare_hash_start;
+        fr.stream_hash = hash_start;
         std::vector<std::int64_t> kept;
         for (std::int64_t r = 0; r < R; ++r) {
             diverged_at[r] = runs[r].diverged_at;
             ratio_all[r] = runs[r].diverged_at >= 0 ? INFINITY : runs[r].ratio;
-            secs += runs[r].seconds;
-            fr.stream_hash = compare_hash(fr.stream_hash, &runs[r].hash, 8);
+            secs += er.runs[k][r].seconds;
+            fr.stream_hash = hash_bytes(fr.stream_hash, &er.runs[k][r].stream_hash, 8);
             if (runs[r].diverged_at >= 0) ++fr.diverged_runs;
             else kept.push_back(r);
         }
@@ -314,8 +157,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         for (std::int64_t j = 0; j < nsub * n; ++j) {
             double s1 = 0, s2 = 0;
             for (std::int64_t r : kept) {
-                s1 += runs[r].err_sub[j];
-                s2 += runs[r].err_sub[j] * runs[r].err_sub[j];
+                const double ej = er.runs[k][r].err_sub[j];
+                s1 += ej;
+                s2 += ej * ej;
             }
             const double c = double(kept.size());
             emt[j] = c > 0 ? s1 / c : NAN;
@@ -353,7 +197,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
                           "mean over kept runs of x - x^ at t_sub");
         h5::write_doubles(gid, "error_std_t", est.data(), {hsize_t(nsub), hn}, "state units",
                           "std over kept runs of x - x^ at t_sub");
-        h5::write_doubles(gid, "xhat", runs[0].xhat.data(), {hsize_t(steps), hn}, "state units", "estimate, run 0");
+        h5::write_doubles(gid, "xhat", er.runs[k][0].xhat.data(), {hsize_t(steps), hn}, "state units", "estimate, run 0");
         sum.filters.push_back(fr);
     }
     std::string names;

@@ -8,29 +8,15 @@
 #include <vector>
 
 #include "filters/filter.hpp"
-#include "config/run_config.hpp"
+#include "sim/truth.hpp"
 
 namespace hinf {
-
-/// What differs from the nominal protocol (seed 000 Section IV: v, n ~ std N(0, 1), statistics known).
-struct CompareScenario {
-    std::string name = "nominal";
-    double told_disturbance_factor = 1.0;  // EKF/UKF/PF are told sv^2 x this (cov_small, v_cov_small: 0.1; *_large: 10)
-    double told_noise_factor = 1.0;        // ... and sn^2 x this (cov_small, n_cov_small: 0.1; *_large: 10)
-    bool student_t = false;             // n = std * t_3 / sqrt(3): heavy tails, same variance
-    double noise_bias = 0.0;            // n = std * (N(0,1) + noise_bias) on every channel
-    bool energy_pulse = false;          // v = std sqrt(T / 5 s) on [20 s, 25 s), 0 elsewhere (same energy as white v)
-};
-/// nominal, cov_small, cov_large, v_cov_small, v_cov_large, n_cov_small, n_cov_large, student_t, bias,
-/// energy_pulse; throws on anything else.
-CompareScenario compare_scenario(const std::string& name);
-std::vector<std::string> compare_scenario_names();
 
 struct CompareOptions {
     std::string out_dir = "runs/out/compare";
     std::int64_t runs = 50;
     double until = -1;  // < 0: t_final
-    CompareScenario scenario;
+    Scenario scenario;
     bool quiet = false;
 };
 
@@ -59,9 +45,5 @@ struct CompareSummary {
 /// out_dir/compare.h5 and out_dir/compare.csv. OpenMP over runs; results do not depend on the thread count.
 CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                            const CompareOptions& opt);
-
-/// FNV-1a 64 over bytes, continuing from h (start with compare_hash_start).
-constexpr std::uint64_t compare_hash_start = 1469598103934665603ull;
-std::uint64_t compare_hash(std::uint64_t h, const void* data, std::size_t bytes);
 
 }  // namespace hinf

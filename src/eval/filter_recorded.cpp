@@ -3,12 +3,15 @@
 // `xhat_final` the estimate of x(t_{K-1} + dt) after the last measurement.
 #include "eval/filter_recorded.hpp"
 
+#include "eval/engine.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
+#include "eval/engine.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/progress.hpp"
@@ -81,32 +84,28 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         f->reset(start);
         p.has_cov = f->covariance() != nullptr;
         std::vector<double> c(m);
-        double seconds = 0;
         std::int64_t used = 0;
         Progress progress("filter " + r.name, 0, K, opt.quiet);
-        for (std::int64_t k = 0; k < K; ++k) {
-            const double* xh = f->estimate();
+        StreamResult sr = filter_stream(*f, ms.y.data(), m, ms.t.data(), K, nullptr, n,
+                                        [&](std::int64_t k, const double* xh, bool frozen) {
             p.xhat.insert(p.xhat.end(), xh, xh + n);
             if (p.has_cov) {
                 const double* P = f->covariance();
                 p.P.insert(p.P.end(), P, P + std::size_t(n) * n);
             }
-            const double t = ms.t[k];
             const double* y = ms.y.data() + k * m;
-            sys.measurement(c.data(), xh, t, 1);
+            sys.measurement(c.data(), xh, ms.t[k], 1);
             for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);
-            if (r.diverged_at >= 0) continue;  // frozen at its last finite estimate
+            if (frozen) return;  // frozen at its last finite estimate
             for (int j = 0; j < m; ++j) {
                 r.innovation_mean[j] += y[j] - c[j];
                 r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
             }
             ++used;
-            auto c0 = std::chrono::steady_clock::now();
-            FilterStatus st = f->step(FilterInput{y, t, k, nullptr});
-            seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-            if (st != FILTER_OK) r.diverged_at = t;
             if (k % 1000 == 999) progress.update(k + 1, "");
-        }
+        });
+        r.diverged_at = sr.diverged_at;
+        const double seconds = sr.seconds;
         p.xhat_final.assign(f->estimate(), f->estimate() + n);
         for (int j = 0; j < m; ++j) {
             r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));

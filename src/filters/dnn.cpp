@@ -1,5 +1,5 @@
 // DNN filter adapter (seed 000 eq. (19), Fig. 3 on-line phase) over any frozen network and gain law.
-// The Euler step and the order of operations are those of eval/operate.cpp, which uses this adapter.
+// The trainer advances x^ through the same luenberger_advance (filters/gain_law.hpp).
 #include "filters/dnn.hpp"
 
 #include <Eigen/Dense>
@@ -55,11 +55,7 @@ public:
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;  // the estimate stays frozen at its last value
-        for (int i = 0; i < n; ++i) {
-            double ke = 0;
-            for (int j = 0; j < m; ++j) ke += k[i * m + j] * e[j];
-            xhat_[i] += model_.dt * (a[i] + ke);
-        }
+        luenberger_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt);
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }

@@ -8,6 +8,10 @@
 #include "filters/glf.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
+#include "filters/ekf.hpp"
+#include "filters/open_loop.hpp"
+#include "filters/pf.hpp"
+#include "filters/ukf.hpp"
 
 namespace hinf {
 
@@ -20,26 +24,57 @@ std::vector<std::string> split_list(const std::string& s) {
     return out;
 }
 
+namespace {
+
+// Filters built from the told model alone: name -> maker. dnn and glf need more (networks, an LMI design).
+struct SimpleFilter {
+    const char* name;
+    std::unique_ptr<OnlineFilter> (*make)(const FilterSetArgs& a, const FilterModel& told, const FilterModel& exact);
+};
+const SimpleFilter kSimpleFilters[] = {
+    {"ekf", [](const FilterSetArgs&, const FilterModel& told, const FilterModel&) { return make_ekf(told); }},
+    {"ukf", [](const FilterSetArgs&, const FilterModel& told, const FilterModel&) { return make_ukf(told); }},
+    {"pf",
+     [](const FilterSetArgs& a, const FilterModel& told, const FilterModel&) {
+         return make_particle_filter(told, a.particles, 0.5, a.roughening);
+     }},
+    {"open_loop",
+     [](const FilterSetArgs&, const FilterModel&, const FilterModel& exact) { return make_open_loop_filter(exact); }},
+};
+
+}  // namespace
+
+std::string filter_names() {
+    std::string all;
+    for (const SimpleFilter& f : kSimpleFilters) all += std::string(all.empty() ? "" : ", ") + f.name;
+    return all + ", glf, dnn";
+}
+
 FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,
                            const FilterModel& exact) {
     FilterSet set;
     auto& owned = set.filters;
     for (const std::string& name : split_list(a.filters)) {
-        if (name == "ekf") owned.push_back(make_ekf(told));
-        else if (name == "ukf") owned.push_back(make_ukf(told));
-        else if (name == "pf") owned.push_back(make_particle_filter(told, a.particles, 0.5, a.roughening));
-        else if (name == "open_loop") owned.push_back(make_open_loop_filter(exact));
+        const SimpleFilter* simple = nullptr;
+        for (const SimpleFilter& f : kSimpleFilters)
+            if (name == f.name) simple = &f;
+        if (simple != nullptr) owned.push_back(simple->make(a, told, exact));
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
             GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, cfg.rho);
             HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
                                  " (try another --glf-vertices, or drop glf)");
-            std::printf("glf: %d vertices at t =", g.vertices);
-            for (double t : g.vertex_times) std::printf(" %.4g", t);
-            std::printf(" s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; %s\n", g.rho, g.status.c_str());
+            char note[160];
+            std::snprintf(note, sizeof note, "glf: %d vertices at t =", g.vertices);
+            std::string line = note;
+            for (double t : g.vertex_times) {
+                std::snprintf(note, sizeof note, " %.4g", t);
+                line += note;
+            }
+            std::snprintf(note, sizeof note, " s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; ", g.rho);
+            set.notes.push_back(line + note + g.status);
             owned.push_back(make_glf_filter(exact, g));
-        } else if (name == "dnn") {
-            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+        } else if (name == "dnn") {            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
                 std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
@@ -58,9 +93,9 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 set.networks.push_back(std::move(net));
             }
         } else
-            HINF_FAIL("--filters: unknown filter '" + name + "' (use dnn, ekf, ukf, pf, open_loop, glf)");
+            HINF_FAIL("--filters: unknown filter '" + name + "' (use " + filter_names() + ")");
     }
-    HINF_CHECK(!owned.empty(), "--filters: no filter named (use dnn, ekf, ukf, pf, open_loop, glf)");
+    HINF_CHECK(!owned.empty(), "--filters: no filter named (use " + filter_names() + ")");
     return set;
 }
 

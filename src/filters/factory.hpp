@@ -24,7 +24,11 @@ struct FilterSetArgs {
 struct FilterSet {
     std::vector<std::unique_ptr<OnlineFilter>> filters;
     std::vector<std::unique_ptr<FrozenNetwork>> networks;  // owned here: the dnn filters hold clones
+    std::vector<std::string> notes;                         // what a design step found (GLF vertices), to print
 };
+
+/// The names build_filter_set knows, comma-separated.
+std::string filter_names();
 
 std::vector<std::string> split_list(const std::string& s);
 

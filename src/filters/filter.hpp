@@ -11,12 +11,13 @@
 #include <string>
 #include <vector>
 
+#include "config/run_config.hpp"
 #include "models/system.hpp"
 
 namespace hinf {
 
 /// The discrete model x_{k+1} = x_k + dt (A(x_k) + B(x_k) v_k), y_k = C(x_k) + n_k with v_k ~ N(0, sv^2 I),
-/// n_k ~ N(0, sn^2 I): the Euler step the truth is simulated with (eval/operate.cpp). The statistics are
+/// n_k ~ N(0, sn^2 I): the Euler step the truth is simulated with (sim/truth.cpp, models/system_advance). The statistics are
 /// what the filter is *told*; robustness scenarios tell it wrong ones.
 struct FilterModel {
     const System* system = nullptr;
@@ -24,6 +25,11 @@ struct FilterModel {
     double disturbance_std = 20.0;  // sv
     double noise_std = 20.0;        // sn
 };
+
+/// The exact model of cfg: its system, dt and the [online] statistics.
+inline FilterModel filter_model(const RunConfig& cfg) {
+    return FilterModel{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+}
 
 struct FilterStart {
     std::vector<double> xhat0;  // [n] initial estimate (the same for every filter)
@@ -67,17 +73,5 @@ inline bool filter_estimate_ok(const double* x, int n) {
         if (!(x[i] == x[i]) || x[i] >= 1e12 || x[i] <= -1e12) return false;
     return true;
 }
-
-/// The open-loop predictor: x^_{k+1} = x^_k + dt A(x^_k), measurements ignored (gain zero).
-std::unique_ptr<OnlineFilter> make_open_loop_filter(const FilterModel& model);
-/// Extended Kalman filter on the discrete model, with the system's analytic Jacobians.
-std::unique_ptr<OnlineFilter> make_ekf(const FilterModel& model);
-/// Unscented Kalman filter (additive noise; alpha = 1, beta = 2, kappa = 0).
-std::unique_ptr<OnlineFilter> make_ukf(const FilterModel& model);
-/// Bootstrap particle filter: log-weights, systematic resampling when ESS < ess_fraction * particles;
-/// roughening K > 0 jitters the resampled particles by K E_i N^(-1/n) N(0,1) per state (E_i: the cloud's
-/// range; Gordon, Salmond & Smith 1993), against sample impoverishment. K = 0: the plain bootstrap filter.
-std::unique_ptr<OnlineFilter> make_particle_filter(const FilterModel& model, std::int64_t particles,
-                                                   double ess_fraction = 0.5, double roughening = 0.0);
 
 }  // namespace hinf

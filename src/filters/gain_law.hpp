@@ -5,6 +5,8 @@
 #include <cmath>
 #include <vector>
 
+#include "models/system.hpp"
+
 namespace hinf {
 
 inline double quadratic_form(const double* Q, const double* x, int n) {
@@ -56,5 +58,22 @@ inline WorstCase worst_case(const double* p, const double* B, const double* dc, 
     }
     return w;
 }
+
+/// The sampled-data filter step every gain-driven filter shares (seed 000 eq. (19)):
+/// x^_next = x^ + dt (A(x^) + k e), with a_hat = A(x^, t) [n], k [n x m], e = y - C(x^) [m]. x^_next may alias x^.
+inline void luenberger_advance(double* xhat_next, const double* xhat, const double* a_hat, const double* k,
+                               const double* e, int n, int m, double dt) {
+    for (int i = 0; i < n; ++i) {
+        double ke = 0;
+        for (int j = 0; j < m; ++j) ke += k[i * m + j] * e[j];
+        xhat_next[i] = xhat[i] + dt * (a_hat[i] + ke);
+    }
+}
+
+/// The four terms of the HJIE (seed 000 eq. (16)) at one point: p = dV/dx~ at x~ = x - x^, with dA = A(x) - A(x^),
+/// B(x), dC = C(x) - C(x^), x~'Q x~ (kern::hjie_terms). Their sum is the residual; the sum of their absolute
+/// values is its scale S. Used by the trainer's record and the on-line HJI check.
+void hjie_point_terms(double* terms, const double* p, const System& sys, const double* x, const double* xhat,
+                      double t, const double* Q, double rho);
 
 }  // namespace hinf

@@ -3,6 +3,8 @@
 // at the unit vectors, as src/lmi/delay_lmi.cpp does.
 #include "filters/glf.hpp"
 
+#include "filters/gain_law.hpp"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -68,14 +70,11 @@ public:
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
         const int n = sys.state_dim(), m = sys.output_dim();
-        std::vector<double> a(n), c(m), next(n);
+        std::vector<double> a(n), c(m), e(m), next(n);
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(c.data(), xhat_.data(), in.t, 1);
-        for (int i = 0; i < n; ++i) {
-            double le = 0;
-            for (int j = 0; j < m; ++j) le += gain_[i * m + j] * (in.y[j] - c[j]);
-            next[i] = xhat_[i] + model_.dt * (a[i] + le);
-        }
+        for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[j];
+        luenberger_advance(next.data(), xhat_.data(), a.data(), gain_.data(), e.data(), n, m, model_.dt);
         if (!filter_estimate_ok(next.data(), n)) return FILTER_DIVERGED;
         xhat_ = next;
         return FILTER_OK;

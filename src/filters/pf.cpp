@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "filters/filter.hpp"
+#include "filters/pf.hpp"
 #include "hinf/error.hpp"
 #include "random.hpp"
 

@@ -40,6 +40,15 @@ public:
 /// Empty when there is no such unit.
 std::vector<int> state_unit_group(const System& sys, int group);
 
+/// The one step the truth, every filter and the trainer share (seed 000 eq. (18)):
+/// x_next = x + dt (A(x, t) + B(x, t) v), forward Euler, for a batch x [count x n], v [count x nv] (nullptr: v = 0).
+/// x_next may alias x.
+void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,
+                    std::int64_t count = 1);
+/// Its Jacobians at (x, v = 0): F [n x n] = d x_next / dx = I + dt dA/dx, G [n x nv] = d x_next / dv = dt B(x, t).
+/// Either pointer may be nullptr.
+void system_advance_jacobian(const System& sys, double* F, double* G, const double* x, double t, double dt);
+
 /// Builds the system named by [system] kind in the config (checks every key of [system]).
 std::unique_ptr<System> make_system(const ConfigDoc& doc);
 

@@ -21,6 +21,11 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     sc.shape.sizes.push_back(kern::head_outputs(sc.head.kind, cfg.n));
     sc.shape.slope_positive = cfg.slope_positive;
     sc.shape.slope_negative = cfg.slope_negative;
+    // the GEMM kernels sum in different orders: the choice is part of the run (and of its checkpoint's config)
+    sc.shape.gemm = cfg.gemm == "own"        ? kern::GEMM_OWN
+                    : cfg.gemm == "openblas" ? kern::GEMM_OPENBLAS
+                    : cfg.gemm == "eigen"    ? kern::GEMM_EIGEN
+                                             : kern::default_gemm_path();
     sc.objective = paper ? kern::HJIE_OBJECTIVE_PAPER : kern::HJIE_OBJECTIVE_DISSIPATIVE;
     sc.hjie.rho = cfg.rho;
     sc.hjie.game = cfg.type == "h2hinf" ? kern::HJIE_GAME_MIXED : kern::HJIE_GAME_HINF;

@@ -16,7 +16,7 @@ void samples_build(TimeStepSamples* s, const RunConfig& cfg, const std::vector<d
                    const std::vector<double>& xhat, std::int64_t step) {
     const int n = cfg.n, nv = cfg.nv, m = cfg.m;
     const std::int64_t N = cfg.samples;
-    const double t = double(step) * cfg.dt;
+    const double t = cfg.time_of(step);
     const System& sys = *cfg.system;
     s->n = n;
     s->nv = nv;

@@ -24,9 +24,10 @@ namespace hinf {
 
 namespace {
 
+// The trajectory columns of a config: one list, used to create, reopen (resume, roll-back) and fill the file.
 std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
     const int n = c.n, m = c.m, nv = c.nv;
-    return {
+    std::vector<TrajectoryColumn> cols = {
         {"t", 1, "s", "time of the row"},
         {"x", n, "state units", "true state x(t) (training: driven by the worst-case v*)"},
         {"xhat", n, "state units", "estimate x^(t)"},
@@ -44,12 +45,10 @@ std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
         {"hji_positive_fraction", 1, "1", "share of samples with HJIE_i > 0"},
         {"cosine_mean", 1, "1", "mean over samples of p_i^T x~_i / (|p_i| |x~_i|)"},
     };
-}
-
-// The mixed H2/H-infinity filter (seed 001) adds its second residual and the consistency check of
-// eqs. (21)-(23): x~ propagated by (23) against x - x^ propagated by (21) and (22).
-std::vector<TrajectoryColumn> mixed_columns() {
-    return {
+    if (c.type != "h2hinf") return cols;
+    // The mixed H2/H-infinity filter (seed 001) adds its second residual and the consistency check of
+    // eqs. (21)-(23): x~ propagated by (23) against x - x^ propagated by (21) and (22).
+    std::vector<TrajectoryColumn> mixed = {
         {"hjie2_residual", 1, "V per s", "second coupled HJIE residual of seed 001 eq. (20) at x~(t)"},
         {"hjie2_rel_residual_median", 1, "1", "median over the N samples of |eps2_i| / S2_i after the K steps"},
         {"hjie2_rel_residual_p95", 1, "1", "95th percentile of |eps2_i| / S2_i"},
@@ -59,14 +58,51 @@ std::vector<TrajectoryColumn> mixed_columns() {
         {"consistency_gap_printed", 1, "state units",
          "the same gap with n* = +l*^T p/(2 r^2) (eq. (11)) and +h l (h(x)-h(x^)) in eq. (23) as printed"},
     };
-}
-
-std::vector<TrajectoryColumn> all_columns(const RunConfig& c) {
-    std::vector<TrajectoryColumn> cols = trajectory_columns(c);
-    if (c.type == "h2hinf")
-        for (const TrajectoryColumn& col : mixed_columns()) cols.push_back(col);
+    cols.insert(cols.end(), mixed.begin(), mixed.end());
     return cols;
 }
+
+// What one time step gives: a plain record, turned into a trajectory row by record_row.
+struct StepRecord {
+    double t = 0;
+    std::vector<double> x, xhat, xtilde, y, gain, v_star, n_star, p;
+    double loss_first = 0, loss_last = 0;
+    double residual = 0, rel_median = 0, rel_p95 = 0, violation = 0, positive = 0, cosine = 0;
+    // seed 001 only
+    double residual2 = 0, rel_median2 = 0, rel_p95_2 = 0, violation2 = 0, gap = 0, gap_printed = 0;
+};
+
+// One row of the trajectory file, holding exactly the columns of trajectory_columns(c).
+std::map<std::string, std::vector<double>> record_row(const StepRecord& r, const RunConfig& c) {
+    std::map<std::string, std::vector<double>> row = {
+        {"t", {r.t}},
+        {"x", r.x},
+        {"xhat", r.xhat},
+        {"xtilde", r.xtilde},
+        {"y", r.y},
+        {"gain", r.gain},
+        {"v_star", r.v_star},
+        {"n_star", r.n_star},
+        {"p", r.p},
+        {"loss", {r.loss_first, r.loss_last}},
+        {"hjie_residual", {r.residual}},
+        {"hjie_rel_residual_median", {r.rel_median}},
+        {"hjie_rel_residual_p95", {r.rel_p95}},
+        {"hji_violation_fraction", {r.violation}},
+        {"hji_positive_fraction", {r.positive}},
+        {"cosine_mean", {r.cosine}},
+    };
+    if (c.type == "h2hinf") {
+        row["hjie2_residual"] = {r.residual2};
+        row["hjie2_rel_residual_median"] = {r.rel_median2};
+        row["hjie2_rel_residual_p95"] = {r.rel_p95_2};
+        row["hji2_violation_fraction"] = {r.violation2};
+        row["consistency_gap"] = {r.gap};
+        row["consistency_gap_printed"] = {r.gap_printed};
+    }
+    return row;
+}
+
 
 // max_j |a_j - b_j|
 double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) {
@@ -109,7 +145,7 @@ public:
         ck_.state.xhat = cfg_.xhat0;
         ck_.config_text = cfg_.doc.text();
         std::filesystem::create_directories(dir_);
-        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", all_columns(cfg_),
+        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
                                          {{"format", "hinf-trajectory"},
                                           {"filter_type", cfg_.type},
                                           {"variant", cfg_.variant},
@@ -119,7 +155,7 @@ public:
 
     void start_from(Checkpoint<T> ck) {
         ck_ = std::move(ck);
-        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", all_columns(cfg_), hsize_t(ck_.state.step));
+        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -134,6 +170,8 @@ public:
         perm_.resize(N);
         p_all_.resize(N * n);
         P_all_.resize(N * n * n);
+        vals_.resize(N);
+        cos_.resize(N);
         ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
 
         Progress progress("train", ck_.state.step, last_step, quiet);
@@ -141,28 +179,28 @@ public:
         std::vector<double> medians, medians2;
         sum.mixed = cfg_.type == "h2hinf";
         std::int64_t rollbacks = 0;
+        StepRecord rec;
         while (ck_.state.step < last_step) {
-            if (!time_step()) {
+            if (!time_step(&rec)) {
                 if (cfg_.on_divergence == "rollback" && rollbacks < cfg_.max_rollbacks && roll_back(++rollbacks))
                     continue;
                 sum.status = 4;
                 break;
             }
             ++ck_.state.step;
-            medians.push_back(rec_rel_median_);
-            sum.fraction_steps_rel_ok += rec_rel_median_ <= 0.01 ? 1 : 0;
-            sum.fraction_steps_violation_ok += rec_violation_ <= 0.01 ? 1 : 0;
-            sum.mean_cosine += rec_cosine_;
-            medians2.push_back(rec_rel_median2_);
-            sum.fraction_steps_violation2_ok += rec_violation2_ <= 0.01 ? 1 : 0;
-            sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec_gap_);
-            sum.max_consistency_gap_printed = std::max(sum.max_consistency_gap_printed, rec_gap_printed_);
-            sum.final_loss = rec_loss_last_;
+            medians.push_back(rec.rel_median);
+            sum.fraction_steps_rel_ok += rec.rel_median <= 0.01 ? 1 : 0;
+            sum.fraction_steps_violation_ok += rec.violation <= 0.01 ? 1 : 0;
+            sum.mean_cosine += rec.cosine;
+            medians2.push_back(rec.rel_median2);
+            sum.fraction_steps_violation2_ok += rec.violation2 <= 0.01 ? 1 : 0;
+            sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec.gap);
+            sum.max_consistency_gap_printed = std::max(sum.max_consistency_gap_printed, rec.gap_printed);
+            sum.final_loss = rec.loss_last;
             if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) checkpoint();
             char detail[160];
-            std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |", 
-                          double(ck_.state.step) * cfg_.dt, rec_loss_first_, rec_loss_last_, rec_rel_median_,
-                          rec_violation_);
+            std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |",
+                          cfg_.time_of(ck_.state.step), rec.loss_first, rec.loss_last, rec.rel_median, rec.violation);
             progress.update(ck_.state.step, detail);
         }
         sum.last_step = ck_.state.step;
@@ -179,25 +217,24 @@ public:
     }
 
 private:
-    // One time step of the offline phase; false on numerical trouble (diagnostic printed).
-    bool time_step() {
-        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
-        const std::int64_t N = cfg_.samples, step = ck_.state.step;
-        const double t = double(step) * cfg_.dt;
-        const System& sys = *cfg_.system;
-        std::vector<double>& x = ck_.state.x;
-        std::vector<double>& xhat = ck_.state.xhat;
-        std::vector<double> xtilde(n);
-        for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
+    // One time step of the offline phase (DESIGN.md, docs/architecture.md): four named phases filling one record,
+    // which becomes one trajectory row. false on numerical trouble (diagnostic printed).
+    bool time_step(StepRecord* rec) {
+        const std::int64_t step = ck_.state.step;
+        *rec = StepRecord();
+        rec->t = cfg_.time_of(step);
+        // 1. N samples around x~(t), and their constants (independent of the weights: once per time step)
+        samples_build(&smp_, cfg_, ck_.state.x, ck_.state.xhat, step);
+        // 2. K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
+        if (!adam_phase(rec, step)) return false;
+        // 3. residual statistics over all N samples after the K steps
+        if (!residual_statistics(rec, step)) return false;
+        // 4. p at x~(t), gain k*, worst case v*, n* (eqs. (6)-(8)), then eqs. (18)-(20)
+        return advance_state(rec, step);
+    }
 
-        // N samples around x~(t), and their constants (independent of the weights: once per time step)
-        samples_build(&smp_, cfg_, x, xhat, step);
-        const std::vector<double>& a_hat = smp_.a_hat;
-        const std::vector<double>& c_hat = smp_.c_hat;
-        const std::vector<double>& xt_ = smp_.xt;
+    bool adam_phase(StepRecord* rec, std::int64_t step) {
         const kern::HjieSystemView view = smp_.view();
-
-        // K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
         kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
         if (cfg_.reset_adam) {
             std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
@@ -205,11 +242,12 @@ private:
             ck_.state.adam_step = 0;
         }
         for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
-            kern::sample_minibatch(idx_.data(), int(cfg_.batch), N, cfg_.seed, step, k, work_.data(), perm_.data());
+            kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
+                                   perm_.data());
             kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
                                                    int(cfg_.batch), ck_.net.step, ws_);
-            if (k == 1) rec_loss_first_ = L.loss;
-            if (k == cfg_.adam_steps) rec_loss_last_ = L.loss;
+            if (k == 1) rec->loss_first = L.loss;
+            if (k == cfg_.adam_steps) rec->loss_last = L.loss;
             // the limit applies once this step's updates have acted: the first loss of a time step
             // measures the old weights on new samples, which a roll-back could not change
             if (!std::isfinite(L.loss) || (k > 1 && L.loss > cfg_.loss_limit)) {
@@ -220,25 +258,26 @@ private:
             kern::adam_update(ck_.net.theta.data(), ck_.adam_m.data(), ck_.adam_v.data(), grad_.data(),
                               std::int64_t(grad_.size()), ck_.state.adam_step, ap);
         }
-
         if (!all_finite_t(ck_.net.theta)) {
             diagnose(step, "network weights", NAN);
             return false;
         }
+        return true;
+    }
 
-        // residual statistics over all N samples after the K steps
-        kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), xt_.data(), N, ck_.net.step, ws_);
+    bool residual_statistics(StepRecord* rec, std::int64_t step) {
+        const int n = cfg_.n;
+        const std::int64_t N = cfg_.samples;
+        const kern::HjieSystemView view = smp_.view();
+        kern::network_eval(p_all_.data(), P_all_.data(), ck_.net.theta.data(), smp_.xt.data(), N, ck_.net.step, ws_);
         std::vector<double> rel(N), rel2(N);
-        double viol2 = 0;
-        double viol = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
+        double viol = 0, viol2 = 0, pos = 0, cos_sum = 0, loss_hinge = 0, loss_h2 = 0;
         // per-sample values over threads, then every sum in sample order (bits independent of threads)
-        vals_.resize(N);
-        cos_.resize(N);
 #pragma omp parallel for schedule(static)
         for (std::int64_t i = 0; i < N; ++i) {
             vals_[i] = kern::hjie_sample_forward(p_all_.data() + i * n, P_all_.data() + i * n * n, view, i,
                                                  ck_.net.step.hjie, ck_.net.step.objective);
-            cos_[i] = cosine(p_all_.data() + i * n, xt_.data() + i * n, n);
+            cos_[i] = cosine(p_all_.data() + i * n, smp_.xt.data() + i * n, n);
         }
         for (std::int64_t i = 0; i < N; ++i) {
             const kern::HjieSampleValue& v = vals_[i];
@@ -251,96 +290,84 @@ private:
             loss_hinge += v.hinge;
             loss_h2 += v.h2;
         }
-        const double loss_after = std::sqrt(loss_hinge / double(N)) +
-                                  (ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0) *
-                                      loss_h2 / double(N);
+        const double h2_weight =
+            ck_.net.step.objective == kern::HJIE_OBJECTIVE_DISSIPATIVE ? ck_.net.step.hjie.h2_weight : 0;
+        const double loss_after = std::sqrt(loss_hinge / double(N)) + h2_weight * loss_h2 / double(N);
         if (!std::isfinite(loss_after) || loss_after > cfg_.loss_limit) {  // before it reaches a checkpoint
             diagnose(step, "training loss after the Adam steps", loss_after);
             return false;
         }
-        rec_rel_median_ = percentile(rel, 0.5);
-        rec_violation_ = viol / double(N);
-        rec_cosine_ = cos_sum / double(N);
-        rec_rel_median2_ = percentile(rel2, 0.5);
-        rec_violation2_ = viol2 / double(N);
+        rec->rel_median = percentile(rel, 0.5);
+        rec->rel_p95 = percentile(rel, 0.95);
+        rec->violation = viol / double(N);
+        rec->positive = pos / double(N);
+        rec->cosine = cos_sum / double(N);
+        rec->rel_median2 = percentile(rel2, 0.5);
+        rec->rel_p95_2 = percentile(rel2, 0.95);
+        rec->violation2 = viol2 / double(N);
+        return true;
+    }
 
-        // p at x~(t), gain k*, worst case v*, n* (eqs. (6)-(8)), then eqs. (18)-(20)
+    bool advance_state(StepRecord* rec, std::int64_t step) {
+        const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
+        const double t = rec->t;
+        const System& sys = *cfg_.system;
+        std::vector<double>& x = ck_.state.x;
+        std::vector<double>& xhat = ck_.state.xhat;
+        std::vector<double> xtilde(n);
+        for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
         std::vector<double> p(n), Pm(n * n);
         kern::network_eval(p.data(), Pm.data(), ck_.net.theta.data(), xtilde.data(), 1, ck_.net.step, ws_);
-        std::vector<double> c_x(m), dc(m), a_x(n), B(n * nv);
+        std::vector<double> c_x(m), dc(m), B(n * nv);
         sys.measurement(c_x.data(), x.data(), t, 1);
-        sys.drift(a_x.data(), x.data(), t, 1);
         sys.disturbance_gain(B.data(), x.data(), t, 1);
-        for (int j = 0; j < m; ++j) dc[j] = c_x[j] - c_hat[j];
+        for (int j = 0; j < m; ++j) dc[j] = c_x[j] - smp_.c_hat[j];
         WorstCase wc = worst_case(p.data(), B.data(), dc.data(), n, nv, m, cfg_.rho);
-        std::vector<double> y(m);
-        for (int j = 0; j < m; ++j) y[j] = c_x[j] + wc.n_star[j];
-        // residual at x~(t)
-        double terms[4];
-        {
-            std::vector<double> xt1 = xtilde, dA1(n), q1(1, quadratic_form(cfg_.Q.data(), xtilde.data(), n));
-            for (int j = 0; j < n; ++j) dA1[j] = a_x[j] - a_hat[j];
-            kern::HjieSystemView v1{n, nv, m, xt1.data(), dA1.data(), B.data(), dc.data(), q1.data()};
-            kern::hjie_terms(terms, p.data(), v1, 0, cfg_.rho);
+        std::vector<double> y(m), e(m);
+        for (int j = 0; j < m; ++j) {
+            y[j] = c_x[j] + wc.n_star[j];
+            e[j] = y[j] - smp_.c_hat[j];
         }
-        std::map<std::string, std::vector<double>> row;
-        row["t"] = {t};
-        row["x"] = x;
-        row["xhat"] = xhat;
-        row["xtilde"] = xtilde;
-        row["y"] = y;
-        row["gain"] = wc.gain;
-        row["v_star"] = wc.v_star;
-        row["n_star"] = wc.n_star;
-        row["p"] = p;
-        row["loss"] = {rec_loss_first_, rec_loss_last_};
-        row["hjie_residual"] = {terms[0] + terms[1] + terms[2] + terms[3]};
-        row["hjie_rel_residual_median"] = {rec_rel_median_};
-        row["hjie_rel_residual_p95"] = {percentile(rel, 0.95)};
-        row["hji_violation_fraction"] = {rec_violation_};
-        row["hji_positive_fraction"] = {pos / double(N)};
-        row["cosine_mean"] = {rec_cosine_};
+        double terms[4];  // the residual at x~(t)
+        hjie_point_terms(terms, p.data(), sys, x.data(), xhat.data(), t, cfg_.Q.data(), cfg_.rho);
+        rec->residual = terms[0] + terms[1] + terms[2] + terms[3];
+        if (cfg_.type == "h2hinf")  // seed 001: the second residual (20) at x~(t)
+            rec->residual2 = terms[0] + terms[1] + kern::kHjieCoupling[1] * terms[2] + kern::kHjieCoupling[1] * terms[3];
 
         // sampled-data propagation: x by eq. (18) with v*, x^ by eq. (19) with y; x~ = x - x^ (eq. (20))
         std::vector<double> x_next(n), xhat_next(n);
-        for (int i = 0; i < n; ++i) {
-            double bv = 0;
-            for (int j = 0; j < nv; ++j) bv += B[i * nv + j] * wc.v_star[j];
-            x_next[i] = x[i] + cfg_.dt * (a_x[i] + bv);
-            double ky = 0;
-            for (int j = 0; j < m; ++j) ky += wc.gain[i * m + j] * (y[j] - c_hat[j]);
-            xhat_next[i] = xhat[i] + cfg_.dt * (a_hat[i] + ky);
-        }
-        if (cfg_.type == "h2hinf") {
-            // seed 001: second residual (20) at x~(t) and the consistency of eqs. (21)-(23)
-            row["hjie2_residual"] = {terms[0] + terms[1] + kern::kHjieCoupling[1] * terms[2] +
-                                     kern::kHjieCoupling[1] * terms[3]};
-            row["hjie2_rel_residual_median"] = {rec_rel_median2_};
-            row["hjie2_rel_residual_p95"] = {percentile(rel2, 0.95)};
-            row["hji2_violation_fraction"] = {rec_violation2_};
-            consistency(xtilde, x_next, xhat_next, a_x, a_hat, B, wc, dc);
-            row["consistency_gap"] = {rec_gap_};
-            row["consistency_gap_printed"] = {rec_gap_printed_};
-        }
-        traj_.append(row);
+        system_advance(sys, x_next.data(), x.data(), wc.v_star.data(), t, cfg_.dt);
+        luenberger_advance(xhat_next.data(), xhat.data(), smp_.a_hat.data(), wc.gain.data(), e.data(), n, m, cfg_.dt);
+        if (cfg_.type == "h2hinf") consistency(rec, xtilde, x_next, xhat_next, B, wc, dc, t);
+        rec->x = x;
+        rec->xhat = xhat;
+        rec->xtilde = xtilde;
+        rec->y = y;
+        rec->gain = wc.gain;
+        rec->v_star = wc.v_star;
+        rec->n_star = wc.n_star;
+        rec->p = p;
+        traj_.append(record_row(*rec, cfg_));
         if (!all_finite(x_next) || !all_finite(xhat_next) || !all_finite(p) || !all_finite(wc.gain)) {
             diagnose(step, !all_finite(p) ? "network output p" : !all_finite(wc.gain) ? "gain" : "state", NAN);
             return false;
         }
         x = x_next;
         xhat = xhat_next;
-        rec_loss_finite_ = rec_loss_last_;
+        rec_loss_finite_ = rec->loss_last;
         return true;
     }
 
     // x~(t+h) by eq. (23) against x(t+h) - x^(t+h) by (21)-(22): with n* = -l^T p/(2 r^2) and -h l dC in (23)
     // (Theorem 1's proof) the gap is round-off; with (11) and (23) as printed it is 2 h |l dC|.
-    void consistency(const std::vector<double>& xtilde, const std::vector<double>& x_next,
-                     const std::vector<double>& xhat_next, const std::vector<double>& a_x,
-                     const std::vector<double>& a_hat, const std::vector<double>& B, const WorstCase& wc,
-                     const std::vector<double>& dc) {
+    void consistency(StepRecord* rec, const std::vector<double>& xtilde, const std::vector<double>& x_next,
+                     const std::vector<double>& xhat_next, const std::vector<double>& B, const WorstCase& wc,
+                     const std::vector<double>& dc, double t) {
         const int n = cfg_.n, nv = cfg_.nv, m = cfg_.m;
         const double h = cfg_.dt;
+        const std::vector<double>& a_hat = smp_.a_hat;
+        std::vector<double> a_x(n);
+        cfg_.system->drift(a_x.data(), ck_.state.x.data(), t, 1);
         std::vector<double> diff(n), xt23(n), xt23p(n), diffp(n);
         for (int i = 0; i < n; ++i) {
             double bv = 0, ldc = 0, ln = 0;
@@ -357,8 +384,8 @@ private:
             const double xhat_p = xhat_next[i] - h * ln - h * ln;  // l (y_p - y) = -2 l n*
             diffp[i] = x_next[i] - xhat_p;
         }
-        rec_gap_ = max_abs_diff(xt23, diff);
-        rec_gap_printed_ = max_abs_diff(xt23p, diffp);
+        rec->gap = max_abs_diff(xt23, diff);
+        rec->gap_printed = max_abs_diff(xt23p, diffp);
     }
 
     void checkpoint() {
@@ -398,7 +425,7 @@ private:
         std::fprintf(stderr,
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
                      "loss %s, |x~| %g, learning rate %g. %s\n",
-                     static_cast<long long>(step), double(step) * cfg_.dt, what, value, last_loss, std::sqrt(err),
+                     static_cast<long long>(step), cfg_.time_of(step), what, value, last_loss, std::sqrt(err),
                      cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
         traj_.flush();
     }
@@ -414,30 +441,23 @@ private:
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
     double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite
-    double rec_loss_first_ = 0, rec_loss_last_ = 0, rec_rel_median_ = 0, rec_violation_ = 0, rec_cosine_ = 0;
-    double rec_rel_median2_ = 0, rec_violation2_ = 0, rec_gap_ = 0, rec_gap_printed_ = 0;
 };
-
-std::int64_t last_step_for(const RunConfig& cfg, double until) {
-    double tf = until >= 0 ? std::min(until, cfg.t_final) : cfg.t_final;
-    return static_cast<std::int64_t>(std::llround(tf / cfg.dt));
-}
 
 template <typename T>
 TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
-    return tr.run(last_step_for(cfg, opt.until), opt.quiet);
+    return tr.run(cfg.steps_until(opt.until), opt.quiet);
 }
 
 template <typename T>
 TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     Checkpoint<T> ck = ckpt_read<T>(path);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
-    std::int64_t last = last_step_for(cfg, opt.until);
+    std::int64_t last = cfg.steps_until(opt.until);
     HINF_CHECK(last > ck.state.step || opt.until < 0 || last == ck.state.step,
                "--until " + std::to_string(opt.until) + " is before the checkpoint's time " +
-                   std::to_string(double(ck.state.step) * cfg.dt) + " s (pass a later time)");
+                   std::to_string(cfg.time_of(ck.state.step)) + " s (pass a later time)");
     std::string dir = std::filesystem::path(path).parent_path().string();
     if (dir.empty()) dir = ".";
     Trainer<T> tr(cfg, dir);

@@ -5,10 +5,15 @@
 #include <omp.h>
 
 #include "eval/compare.hpp"
+#include "eval/engine.hpp"
 #include "filters/dnn.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
 #include "net/network.hpp"
+#include "filters/ekf.hpp"
+#include "filters/open_loop.hpp"
+#include "filters/pf.hpp"
+#include "filters/ukf.hpp"
 
 using namespace hinf;
 using hinf::test::TempDir;
@@ -78,8 +83,8 @@ TEST_CASE("compare feeds every filter the identical measurement stream", "[eval]
     REQUIRE(y.size() == 20u * cfg.m);
     CHECK(hinf::test::bitwise_equal(*a.seen, y));
     CHECK(hinf::test::bitwise_equal(*b.seen, y));
-    const std::uint64_t hy = compare_hash(compare_hash_start, y.data(), y.size() * sizeof(double));
-    CHECK(s1.truth_stream_hash == compare_hash(compare_hash_start, &hy, 8));
+    const std::uint64_t hy = hash_bytes(hash_start, y.data(), y.size() * sizeof(double));
+    CHECK(s1.truth_stream_hash == hash_bytes(hash_start, &hy, 8));
     CHECK(s1.filters[0].stream_hash == s1.truth_stream_hash);
 }
 
@@ -152,7 +157,7 @@ TEST_CASE("compare scenarios: Student-t and biased measurement noise have the st
         opt.runs = 1;
         opt.until = 20.0;
         opt.quiet = true;
-        opt.scenario = compare_scenario(name);
+        opt.scenario = scenario_named(name);
         compare_run(cfg, {&spy}, opt);
         h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
         std::vector<double> x = h5::read_doubles(f.get(), "x"), y = h5::read_doubles(f.get(), "y");
@@ -176,5 +181,5 @@ TEST_CASE("compare scenarios: Student-t and biased measurement noise have the st
         if (std::string(name) == "bias") CHECK(std::fabs(mean - 1.0) < 0.03);
         else CHECK(std::fabs(mean) < 0.03);
     }
-    CHECK_THROWS_WITH(compare_scenario("windy"), Catch::Contains("is not one of"));
+    CHECK_THROWS_WITH(scenario_named("windy"), Catch::Contains("is not one of"));
 }

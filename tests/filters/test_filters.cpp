@@ -8,6 +8,10 @@
 #include "filters/filter.hpp"
 #include "net/network.hpp"
 #include "random.hpp"
+#include "filters/ekf.hpp"
+#include "filters/open_loop.hpp"
+#include "filters/pf.hpp"
+#include "filters/ukf.hpp"
 
 using namespace hinf;
 

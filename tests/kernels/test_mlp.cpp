@@ -10,8 +10,9 @@
 using namespace hinf::kern;
 
 template <typename T>
-static void check_against_naive(const std::vector<int>& sizes, int B, double tol) {
+static void check_against_naive(GemmPath path, const std::vector<int>& sizes, int B, double tol) {
     MlpShape sh;
+    sh.gemm = path;
     sh.sizes = sizes;
     sh.slope_positive = 0.9;
     sh.slope_negative = 0.05;
@@ -26,33 +27,24 @@ static void check_against_naive(const std::vector<int>& sizes, int B, double tol
     mlp_forward_naive(acts_ref.data(), theta.data(), x.data(), B, sh);
     CHECK(hinf::test::max_rel_diff(acts, acts_ref, 1e-3) < tol);
     std::vector<T> g(theta.size(), T(0)), g_ref(theta.size(), T(0)), dx(x.size()), dx_ref(x.size());
-    std::vector<T> scratch(2 * std::size_t(B) * sh.scratch_width());
+    std::vector<T> scratch(sh.scratch_size(B));
     mlp_backward(g.data(), dx.data(), theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
     mlp_backward_naive(g_ref.data(), dx_ref.data(), theta.data(), x.data(), acts_ref.data(), dout.data(), B, sh);
     CHECK(hinf::test::max_rel_diff(g, g_ref, 1e-3) < tol);
     CHECK(hinf::test::max_rel_diff(dx, dx_ref, 1e-3) < tol);
 }
 
-// every GEMM path this build has, restoring the default afterwards
-struct PathGuard {
-    GemmPath saved = gemm_path();
-    ~PathGuard() { set_gemm_path(saved); }
-};
-
 TEST_CASE("mlp forward/backward match the naive twins", "[kernel][mlp]") {
-    PathGuard guard;
     for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
-        set_gemm_path(path);
-        INFO("GEMM path " << int(gemm_path()));
-        check_against_naive<double>({6, 256, 128, 32, 6}, 37, 1e-10);
-        check_against_naive<double>({3, 5, 7, 21}, 13, 1e-10);
-        check_against_naive<float>({6, 256, 128, 32, 21}, 50, 2e-3);
-        check_against_naive<float>({2, 9, 1}, 4, 1e-4);
+        INFO("GEMM path " << int(gemm_path_available(path)));
+        check_against_naive<double>(path, {6, 256, 128, 32, 6}, 37, 1e-10);
+        check_against_naive<double>(path, {3, 5, 7, 21}, 13, 1e-10);
+        check_against_naive<float>(path, {6, 256, 128, 32, 21}, 50, 2e-3);
+        check_against_naive<float>(path, {2, 9, 1}, 4, 1e-4);
     }
 }
 
 TEST_CASE("backward with overwrite equals zeroing then accumulating", "[kernel][mlp]") {
-    PathGuard guard;
     MlpShape sh;
     sh.sizes = {3, 40, 17, 5};
     std::mt19937 gen(3);
@@ -62,8 +54,8 @@ TEST_CASE("backward with overwrite equals zeroing then accumulating", "[kernel][
     for (auto* v : {&theta, &x, &dout})
         for (auto& e : *v) e = u(gen);
     for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
-        set_gemm_path(path);
-        std::vector<float> acts(B * sh.act_per_sample()), scratch(2 * B * sh.scratch_width());
+        sh.gemm = path;
+        std::vector<float> acts(B * sh.act_per_sample()), scratch(sh.scratch_size(B));
         mlp_forward(acts.data(), theta.data(), x.data(), B, sh);
         std::vector<float> g1(theta.size(), 0.f), g2(theta.size(), 123.f);
         mlp_backward(g1.data(), (float*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
@@ -74,13 +66,12 @@ TEST_CASE("backward with overwrite equals zeroing then accumulating", "[kernel][
 }
 
 TEST_CASE("backward accumulates into the caller's gradient", "[kernel][mlp]") {
-    PathGuard guard;
     for (GemmPath path : {GEMM_OWN, GEMM_OPENBLAS, GEMM_EIGEN}) {
-    set_gemm_path(path);
     MlpShape sh;
+    sh.gemm = path;
     sh.sizes = {2, 4, 3};
     std::vector<double> theta(sh.param_count(), 0.3), x = {0.5, -1.0, 2.0, 0.1}, dout(6, 1.0);
-    std::vector<double> acts(2 * sh.act_per_sample()), scratch(2 * 2 * sh.scratch_width());
+    std::vector<double> acts(2 * sh.act_per_sample()), scratch(sh.scratch_size(2));
     mlp_forward(acts.data(), theta.data(), x.data(), 2, sh);
     std::vector<double> g1(theta.size(), 0.0), g2(theta.size(), 0.0);
     mlp_backward(g1.data(), (double*)nullptr, theta.data(), x.data(), acts.data(), dout.data(), 2, sh, scratch.data());

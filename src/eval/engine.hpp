@@ -1,0 +1,102 @@
+// The one Monte Carlo engine: a set of on-line filters over R runs of one scenario, every filter fed the same
+// simulated measurements (sim/truth), per-run error accumulators, and per-step observers (e.g. the on-line HJI
+// check). Also the one loop that steps a filter over a measurement stream (recorded data use it too).
+// Not the statistics over runs nor any file layout (operate.cpp, compare.cpp, filter_recorded.cpp).
+//
+// Shape legend: R = runs, K = steps, n = states, m = outputs, F = filters.
+#pragma once
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "filters/filter.hpp"
+#include "sim/truth.hpp"
+
+namespace hinf {
+
+/// What stepping one filter over a stream gave.
+struct StreamResult {
+    double diverged_at = -1;  // time of the first FILTER_DIVERGED; < 0: never
+    double seconds = 0;       // time spent inside step()
+    std::int64_t stepped = 0;  // steps before the divergence (the filter is frozen after it)
+};
+
+/// Steps f over K measurements y [K x m] at times t [K]: before step k calls visit(k, xhat, frozen) with the
+/// estimate of x(t_k); a diverged filter stays frozen at its last finite estimate (visit is still called, with
+/// frozen = true). x_true [K x n] is handed to oracle filters (nullptr for recorded data).
+template <class Visit>
+StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
+                           const double* x_true, int n, Visit&& visit) {
+    StreamResult r;
+    for (std::int64_t k = 0; k < K; ++k) {
+        visit(k, f.estimate(), r.diverged_at >= 0);
+        if (r.diverged_at >= 0) continue;
+        auto c0 = std::chrono::steady_clock::now();
+        FilterStatus st = f.step(FilterInput{y + k * m, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
+        r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+        ++r.stepped;
+        if (st != FILTER_OK) r.diverged_at = t[k];
+    }
+    return r;
+}
+
+/// Watches one filter's run step by step (one instance per thread: clone()). begin/end bracket each (filter,
+/// run); end() returns the run's values, kept in FilterRunStats::observed.
+class StepObserver {
+public:
+    virtual ~StepObserver() = default;
+    virtual void begin(int filter, std::uint64_t run) = 0;
+    /// Before step k: the truth x(t_k) and the filter's estimate of it.
+    virtual void observe(std::int64_t k, double t, const double* x, const double* xhat) = 0;
+    virtual std::vector<double> end() = 0;
+    virtual std::unique_ptr<StepObserver> clone() const = 0;
+};
+
+/// One filter over one run: sums over the steps (divide by the counts for means).
+struct FilterRunStats {
+    double diverged_at = -1;
+    std::vector<double> err_sum, err_sq;                  // [n] sums of e = x - x^ and e^2 over all steps
+    std::vector<double> err_sum_settled, err_sq_settled;  // [n] the same over t >= settle_time
+    double settled_steps = 0;
+    double sq_pos = 0, sq_vel = 0, sq_pos_settled = 0, sq_vel_settled = 0;  // sums of |e|^2 over unit groups 0, 1
+    double error_energy = 0;        // int x~'Q x~ dt (rectangle rule)
+    double signal_energy = 0;       // int (v'v + n'n) dt
+    double seconds = 0;             // inside step()
+    std::uint64_t stream_hash = 0;  // FNV-1a of every y this filter was fed
+    std::vector<double> err_sub;    // [ceil(K / stride) x n] error every `stride` steps
+    std::vector<double> xhat;       // run 0 only: [K x n]
+    std::vector<double> observed;   // StepObserver::end() of this (filter, run)
+};
+
+struct EngineOptions {
+    std::int64_t runs = 1;
+    std::int64_t steps = 1;
+    std::int64_t stride = 1;                        // error subsampling for err_sub
+    Scenario scenario;
+    const std::vector<Signals>* signals = nullptr;  // [R] explicit signals per run instead of the draws
+    std::string label = "compare";                  // progress label
+    bool quiet = false;
+};
+
+struct EngineResult {
+    std::vector<std::vector<FilterRunStats>> runs;  // [F][R]
+    std::vector<std::uint64_t> truth_hash;          // [R] FNV-1a of each run's measurements
+    TruthRun truth0;                                // run 0's truth (for plots and files)
+    std::vector<double> t;                          // [K] t_k
+};
+
+/// Runs every filter (prototypes, cloned per thread) on the same R simulated runs; OpenMP over runs, results in
+/// run order: they do not depend on the thread count.
+EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                        const EngineOptions& opt, const StepObserver* observer = nullptr);
+
+/// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0 with P0 = diag(max(e0^2, 1)).
+FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);
+
+/// FNV-1a 64 over bytes, continuing from h (start with hash_start).
+constexpr std::uint64_t hash_start = 1469598103934665603ull;
+std::uint64_t hash_bytes(std::uint64_t h, const void* data, std::size_t bytes);
+
+}  // namespace hinf

@@ -1,0 +1,70 @@
+// See ekf.hpp.
+#include "filters/ekf.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+namespace hinf {
+
+namespace {
+
+using Mat = Eigen::MatrixXd;
+using Vec = Eigen::VectorXd;
+using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Extended Kalman filter (Jazwinski 1970; the discrete-time form, e.g. Simon, Optimal State Estimation, 13.2).
+class ExtendedKalmanFilter final : public OnlineFilter {
+public:
+    explicit ExtendedKalmanFilter(const FilterModel& model) : model_(model) {}
+    std::string name() const override { return "ekf"; }
+    void reset(const FilterStart& start) override {
+        const int n = model_.system->state_dim();
+        x_ = Eigen::Map<const Vec>(start.xhat0.data(), n);
+        P_ = Eigen::Map<const RowMat>(start.P0.data(), n, n);
+    }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+        // measurement update with y(t_k)
+        RowMat H(m, n);
+        sys.measurement_jacobian(H.data(), x_.data(), in.t);
+        Vec c(m);
+        sys.measurement(c.data(), x_.data(), in.t, 1);
+        const double r = model_.noise_std * model_.noise_std;
+        Mat S = H * P_ * H.transpose();
+        S.diagonal().array() += r;
+        Eigen::LLT<Mat> llt(S);
+        if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
+        Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
+        Vec xu = x_ + K * (Eigen::Map<const Vec>(in.y, m) - c);
+        Mat IKH = Mat::Identity(n, n) - K * H;
+        Mat Pu = IKH * P_ * IKH.transpose() + r * K * K.transpose();  // Joseph form: stays symmetric PSD
+        // predict to t_{k+1} through the shared step: Phi = d x_next / dx, G = d x_next / dv
+        RowMat F(n, n), Gr(n, nv);
+        system_advance_jacobian(sys, F.data(), Gr.data(), xu.data(), in.t, model_.dt);
+        Mat Phi = F, G = Gr;
+        Vec xn(n);
+        system_advance(sys, xn.data(), xu.data(), nullptr, in.t, model_.dt);
+        Mat Pn = Phi * Pu * Phi.transpose() +
+                 model_.disturbance_std * model_.disturbance_std * G * G.transpose();
+        Pn = 0.5 * (Pn + Pn.transpose()).eval();
+        if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
+        x_ = xn;
+        P_ = Pn;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return x_.data(); }
+    const double* covariance() const override { return P_.data(); }  // symmetric: layout does not matter
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ExtendedKalmanFilter>(*this); }
+
+private:
+    FilterModel model_;
+    Vec x_;
+    Mat P_;
+};
+
+}  // namespace
+
+std::unique_ptr<OnlineFilter> make_ekf(const FilterModel& model) { return std::make_unique<ExtendedKalmanFilter>(model); }
+
+}  // namespace hinf

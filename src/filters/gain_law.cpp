@@ -1,0 +1,25 @@
+// See gain_law.hpp: the HJIE at one point, evaluated through the kernels' term function.
+#include "filters/gain_law.hpp"
+
+#include "hjie.hpp"
+
+namespace hinf {
+
+void hjie_point_terms(double* terms, const double* p, const System& sys, const double* x, const double* xhat,
+                      double t, const double* Q, double rho) {
+    const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+    std::vector<double> xt(n), a_x(n), a_h(n), dA(n), B(static_cast<std::size_t>(n) * nv), c_x(m), c_h(m), dc(m);
+    for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+    sys.drift(a_x.data(), x, t, 1);
+    sys.drift(a_h.data(), xhat, t, 1);
+    sys.disturbance_gain(B.data(), x, t, 1);
+    sys.measurement(c_x.data(), x, t, 1);
+    sys.measurement(c_h.data(), xhat, t, 1);
+    for (int i = 0; i < n; ++i) dA[i] = a_x[i] - a_h[i];
+    for (int j = 0; j < m; ++j) dc[j] = c_x[j] - c_h[j];
+    const double q = quadratic_form(Q, xt.data(), n);
+    kern::HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dc.data(), &q};
+    kern::hjie_terms(terms, p, view, 0, rho);
+}
+
+}  // namespace hinf

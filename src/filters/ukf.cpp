@@ -1,0 +1,105 @@
+// See ukf.hpp.
+#include "filters/ukf.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+namespace hinf {
+
+namespace {
+
+using Mat = Eigen::MatrixXd;
+using Vec = Eigen::VectorXd;
+using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Unscented Kalman filter, additive noise (Julier & Uhlmann 1997; Wan & van der Merwe 2000), scaled
+// sigma points with alpha = 1, beta = 2, kappa = 0 (lambda = 0: no negative weights).
+class UnscentedKalmanFilter final : public OnlineFilter {
+public:
+    explicit UnscentedKalmanFilter(const FilterModel& model) : model_(model) {
+        const int n = model.system->state_dim();
+        const double alpha = 1.0, beta = 2.0, kappa = 0.0;
+        lambda_ = alpha * alpha * (n + kappa) - n;
+        wm_.assign(2 * n + 1, 1.0 / (2.0 * (n + lambda_)));
+        wc_ = wm_;
+        wm_[0] = lambda_ / (n + lambda_);
+        wc_[0] = wm_[0] + (1.0 - alpha * alpha + beta);
+    }
+    std::string name() const override { return "ukf"; }
+    void reset(const FilterStart& start) override {
+        const int n = model_.system->state_dim();
+        x_ = Eigen::Map<const Vec>(start.xhat0.data(), n);
+        P_ = Eigen::Map<const RowMat>(start.P0.data(), n, n);
+    }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim(), ns = 2 * n + 1;
+        // measurement update: sigma points of (x^-, P^-) through C
+        RowMat X(ns, n), Z(ns, m);
+        if (!sigma_points(&X, x_, P_)) return FILTER_DIVERGED;
+        sys.measurement(Z.data(), X.data(), in.t, ns);
+        Vec zbar = Vec::Zero(m);
+        for (int s = 0; s < ns; ++s) zbar += wm_[s] * Z.row(s).transpose();
+        Mat S = Mat::Zero(m, m), Pxz = Mat::Zero(n, m);
+        for (int s = 0; s < ns; ++s) {
+            Vec dz = Z.row(s).transpose() - zbar;
+            S += wc_[s] * dz * dz.transpose();
+            Pxz += wc_[s] * (X.row(s).transpose() - x_) * dz.transpose();
+        }
+        S.diagonal().array() += model_.noise_std * model_.noise_std;
+        Eigen::LLT<Mat> llt(S);
+        if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
+        Mat K = llt.solve(Pxz.transpose()).transpose();
+        Vec xu = x_ + K * (Eigen::Map<const Vec>(in.y, m) - zbar);
+        Mat Pu = P_ - K * S * K.transpose();
+        Pu = 0.5 * (Pu + Pu.transpose()).eval();
+        // predict: sigma points of (x^+, P^+) through the Euler step; additive process noise dt B v
+        if (!sigma_points(&X, xu, Pu)) return FILTER_DIVERGED;
+        RowMat Xn(ns, n), G(n, nv);
+        system_advance(sys, Xn.data(), X.data(), nullptr, in.t, model_.dt, ns);
+        Vec xn = Vec::Zero(n);
+        for (int s = 0; s < ns; ++s) xn += wm_[s] * Xn.row(s).transpose();
+        Mat Pn = Mat::Zero(n, n);
+        for (int s = 0; s < ns; ++s) {
+            Vec dx = Xn.row(s).transpose() - xn;
+            Pn += wc_[s] * dx * dx.transpose();
+        }
+        system_advance_jacobian(sys, nullptr, G.data(), xu.data(), in.t, model_.dt);
+        Pn += model_.disturbance_std * model_.disturbance_std * Mat(G) * Mat(G).transpose();
+        Pn = 0.5 * (Pn + Pn.transpose()).eval();
+        if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
+        x_ = xn;
+        P_ = Pn;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return x_.data(); }
+    const double* covariance() const override { return P_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<UnscentedKalmanFilter>(*this); }
+
+private:
+    // rows of X: x, x + sqrt(n + lambda) L_j, x - sqrt(n + lambda) L_j with L L^T = P
+    bool sigma_points(RowMat* X, const Vec& x, const Mat& P) const {
+        const int n = static_cast<int>(x.size());
+        Eigen::LLT<Mat> llt(P);
+        if (llt.info() != Eigen::Success) return false;
+        Mat L = std::sqrt(n + lambda_) * Mat(llt.matrixL());
+        X->row(0) = x.transpose();
+        for (int j = 0; j < n; ++j) {
+            X->row(1 + j) = (x + L.col(j)).transpose();
+            X->row(1 + n + j) = (x - L.col(j)).transpose();
+        }
+        return true;
+    }
+
+    FilterModel model_;
+    double lambda_ = 0;
+    std::vector<double> wm_, wc_;
+    Vec x_;
+    Mat P_;
+};
+
+}  // namespace
+
+std::unique_ptr<OnlineFilter> make_ukf(const FilterModel& model) { return std::make_unique<UnscentedKalmanFilter>(model); }
+
+}  // namespace hinf

@@ -1,0 +1,104 @@
+// The truth simulator (see truth.hpp): Philox draws keyed by (online seed, run, step), scenario changes, and
+// the system step shared with the filters (models/system.hpp).
+#include "sim/truth.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "hinf/error.hpp"
+#include "random.hpp"
+
+namespace hinf {
+
+std::vector<std::string> scenario_names() {
+    return {"nominal",     "cov_small",   "cov_large", "v_cov_small", "v_cov_large",
+            "n_cov_small", "n_cov_large", "student_t", "bias",        "energy_pulse"};
+}
+
+Scenario scenario_named(const std::string& name) {
+    Scenario s;
+    s.name = name;
+    if (name == "nominal") return s;
+    if (name == "cov_small") s.told_disturbance_factor = s.told_noise_factor = 0.1;
+    else if (name == "cov_large") s.told_disturbance_factor = s.told_noise_factor = 10.0;
+    else if (name == "v_cov_small") s.told_disturbance_factor = 0.1;
+    else if (name == "v_cov_large") s.told_disturbance_factor = 10.0;
+    else if (name == "n_cov_small") s.told_noise_factor = 0.1;
+    else if (name == "n_cov_large") s.told_noise_factor = 10.0;
+    else if (name == "student_t") s.student_t = true;
+    else if (name == "bias") s.noise_bias = 1.0;
+    else if (name == "energy_pulse") s.energy_pulse = true;
+    else {
+        std::string all;
+        for (const auto& n : scenario_names()) all += (all.empty() ? "" : ", ") + n;
+        HINF_FAIL("--scenario '" + name + "' is not one of: " + all);
+    }
+    return s;
+}
+
+FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc) {
+    FilterModel m = filter_model(cfg);
+    m.disturbance_std *= std::sqrt(sc.told_disturbance_factor);
+    m.noise_std *= std::sqrt(sc.told_noise_factor);
+    return m;
+}
+
+TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
+                        const Signals* given) {
+    const System& sys = *cfg.system;
+    const int n = cfg.n, nv = cfg.nv, m = cfg.m;
+    if (given != nullptr)
+        HINF_CHECK(std::int64_t(given->v.size()) == steps * nv && std::int64_t(given->n.size()) == steps * m,
+                   "truth: the given signals hold " + std::to_string(given->v.size()) + " disturbance and " +
+                       std::to_string(given->n.size()) + " noise values, " + std::to_string(steps) +
+                       " steps need " + std::to_string(steps * nv) + " and " + std::to_string(steps * m));
+    TruthRun tr;
+    tr.x.resize(steps * n);
+    tr.y.resize(steps * m);
+    tr.v.resize(steps * nv);
+    tr.n.resize(steps * m);
+    tr.energy.resize(steps);
+    std::vector<double> x = cfg.x0, x_next(n), noise(nv + m), c(m), chi(3 * m);
+    const double T = cfg.time_of(steps), pulse = cfg.disturbance_std * std::sqrt(T / 5.0);
+    for (std::int64_t s = 0; s < steps; ++s) {
+        const double t = cfg.time_of(s);
+        double* v = noise.data();
+        double* nn = noise.data() + nv;
+        if (given != nullptr) {
+            std::copy(given->v.begin() + s * nv, given->v.begin() + (s + 1) * nv, v);
+            std::copy(given->n.begin() + s * m, given->n.begin() + (s + 1) * m, nn);
+        } else {
+            kern::rng_normal(noise.data(), nv + m, cfg.online_seed, kern::RNG_STREAM_NOISE, run, std::uint64_t(s));
+            for (int j = 0; j < nv; ++j) v[j] *= cfg.disturbance_std;
+            if (sc.energy_pulse)
+                for (int j = 0; j < nv; ++j) v[j] = (t >= 20.0 && t < 25.0) ? pulse : 0.0;
+            if (sc.student_t) {
+                // t_3 = z / sqrt(chi2_3 / 3) has variance 3: scaled by 1/sqrt(3) to unit variance
+                kern::rng_normal(chi.data(), 3 * m, cfg.online_seed, kern::RNG_STREAM_HEAVY_TAIL, run,
+                                 std::uint64_t(s));
+                for (int j = 0; j < m; ++j) {
+                    const double c2 =
+                        chi[3 * j] * chi[3 * j] + chi[3 * j + 1] * chi[3 * j + 1] + chi[3 * j + 2] * chi[3 * j + 2];
+                    nn[j] = nn[j] / std::sqrt(c2 / 3.0) / std::sqrt(3.0);
+                }
+            }
+            for (int j = 0; j < m; ++j) nn[j] = (nn[j] + sc.noise_bias) * cfg.noise_std;
+        }
+        sys.measurement(c.data(), x.data(), t, 1);
+        double vv = 0, nsq = 0;
+        for (int j = 0; j < nv; ++j) vv += v[j] * v[j];
+        for (int j = 0; j < m; ++j) {
+            tr.y[s * m + j] = c[j] + nn[j];
+            nsq += nn[j] * nn[j];
+        }
+        tr.energy[s] = vv + nsq;
+        std::copy(x.begin(), x.end(), tr.x.begin() + s * n);
+        std::copy(v, v + nv, tr.v.begin() + s * nv);
+        std::copy(nn, nn + m, tr.n.begin() + s * m);
+        system_advance(sys, x_next.data(), x.data(), v, t, cfg.dt);  // eq. (18) with the real v
+        x.swap(x_next);
+    }
+    return tr;
+}
+
+}  // namespace hinf

@@ -1,0 +1,54 @@
+// The one truth simulator: the true system driven by disturbance v and noise n, and the measurements it
+// gives. Every Monte Carlo user (operate, compare, the worst-case search) draws its signals here only.
+// Not the filters (src/filters) nor any statistic (src/eval).
+//
+// Shape legend: steps = time steps, n = states, nv = disturbance inputs, m = outputs.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "config/run_config.hpp"
+#include "filters/filter.hpp"
+
+namespace hinf {
+
+/// What differs from the nominal protocol (seed 000 Section IV: v, n ~ std N(0, 1), statistics known).
+struct Scenario {
+    std::string name = "nominal";
+    double told_disturbance_factor = 1.0;  // EKF/UKF/PF are told sv^2 x this (cov_small, v_cov_small: 0.1; *_large: 10)
+    double told_noise_factor = 1.0;        // ... and sn^2 x this (cov_small, n_cov_small: 0.1; *_large: 10)
+    bool student_t = false;                // n = std * t_3 / sqrt(3): heavy tails, same variance
+    double noise_bias = 0.0;               // n = std * (N(0,1) + noise_bias) on every channel
+    bool energy_pulse = false;             // v = std sqrt(T / 5 s) on [20 s, 25 s), 0 elsewhere (same energy as white v)
+};
+/// nominal, cov_small, cov_large, v_cov_small, v_cov_large, n_cov_small, n_cov_large, student_t, bias,
+/// energy_pulse; throws on anything else.
+Scenario scenario_named(const std::string& name);
+std::vector<std::string> scenario_names();
+
+/// Explicit disturbance and noise sequences; when given they replace the random draws (worst-case search, replay).
+struct Signals {
+    std::vector<double> v;  // [steps x nv]
+    std::vector<double> n;  // [steps x m]
+};
+
+/// One simulated run: x(t_k) before step k, y(t_k) = C(x(t_k)) + n_k, the signals, and v'v + n'n per step.
+struct TruthRun {
+    std::vector<double> x;       // [steps x n]
+    std::vector<double> y;       // [steps x m]
+    std::vector<double> v;       // [steps x nv]
+    std::vector<double> n;       // [steps x m]
+    std::vector<double> energy;  // [steps]
+};
+
+/// Run `run` of cfg's system from cfg.x0 over `steps` steps (system_advance with the real v). Draws: Philox keyed by
+/// (online seed, RNG_STREAM_NOISE, run, step), scaled by [online] disturbance_std / noise_std, then changed by the
+/// scenario; `given` replaces them.
+TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
+                        const Signals* given = nullptr);
+
+/// What EKF/UKF/PF are told under a scenario: the nominal statistics with variances scaled by the told factors.
+FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc);
+
+}  // namespace hinf
