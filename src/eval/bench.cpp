@@ -18,6 +18,7 @@
 #include "mlp.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 #include "peak.hpp"
 #include "sampling.hpp"
 #include "net/network.hpp"
@@ -267,7 +268,7 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
         std::printf("%-5s %-8s %-7d %10.3f %8.3f-%-8.3f %9.1f %11.1f %8.1f%% %16.2f\n", r.precision.c_str(),
                     r.gemm.c_str(), r.threads, r.median_ms, r.min_ms, r.max_ms, r.gflops, r.peak_gflops,
                     100 * r.gflops / r.peak_gflops, r.outside_ms);
-    h5::Handle f = h5::create_file(opt.out_dir + "/bench.h5");
+    AtomicH5 f(opt.out_dir + "/bench.h5");
     h5::set_attr(f.get(), "format", "hinf-bench");
     h5::set_attr(f.get(), "variant", opt.variant);
     h5::set_attr(f.get(), "batch", std::int64_t(opt.batch));
@@ -294,6 +295,7 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
         h5::set_attr(f.get(), "outside_ms_" + key, r.outside_ms);
     }
     bench_expr_report(opt, f.get());
+    f.commit();
     return rows;
 }
 

@@ -11,6 +11,7 @@
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 #include "eval/engine.hpp"
 
 namespace hinf {
@@ -100,7 +101,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
 
     std::filesystem::create_directories(opt.out_dir);
     const std::string path = opt.out_dir + "/compare.h5";
-    h5::Handle file = h5::create_file(path + ".tmp");
+    AtomicH5 file(path);
     hid_t root = file.get();
     const std::vector<double>& tt = er.t;
     std::vector<double> tsub(nsub);
@@ -221,12 +222,11 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::write_doubles(root, "t_sub", tsub.data(), {hsize_t(nsub)}, "s", "times of error_mean_t / error_std_t");
     h5::write_doubles(root, "x", truth0.x.data(), {hsize_t(steps), hsize_t(n)}, "state units", "true state, run 0");
     h5::write_doubles(root, "y", truth0.y.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units", "measurements, run 0");
-    file.reset();
-    std::filesystem::rename(path + ".tmp", path);
+    file.commit();
 
     // CSV beside it: one row per filter
-    std::ofstream csv(opt.out_dir + "/compare.csv");
     const auto st = cfg.system->state_names();
+    write_text_atomic(opt.out_dir + "/compare.csv", [&](std::ostream& csv) {
     csv << "scenario,filter,mode,runs,diverged_runs";
     for (int i = 0; i < n; ++i)
         csv << ',' << st[i] << "_mean," << st[i] << "_mean_ci95," << st[i] << "_std," << st[i] << "_std_ci95,"
@@ -245,6 +245,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             << fr.rmse_velocity_settled << ',' << fr.attenuation_ratio << ',' << fr.attenuation_ratio_ci << ','
             << fr.us_per_step << '\n';
     }
+    });
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return sum;
 }

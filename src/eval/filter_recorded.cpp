@@ -3,7 +3,6 @@
 // `xhat_final` the estimate of x(t_{K-1} + dt) after the last measurement.
 #include "eval/filter_recorded.hpp"
 
-#include "eval/engine.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -14,6 +13,7 @@
 #include "eval/engine.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 #include "io/progress.hpp"
 
 namespace hinf {
@@ -29,8 +29,7 @@ struct Path {
 void write_csv(const std::string& path, const RunConfig& cfg, const Measurements& ms, const Path& p) {
     const int n = cfg.n, m = cfg.m;
     const auto names = cfg.system->state_names();
-    std::ofstream out(path + ".tmp");
-    HINF_CHECK(out.good(), "cannot write '" + path + ".tmp' (check the --out directory)");
+    write_text_atomic(path, [&](std::ostream& out) {
     out << "t";
     for (int i = 0; i < n; ++i) out << ',' << names[i] << "_hat";
     if (p.has_cov)
@@ -51,9 +50,7 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
         for (int j = 0; j < m; ++j) put(p.innov[k * m + j]);
         out << '\n';
     }
-    out.close();
-    HINF_CHECK(!out.fail(), "writing '" + path + ".tmp' failed (disk full?)");
-    std::filesystem::rename(path + ".tmp", path);
+    });
 }
 
 }  // namespace
@@ -119,7 +116,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
 
     const std::string h5path = opt.out_dir + "/estimates.h5";
     {
-        h5::Handle file = h5::create_file(h5path + ".tmp");
+        AtomicH5 file(h5path);
         hid_t root = file.get();
         h5::set_attr(root, "format", "hinf-estimates");
         h5::set_attr(root, "format_version", std::int64_t(1));
@@ -159,8 +156,8 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
                 h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
                                   "the filter's error covariance of xhat[k]");
         }
+        file.commit();
     }
-    std::filesystem::rename(h5path + ".tmp", h5path);
     for (std::size_t i = 0; i < results.size(); ++i)
         write_csv(opt.out_dir + "/estimates_" + results[i].name + ".csv", cfg, ms, paths[i]);
     return results;

@@ -10,6 +10,7 @@
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 #include "eval/engine.hpp"
 #include "filters/dnn.hpp"
 #include "filters/gain_law.hpp"
@@ -147,7 +148,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
 
     std::filesystem::create_directories(opt.out_dir);
     const std::string path = opt.out_dir + "/operate.h5";
-    h5::Handle f = h5::create_file(path + ".tmp");
+    AtomicH5 f(path);
     hid_t root = f.get();
     h5::set_attr(root, "format", "hinf-operate");
     h5::set_attr(root, "mode", sum.mode);
@@ -192,8 +193,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
                       "measurements y(t_k) = C(x(t_k)) + n_k fed to the filter, run 0 (input for `hinf filter`)");
     h5::write_doubles(root, "xhat_open_loop", O[0].xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "open-loop predictor, run 0");
-    f.reset();
-    std::filesystem::rename(path + ".tmp", path);
+    f.commit();
     return sum;
 }
 

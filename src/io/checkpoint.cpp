@@ -13,6 +13,7 @@
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 #include "io/isolate.hpp"
 
 namespace hinf {
@@ -34,14 +35,6 @@ std::vector<T> read_array(hid_t loc, const std::string& name, std::vector<hsize_
         return h5::read_floats(loc, name, dims);
     else
         return h5::read_doubles(loc, name, dims);
-}
-
-// Forces a file's (or a directory's) contents to disk: a rename is only as durable as what it names.
-void sync_path(const std::string& path) {
-    int fd = ::open(path.c_str(), O_RDONLY);
-    if (fd < 0) return;
-    ::fsync(fd);
-    ::close(fd);
 }
 
 // Test hook, documented in docs/reliability.md: HINF_TEST_CHECKPOINT_PAUSE_MS=k sleeps k ms in the

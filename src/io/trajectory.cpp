@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "hinf/error.hpp"
+#include "io/atomic.hpp"
 
 namespace hinf {
 
@@ -32,8 +33,7 @@ void copy_replace(const std::string& from, const std::string& to) {
     std::error_code ec;
     std::filesystem::copy_file(from, to + ".tmp", std::filesystem::copy_options::overwrite_existing, ec);
     HINF_CHECK(!ec, "cannot copy '" + from + "' to '" + to + ".tmp': " + ec.message() + " (disk full?)");
-    std::filesystem::rename(to + ".tmp", to, ec);
-    HINF_CHECK(!ec, "cannot rename '" + to + ".tmp' to '" + to + "': " + ec.message());
+    commit_rename(to + ".tmp", to);
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/atomic.hpp"
 
 namespace hinf::lmi {
 
@@ -287,7 +288,7 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
 
     std::filesystem::create_directories(out_dir);
     const std::string path = (std::filesystem::path(out_dir) / "lmi.h5").string();
-    h5::Handle f = h5::create_file(path);
+    AtomicH5 f(path);
     const hid_t root = f.get();
     h5::set_attr(root, "status", status);
     h5::set_attr(root, "design", design_name(c.spec));
@@ -369,6 +370,7 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
                           "largest eigenvalue of each block at the published solution (names in block_names)");
         h5::write_string(g.get(), "block_names", names, "one block name per line");
     }
+    f.commit();
     out << "wrote " << path << "\n";
     return r.ok() ? 0 : 4;
 }
@@ -394,7 +396,7 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
 
     std::filesystem::create_directories(out_dir);
     const std::string path = (std::filesystem::path(out_dir) / "operate.h5").string();
-    h5::Handle f = h5::create_file(path);
+    AtomicH5 f(path);
     const hid_t root = f.get();
     h5::set_attr(root, "mean_error_energy", mc.mean);
     h5::set_attr(root, "ci95_low", mc.ci95_low);
@@ -419,6 +421,7 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
     h5::write_doubles(root, "mean_squared_error", mc.mean_squared_error.data(), {mc.mean_squared_error.size()},
                       "state^2", "E ||x(t) - xhat(t)||^2 over the runs (Figs. 9-10)");
     write_stack(root, "gains", r.gains, "1", "filter gains L_j used, vertices x states x outputs");
+    f.commit();
     if (c.use_paper_gains) std::printf("operate: using the paper's gains P2^-1 Y_j from [paper_solution]\n");
     std::printf("operate: %s design, %d runs (%d threads), E int_0^%g ||e||^2 dt = %.5f, 95%% CI [%.5f, %.5f], "
                 "sd %.5f, %d diverged, %.2f s\nwrote %s\n",
