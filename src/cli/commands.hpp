@@ -14,5 +14,7 @@ void add_lmi_command(CLI::App& app);
 void add_compare_command(CLI::App& app);
 /// `hinf filter`: filters run on recorded measurements, no truth (src/cli/filter_cmd.cpp).
 void add_filter_command(CLI::App& app);
+/// `hinf worst`: worst-case disturbance and noise per filter, and their replay (src/cli/worst_cmd.cpp).
+void add_worst_command(CLI::App& app);
 
 }  // namespace hinf::cli

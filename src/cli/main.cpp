@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
     hinf::cli::add_lmi_command(app);
     hinf::cli::add_compare_command(app);
     hinf::cli::add_filter_command(app);
+    hinf::cli::add_worst_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::RuntimeError& e) {

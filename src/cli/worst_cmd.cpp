@@ -1,0 +1,178 @@
+// `hinf worst`: the worst-case search per filter (eval/worst.hpp) and `--replay FILE` of saved worst signals
+// against any filter set; argument parsing and printing only.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
+#include "eval/worst.hpp"
+#include "filters/factory.hpp"
+#include "io/checkpoint.hpp"
+
+namespace hinf::cli {
+
+namespace {
+
+struct WorstArgs {
+    std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", replay;
+    std::string scenario_starts = "nominal,energy_pulse,bias", algorithm = "LN_SBPLX";
+    std::vector<std::string> networks, sets;
+    std::int64_t particles = 2000;
+    int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
+    double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
+    bool keep_initial_error = false, no_game_start = false, quiet = false, plot = false;
+};
+
+void print_cross(const WorstReplay& r) {
+    std::printf("\nattenuation ratio of each filter (columns) under each set of worst signals (rows: found for):\n");
+    std::printf("%-26s", "signals found for");
+    for (const auto& f : r.filters) std::printf(" %14.14s", f.c_str());
+    std::printf("\n");
+    const std::size_t F = r.filters.size();
+    for (std::size_t d = 0; d < r.sets.size(); ++d) {
+        std::printf("%-26s", r.sets[d].c_str());
+        for (std::size_t f = 0; f < F; ++f)
+            std::printf(" %13.4g%s", r.ratio[d * F + f], r.diverged_at[d * F + f] >= 0 ? "!" : " ");
+        std::printf("\n");
+    }
+    std::printf("(! = the filter diverged under these signals and was frozen)\n");
+}
+
+void plot(const std::string& file, const std::string& dir) {
+    if (std::system("test -x /usr/bin/python3") != 0) {
+        std::printf("--plot: /usr/bin/python3 not found, no plots drawn\n");
+        return;
+    }
+    const std::string cmd = "/usr/bin/python3 " + std::string(HINF_SOURCE_DIR) + "/scripts/plot " + file + " --out " + dir;
+    int rc = std::system(cmd.c_str());
+    std::printf("--plot: %s\n", rc == 0 ? ("PNGs in " + dir).c_str() : "scripts/plot failed (see above)");
+}
+
+}  // namespace
+
+void add_worst_command(CLI::App& app) {
+    auto a = std::make_shared<WorstArgs>();
+    CLI::App* c = app.add_subcommand(
+        "worst", "Search each filter's worst-case disturbance and noise under one energy budget (or --replay saved ones)");
+    c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, Q")->required();
+    c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
+    c->add_option("--filters", a->filters, "Comma list of: dnn, ekf, ukf, pf, open_loop, glf (default dnn,ekf,ukf,pf,open_loop)");
+    c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
+    c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    CLI::Option* energy_opt = c->add_option("--energy", a->energy,
+                  "Energy budget int (v'v + n'n) dt of every candidate (default: the nominal draws' expected energy "
+                  "(disturbance_std^2 nv + noise_std^2 m) T)");
+    c->add_option("--until", a->until, "Horizon [s] (default t_final)");
+    c->add_option("--pieces", a->pieces, "Piecewise-constant segments per signal channel (default 4)");
+    c->add_option("--sines", a->sines, "Sinusoids (a free frequency each, sin and cos amplitude per channel; default 2)");
+    c->add_option("--random-starts", a->random_starts, "Random starts per filter (default 4; the same for every filter)");
+    c->add_option("--scenario-starts", a->scenario_starts,
+                  "Compare scenarios whose signals are starts, comma list or 'none' (default nominal,energy_pulse,bias)");
+    c->add_flag("--no-game-start", a->no_game_start, "Do not start DNN filters from the game's v* = B'p/(2 rho), n* = -dC");
+    c->add_option("--evals", a->evals, "Objective evaluations per restart (default 200)");
+    c->add_option("--algorithm", a->algorithm, "NLopt algorithm: " + worst_algorithms() + " (default LN_SBPLX)");
+    c->add_flag("--keep-initial-error", a->keep_initial_error,
+                "Start the filters at the config's x^0 (default: at x0, so the ratio is the pure energy gain)");
+    c->add_option("--replay", a->replay, "Run the worst signals saved in FILE (worst.h5) against the filters instead of searching");
+    c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/worst)");
+    c->add_option("--threads", a->threads, "OpenMP threads (restarts are split over them)");
+    c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
+    c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
+    c->add_flag("--quiet", a->quiet, "No progress lines");
+    c->callback([a, energy_opt]() {
+        apply_threads(a->threads);
+        HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        WorstOptions opt;
+        if (energy_opt->count() > 0) {
+            HINF_CHECK(std::isfinite(a->energy) && a->energy > 0,
+                       "--energy must be a finite number > 0 (got " + std::to_string(a->energy) + ")");
+            opt.energy = a->energy;
+        }
+        opt.until = a->until;
+        opt.pieces = a->pieces;
+        opt.sines = a->sines;
+        opt.random_starts = a->random_starts;
+        opt.scenario_starts = a->scenario_starts == "none" ? std::vector<std::string>{} : split_list(a->scenario_starts);
+        for (const auto& s : opt.scenario_starts) scenario_named(s);  // names checked before any work
+        opt.game_start = !a->no_game_start;
+        opt.evals = a->evals;
+        opt.algorithm = a->algorithm;
+        opt.keep_initial_error = a->keep_initial_error;
+        opt.quiet = a->quiet;
+        const std::string out = a->out.empty() ? default_out_dir(a->config, "worst") : a->out;
+
+        // the worst signals were found for a budget, not a scenario: the Bayesian filters are told the nominal statistics
+        const FilterModel exact = filter_model(cfg);
+        FilterSet set = build_filter_set(
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices}, exact, exact);
+        for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
+        std::vector<const OnlineFilter*> filters;
+        for (const auto& o : set.filters) filters.push_back(o.get());
+
+        if (!a->replay.empty()) {
+            std::int64_t steps = 0;
+            bool keep = false;
+            std::vector<WorstSignals> sets = worst_read(a->replay, cfg, &steps, &keep);
+            WorstOptions ro = opt;
+            ro.keep_initial_error = keep;
+            const RunConfig rc = worst_config(cfg, ro);
+            WorstReplay r = worst_replay(rc, filters, sets, steps, a->quiet);
+            std::filesystem::create_directories(out);
+            worst_write_replay(out + "/replay.h5", rc, a->replay, sets, r, steps, keep);
+            std::printf("worst --replay %s: %zu signal set(s), %lld steps of %g s, energy %.6g, initial error %s\n",
+                        a->replay.c_str(), sets.size(), static_cast<long long>(steps), cfg.dt, r.signal_energy[0],
+                        keep ? "from the config" : "zero");
+            print_cross(r);
+            std::printf("file: %s/replay.h5\n", out.c_str());
+            if (a->plot) plot(out + "/replay.h5", out);
+            return;
+        }
+
+        // the game's worst case needs each DNN filter's network and rho: dnn_<variant>_<mode> from the network file
+        std::vector<std::unique_ptr<FrozenNetwork>> nets;
+        std::vector<std::string> prefixes;
+        std::vector<double> rhos;
+        for (const std::string& path : a->networks) {
+            RunConfig ncfg;
+            nets.push_back(ckpt_frozen_network(path, &ncfg));
+            prefixes.push_back("dnn_" + ncfg.variant + "_");
+            rhos.push_back(ncfg.rho);
+        }
+        std::vector<WorstGame> games(filters.size());
+        for (std::size_t i = 0; i < filters.size(); ++i)
+            for (std::size_t j = 0; j < nets.size(); ++j)
+                if (filters[i]->name().rfind(prefixes[j], 0) == 0) games[i] = WorstGame{nets[j].get(), rhos[j]};
+
+        WorstResult r = worst_search(cfg, filters, games, opt);
+        std::filesystem::create_directories(out);
+        worst_write(out + "/worst.h5", worst_config(cfg, opt), opt, r);
+        std::printf("worst: %lld steps of %g s, energy budget %.6g, initial error %s, %d parameters per signal pair, "
+                    "%s, %d evaluations per restart\n",
+                    static_cast<long long>(r.steps), cfg.dt, r.energy, opt.keep_initial_error ? "from the config" : "zero",
+                    r.parameters, opt.algorithm.c_str(), opt.evals);
+        std::printf("%-26s %12s %12s %12s %12s  %-24s %8s\n", "filter", "worst ratio", "min restart", "median",
+                    "best start", "found from", "restarts");
+        for (const auto& fr : r.filters) {
+            std::vector<double> v;
+            for (const auto& rs : fr.restarts) v.push_back(rs.ratio);
+            std::sort(v.begin(), v.end());
+            const double median = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+            double best_start = 0;
+            for (const auto& rs : fr.restarts) best_start = std::max(best_start, rs.start_ratio);
+            std::printf("%-26s %12.4g %12.4g %12.4g %12.4g  %-24s %8zu\n", fr.name.c_str(), fr.worst.ratio, v.front(),
+                        median, best_start, fr.restarts[fr.best].start.c_str(), fr.restarts.size());
+        }
+        print_cross(r.cross);
+        std::printf("wall %.1f s; file: %s/worst.h5; replay: hinf worst %s --replay %s/worst.h5 --filters ...\n",
+                    r.wall_seconds, out.c_str(), a->config.c_str(), out.c_str());
+        if (a->plot) plot(out + "/worst.h5", out);
+    });
+}
+
+}  // namespace hinf::cli

@@ -1,0 +1,568 @@
+// The worst-case search (see worst.hpp): a parametrised v(t), n(t) scaled to the energy budget, the truth from
+// sim/truth with those signals, the filter stepped through filter_stream, NLopt maximising the ratio per
+// (filter, start). Not the CLI's table (cli/worst_cmd.cpp) nor the plots (scripts/plot).
+#include "eval/worst.hpp"
+
+#include <nlopt.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <omp.h>
+
+#include "eval/engine.hpp"
+#include "filters/gain_law.hpp"
+#include "hinf/error.hpp"
+#include "hinf/h5.hpp"
+#include "io/atomic.hpp"
+#include "io/progress.hpp"
+#include "random.hpp"
+
+namespace hinf {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct NamedAlgorithm {
+    const char* name;
+    nlopt_algorithm algorithm;
+};
+// local, derivative-free and free of NLopt's process-wide random generator (so restarts can run in parallel
+// and give the same result on any thread count)
+const NamedAlgorithm kAlgorithms[] = {
+    {"LN_SBPLX", NLOPT_LN_SBPLX},
+    {"LN_BOBYQA", NLOPT_LN_BOBYQA},
+    {"LN_NELDERMEAD", NLOPT_LN_NELDERMEAD},
+    {"LN_NEWUOA_BOUND", NLOPT_LN_NEWUOA_BOUND},
+};
+
+nlopt_algorithm algorithm_named(const std::string& name) {
+    for (const NamedAlgorithm& a : kAlgorithms)
+        if (name == a.name) return a.algorithm;
+    HINF_FAIL("--algorithm '" + name + "' is not one of: " + worst_algorithms());
+}
+
+// v'v + n'n summed over steps, times dt: the energy the truth reports (sim/truth.cpp, TruthRun::energy)
+double signal_energy(const Signals& s, double dt) {
+    double e = 0;
+    for (double v : s.v) e += v * v;
+    for (double v : s.n) e += v * v;
+    return e * dt;
+}
+
+// Scales s to the budget; false (s untouched) when it carries no energy.
+bool scale_to_budget(Signals& s, double energy, double dt) {
+    const double e = signal_energy(s, dt);
+    if (!(e > 0) || !std::isfinite(e)) return false;
+    const double c = std::sqrt(energy / e);
+    for (double& v : s.v) v *= c;
+    for (double& v : s.n) v *= c;
+    return true;
+}
+
+// The parametrisation of one start: w_c(t) = alpha base_c(t) + a_p sum_j theta_cj 1[piece j] +
+// a_s sum_s (theta_cs sin(2 pi f_s t) + theta'_cs cos(2 pi f_s t)), then scaled to the budget.
+// theta = [alpha (with a base)] [S log-frequencies in [0, 1]] [per channel: P pieces, S sin, S cos]; amplitudes in
+// [-1, 1]: a piece of value 1 over the whole horizon, or a sinusoid of amplitude 1, carries the whole budget.
+struct Parametrisation {
+    int nv = 0, m = 0, P = 0, S = 0;
+    std::int64_t K = 0;
+    double dt = 0, energy = 0, amp_piece = 0, amp_sine = 0, logf_lo = 0, logf_hi = 0;
+    const Signals* base = nullptr;  // energy-normalised, or nullptr
+
+    int channels() const { return nv + m; }
+    int offset() const { return base != nullptr ? 1 : 0; }
+    int dims() const { return offset() + S + channels() * (P + 2 * S); }
+    double frequency(double u) const { return std::exp(logf_lo + u * (logf_hi - logf_lo)); }
+
+    // s must be sized [K x nv], [K x m]; returns false when the signal has no energy
+    bool signals(Signals& s, const double* theta) const {
+        const int C = channels(), o = offset();
+        std::vector<double> sn(S), cs(S);
+        for (std::int64_t k = 0; k < K; ++k) {
+            const double t = double(k) * dt;
+            for (int q = 0; q < S; ++q) {
+                const double w = 2.0 * kPi * frequency(theta[o + q]) * t;
+                sn[q] = std::sin(w);
+                cs[q] = std::cos(w);
+            }
+            const int piece = int(k * P / K);
+            for (int c = 0; c < C; ++c) {
+                const double* th = theta + o + S + c * (P + 2 * S);
+                double w = P > 0 ? amp_piece * th[piece] : 0.0;
+                for (int q = 0; q < S; ++q) w += amp_sine * (th[P + q] * sn[q] + th[P + S + q] * cs[q]);
+                if (base != nullptr) w += theta[0] * (c < nv ? base->v[k * nv + c] : base->n[k * m + (c - nv)]);
+                if (c < nv) s.v[k * nv + c] = w;
+                else s.n[k * m + (c - nv)] = w;
+            }
+        }
+        return scale_to_budget(s, energy, dt);
+    }
+};
+
+// The ratio of an already-cloned filter (reset here) under s: the sums of eval/engine.cpp run_one_filter, in its
+// order, so that a replay through the engine gives the same bits.
+double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t) {
+    TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K, &s);
+    const int n = cfg.n;
+    std::vector<double> e(n);
+    double error_energy = 0, energy = 0;
+    f.reset(engine_filter_start(cfg, 0));
+    filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, [&](std::int64_t k, const double* xh, bool) {
+        const double* x = tr.x.data() + k * n;
+        for (int i = 0; i < n; ++i) e[i] = x[i] - xh[i];
+        error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
+        energy += cfg.dt * tr.energy[k];
+    });
+    return error_energy / energy;
+}
+
+std::vector<double> times(const RunConfig& cfg, std::int64_t K) {
+    std::vector<double> t(K);
+    for (std::int64_t k = 0; k < K; ++k) t[k] = cfg.time_of(k);
+    return t;
+}
+
+// The game's worst case along the filter's own trajectory (seed 000 eqs. (6)-(7)): v*_k = B(x_k)'p_k / (2 rho),
+// n*_k = -(C(x_k) - C(x^_k)), p_k = dV/dx~ at x_k - x^_k; iterated from the nominal draws (with x~0 = 0 and
+// no signal, p = 0 and v* = 0), each pass scaled to the budget.
+Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const WorstGame& game, std::int64_t K,
+                     double energy, const std::vector<double>& t) {
+    const System& sys = *cfg.system;
+    const int n = cfg.n, nv = cfg.nv, m = cfg.m;
+    TruthRun nominal = truth_simulate(cfg, Scenario{}, 0, K);
+    Signals s{nominal.v, nominal.n};
+    scale_to_budget(s, energy, cfg.dt);
+    std::unique_ptr<OnlineFilter> f = proto.clone();
+    std::unique_ptr<FrozenNetwork> net = game.network->clone();
+    std::vector<double> xt(n), p(n), B(std::size_t(n) * nv), cx(m), ch(m);
+    for (int pass = 0; pass < 3; ++pass) {
+        TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K, &s);
+        Signals g{std::vector<double>(K * nv), std::vector<double>(K * m)};
+        f->reset(engine_filter_start(cfg, 0));
+        filter_stream(*f, tr.y.data(), m, t.data(), K, tr.x.data(), n, [&](std::int64_t k, const double* xh, bool) {
+            const double* x = tr.x.data() + k * n;
+            for (int i = 0; i < n; ++i) xt[i] = x[i] - xh[i];
+            net->gradient(p.data(), xt.data(), 1);
+            sys.disturbance_gain(B.data(), x, t[k], 1);
+            sys.measurement(cx.data(), x, t[k], 1);
+            sys.measurement(ch.data(), xh, t[k], 1);
+            for (int j = 0; j < nv; ++j) {
+                double bp = 0;
+                for (int i = 0; i < n; ++i) bp += B[i * nv + j] * p[i];
+                g.v[k * nv + j] = bp / (2.0 * game.rho);
+            }
+            for (int j = 0; j < m; ++j) g.n[k * m + j] = -(cx[j] - ch[j]);
+        });
+        bool finite = true;
+        for (double v : g.v) finite = finite && std::isfinite(v);
+        for (double v : g.n) finite = finite && std::isfinite(v);
+        if (!finite || !scale_to_budget(g, energy, cfg.dt)) break;  // keep the last usable pass
+        s = std::move(g);
+    }
+    return s;
+}
+
+struct Task {
+    int filter = 0;
+    std::string start;
+    const Signals* base = nullptr;  // scenario or game start
+    std::uint64_t random_index = 0;
+};
+
+struct TaskResult {
+    WorstRestart restart;
+    Signals best;
+};
+
+struct Objective {
+    const RunConfig* cfg = nullptr;
+    OnlineFilter* filter = nullptr;
+    const Parametrisation* par = nullptr;
+    const std::vector<double>* t = nullptr;
+    Signals s;
+    double best = -1;
+    Signals best_signals;
+    int evals = 0;
+};
+
+// NLopt's callback: the ratio under theta (0 for a signal with no energy or a truth that left the finite numbers)
+double objective(unsigned, const double* theta, double*, void* data) {
+    Objective& o = *static_cast<Objective*>(data);
+    ++o.evals;
+    if (!o.par->signals(o.s, theta)) return 0.0;
+    double r = ratio_of(*o.cfg, *o.filter, o.s, o.par->K, *o.t);
+    if (!std::isfinite(r)) return 0.0;
+    if (r > o.best) {
+        o.best = r;
+        o.best_signals = o.s;
+    }
+    return r;
+}
+
+TaskResult run_task(const RunConfig& cfg, const OnlineFilter& proto, Parametrisation par, const Task& task,
+                    const WorstOptions& opt, const std::vector<double>& t) {
+    par.base = task.base;
+    const int d = par.dims();
+    std::vector<double> lo(d, -1.0), hi(d, 1.0), x(d, 0.0), step(d, 0.25);
+    const int o = par.offset();
+    for (int q = 0; q < par.S; ++q) {
+        lo[o + q] = 0.0;
+        x[o + q] = 0.5;
+        step[o + q] = 0.15;
+    }
+    if (task.base != nullptr) x[0] = 1.0;
+    else {
+        // a random start: uniform over the box, the same draws for every filter
+        std::vector<double> u(d);
+        kern::rng_uniform(u.data(), d, cfg.online_seed, kern::RNG_STREAM_WORST, task.random_index, 0);
+        for (int i = 0; i < d; ++i) x[i] = lo[i] + (hi[i] - lo[i]) * u[i];
+    }
+    std::unique_ptr<OnlineFilter> f = proto.clone();
+    Objective obj;
+    obj.cfg = &cfg;
+    obj.filter = f.get();
+    obj.par = &par;
+    obj.t = &t;
+    obj.s = Signals{std::vector<double>(par.K * par.nv), std::vector<double>(par.K * par.m)};
+    TaskResult res;
+    res.restart.start = task.start;
+    res.restart.start_ratio = objective(d, x.data(), nullptr, &obj);
+    nlopt_opt nl = nlopt_create(algorithm_named(opt.algorithm), unsigned(d));
+    HINF_CHECK(nl != nullptr, "worst: NLopt could not create " + opt.algorithm + " in " + std::to_string(d) + " dimensions");
+    nlopt_set_lower_bounds(nl, lo.data());
+    nlopt_set_upper_bounds(nl, hi.data());
+    nlopt_set_max_objective(nl, objective, &obj);
+    nlopt_set_maxeval(nl, std::max(1, opt.evals - 1));
+    nlopt_set_initial_step(nl, step.data());
+    double fval = 0;
+    nlopt_result rc = nlopt_optimize(nl, x.data(), &fval);
+    nlopt_destroy(nl);
+    res.restart.ratio = std::max(obj.best, 0.0);
+    res.restart.evals = obj.evals;
+    res.restart.nlopt_result = nlopt_result_to_string(rc);
+    res.best = obj.best >= 0 ? std::move(obj.best_signals) : obj.s;
+    return res;
+}
+
+}  // namespace
+
+std::string worst_algorithms() {
+    std::string all;
+    for (const NamedAlgorithm& a : kAlgorithms) all += std::string(all.empty() ? "" : ", ") + a.name;
+    return all;
+}
+
+RunConfig worst_config(const RunConfig& cfg, const WorstOptions& opt) {
+    RunConfig c = cfg;
+    if (!opt.keep_initial_error) c.xhat0 = c.x0;  // the energy gain from x~0 = 0, what the H-infinity norm measures
+    return c;
+}
+
+double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t steps) {
+    if (opt.energy != -1)
+        HINF_CHECK(std::isfinite(opt.energy) && opt.energy > 0,
+                   "--energy must be a finite number > 0 (got " + std::to_string(opt.energy) + ")");
+    const double T = cfg.time_of(steps);
+    const double e = opt.energy > 0 ? opt.energy
+                                    : (cfg.disturbance_std * cfg.disturbance_std * cfg.nv +
+                                       cfg.noise_std * cfg.noise_std * cfg.m) * T;
+    HINF_CHECK(std::isfinite(e) && e > 0, "worst: the energy budget is " + std::to_string(e) +
+                                              " ([online] disturbance_std and noise_std are 0?): pass --energy E > 0");
+    return e;
+}
+
+double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s, std::int64_t steps) {
+    std::unique_ptr<OnlineFilter> c = f.clone();
+    return ratio_of(cfg, *c, s, steps, times(cfg, steps));
+}
+
+WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const OnlineFilter*>& filters,
+                         const std::vector<WorstGame>& games, const WorstOptions& opt) {
+    const auto wall0 = std::chrono::steady_clock::now();
+    HINF_CHECK(!filters.empty(), "worst: no filters to search (name at least one with --filters)");
+    HINF_CHECK(games.empty() || games.size() == filters.size(), "worst: one game per filter (or none)");
+    HINF_CHECK(opt.pieces >= 0 && opt.sines >= 0 && opt.pieces + opt.sines >= 1,
+               "--pieces and --sines must be >= 0, and not both 0 (got " + std::to_string(opt.pieces) + ", " +
+                   std::to_string(opt.sines) + ")");
+    HINF_CHECK(opt.pieces <= 1000 && opt.sines <= 100, "--pieces <= 1000 and --sines <= 100");
+    HINF_CHECK(opt.evals >= 1, "--evals must be >= 1 (got " + std::to_string(opt.evals) + ")");
+    HINF_CHECK(opt.random_starts >= 0, "--random-starts must be >= 0");
+    algorithm_named(opt.algorithm);
+    const RunConfig cfg = worst_config(cfg_in, opt);
+    const std::int64_t K = cfg.steps_until(opt.until);
+    HINF_CHECK(K >= 2, "worst: the horizon is shorter than two time steps (dt = " + std::to_string(cfg.dt) +
+                           " s): pass a later --until");
+    HINF_CHECK(opt.pieces <= K, "--pieces " + std::to_string(opt.pieces) + " is more than the " + std::to_string(K) +
+                                    " steps of the horizon");
+    const double E = worst_energy(cfg, opt, K);
+    const std::vector<double> t = times(cfg, K);
+    const int F = int(filters.size());
+
+    Parametrisation par;
+    par.nv = cfg.nv;
+    par.m = cfg.m;
+    par.P = opt.pieces;
+    par.S = opt.sines;
+    par.K = K;
+    par.dt = cfg.dt;
+    par.energy = E;
+    const double T = cfg.time_of(K);
+    par.amp_piece = std::sqrt(E / T);        // a constant of this amplitude over [0, T) carries the budget
+    par.amp_sine = std::sqrt(2.0 * E / T);   // ... and a sinusoid of this amplitude
+    par.logf_lo = std::log(1.0 / T);          // one period over the horizon
+    par.logf_hi = std::log(0.25 / cfg.dt);    // half the Nyquist frequency of the sampled filters
+
+    // the starts: the compare scenarios' signals (run 0) and, per DNN filter, the game's worst case
+    std::vector<Signals> scenario_base;
+    for (const std::string& name : opt.scenario_starts) {
+        TruthRun tr = truth_simulate(cfg, scenario_named(name), 0, K);
+        Signals s{tr.v, tr.n};
+        HINF_CHECK(scale_to_budget(s, E, cfg.dt), "worst: scenario start '" + name + "' carries no energy");
+        scenario_base.push_back(std::move(s));
+    }
+    std::vector<Signals> game_base(F);
+    std::vector<Task> tasks;
+    for (int i = 0; i < F; ++i) {
+        for (int j = 0; j < opt.random_starts; ++j)
+            tasks.push_back(Task{i, "random:" + std::to_string(j), nullptr, std::uint64_t(j)});
+        for (std::size_t j = 0; j < scenario_base.size(); ++j)
+            tasks.push_back(Task{i, "scenario:" + opt.scenario_starts[j], &scenario_base[j], 0});
+        if (opt.game_start && !games.empty() && games[i].network != nullptr) {
+            game_base[i] = game_signals(cfg, *filters[i], games[i], K, E, t);
+            tasks.push_back(Task{i, "game", &game_base[i], 0});
+        }
+    }
+    HINF_CHECK(!tasks.empty(), "worst: no starts (--random-starts 0 and no --scenario-starts)");
+
+    const std::int64_t N = std::int64_t(tasks.size());
+    std::vector<TaskResult> done(N);
+    Progress progress("worst", 0, N, opt.quiet);
+    std::int64_t finished = 0;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::int64_t j = 0; j < N; ++j) {
+        done[j] = run_task(cfg, *filters[tasks[j].filter], par, tasks[j], opt, t);
+        char detail[200];
+        std::snprintf(detail, sizeof detail, "restarts | %s %s: ratio %.4g (start %.4g) |",
+                      filters[tasks[j].filter]->name().c_str(), tasks[j].start.c_str(), done[j].restart.ratio,
+                      done[j].restart.start_ratio);
+#pragma omp critical
+        progress.update(++finished, detail);
+    }
+
+    WorstResult res;
+    res.energy = E;
+    res.steps = K;
+    par.base = nullptr;
+    res.parameters = par.dims();
+    res.filters.resize(F);
+    for (int i = 0; i < F; ++i) res.filters[i].name = filters[i]->name();
+    for (std::int64_t j = 0; j < N; ++j) {
+        WorstFilterResult& fr = res.filters[tasks[j].filter];
+        fr.restarts.push_back(done[j].restart);
+        const int r = int(fr.restarts.size()) - 1;
+        if (r == 0 || done[j].restart.ratio > fr.restarts[fr.best].ratio) {
+            fr.best = r;
+            fr.worst = WorstSignals{fr.name, done[j].restart.ratio, std::move(done[j].best)};
+        }
+    }
+    std::vector<WorstSignals> sets;
+    for (const auto& fr : res.filters) sets.push_back(fr.worst);
+    res.cross = worst_replay(cfg, filters, sets, K, opt.quiet);
+    res.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    return res;
+}
+
+WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                         const std::vector<WorstSignals>& sets, std::int64_t steps, bool quiet) {
+    WorstReplay r;
+    const int F = int(filters.size()), D = int(sets.size());
+    for (const auto& s : sets) r.sets.push_back(s.source);
+    for (const OnlineFilter* f : filters) r.filters.push_back(f->name());
+    r.ratio.assign(std::size_t(D) * F, 0.0);
+    r.diverged_at.assign(std::size_t(D) * F, -1.0);
+    r.signal_energy.assign(D, 0.0);
+    r.stride = std::max<std::int64_t>(1, steps / 2000);
+    r.err.resize(std::size_t(D) * F);
+    for (int d = 0; d < D; ++d) {
+        // one run per set, each with run 0's initial estimate and draws (the PF's): the search's own conditions
+        std::vector<Signals> one{sets[d].signals};
+        EngineOptions eo;
+        eo.runs = 1;
+        eo.steps = steps;
+        eo.stride = r.stride;
+        eo.signals = &one;
+        eo.label = "replay " + sets[d].source;
+        eo.quiet = quiet;
+        EngineResult er = engine_run(cfg, filters, eo);
+        for (int f = 0; f < F; ++f) {
+            FilterRunStats& st = er.runs[f][0];
+            r.ratio[d * F + f] = st.error_energy / st.signal_energy;
+            r.diverged_at[d * F + f] = st.diverged_at;
+            r.signal_energy[d] = st.signal_energy;
+            r.err[d * F + f] = std::move(st.err_sub);
+        }
+    }
+    return r;
+}
+
+namespace {
+
+std::string join(const std::vector<std::string>& v) {
+    std::string s;
+    for (const auto& x : v) s += (s.empty() ? "" : ",") + x;
+    return s;
+}
+
+void write_identity(hid_t root, const RunConfig& cfg, std::int64_t steps) {
+    h5::set_attr(root, "system", cfg.system->name());
+    h5::set_attr(root, "state_names", join(cfg.system->state_names()));
+    h5::set_attr(root, "n", std::int64_t(cfg.n));
+    h5::set_attr(root, "nv", std::int64_t(cfg.nv));
+    h5::set_attr(root, "m", std::int64_t(cfg.m));
+    h5::set_attr(root, "dt", cfg.dt);
+    h5::set_attr(root, "steps", steps);
+    h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
+}
+
+void write_sets_and_cross(hid_t root, const RunConfig& cfg, const std::vector<WorstSignals>& sets,
+                          const WorstReplay& r, std::int64_t steps) {
+    const hsize_t K = hsize_t(steps);
+    h5::Handle sg = h5::create_group(root, "sets");
+    for (std::size_t d = 0; d < sets.size(); ++d) {
+        h5::Handle g = h5::create_group(sg.get(), std::to_string(d));
+        h5::set_attr(g.get(), "source", sets[d].source);
+        h5::set_attr(g.get(), "ratio", sets[d].ratio);
+        h5::write_doubles(g.get(), "v", sets[d].signals.v.data(), {K, hsize_t(cfg.nv)}, "input units",
+                          "disturbance v_k at t_k");
+        h5::write_doubles(g.get(), "n", sets[d].signals.n.data(), {K, hsize_t(cfg.m)}, "output units",
+                          "measurement noise n_k at t_k");
+    }
+    const hsize_t D = hsize_t(r.sets.size()), F = hsize_t(r.filters.size());
+    h5::Handle cg = h5::create_group(root, "cross");
+    h5::set_attr(cg.get(), "sets", join(r.sets));
+    h5::set_attr(cg.get(), "filters", join(r.filters));
+    h5::set_attr(cg.get(), "meaning", "ratio[d][f]: filter f's attenuation ratio under set d (the worst found for "
+                                      "sets[d]); err_<d>_<f>: its error x - x^ at t_sub");
+    h5::write_doubles(cg.get(), "ratio", r.ratio.data(), {D, F}, "", "int x~'Qx~ dt / int (v'v + n'n) dt");
+    h5::write_doubles(cg.get(), "diverged_at", r.diverged_at.data(), {D, F}, "s", "-1: never");
+    h5::write_doubles(cg.get(), "signal_energy", r.signal_energy.data(), {D}, "", "int (v'v + n'n) dt per set");
+    std::vector<double> tsub;
+    for (std::int64_t k = 0; k < steps; k += r.stride) tsub.push_back(cfg.time_of(k));
+    h5::write_doubles(cg.get(), "t_sub", tsub.data(), {hsize_t(tsub.size())}, "s", "times of err_*");
+    for (hsize_t d = 0; d < D; ++d)
+        for (hsize_t f = 0; f < F; ++f) {
+            const auto& e = r.err[d * F + f];
+            h5::write_doubles(cg.get(), "err_" + std::to_string(d) + "_" + std::to_string(f), e.data(),
+                              {hsize_t(e.size()) / hsize_t(cfg.n), hsize_t(cfg.n)}, "state units", "x - x^");
+        }
+}
+
+}  // namespace
+
+void worst_write(const std::string& path, const RunConfig& cfg, const WorstOptions& opt, const WorstResult& r) {
+    AtomicH5 file(path);
+    const hid_t root = file.get();
+    h5::set_attr(root, "format", "hinf-worst");
+    write_identity(root, cfg, r.steps);
+    h5::set_attr(root, "energy", r.energy);
+    h5::set_attr(root, "keep_initial_error", std::int64_t(opt.keep_initial_error ? 1 : 0));
+    h5::set_attr(root, "algorithm", opt.algorithm);
+    h5::set_attr(root, "pieces", std::int64_t(opt.pieces));
+    h5::set_attr(root, "sines", std::int64_t(opt.sines));
+    h5::set_attr(root, "evals", std::int64_t(opt.evals));
+    h5::set_attr(root, "parameters", std::int64_t(r.parameters));
+    h5::set_attr(root, "wall_seconds", r.wall_seconds);
+    h5::set_attr(root, "meaning", "worst-case search: per filter the restarts' ratios and its worst signals (sets/), "
+                                  "every worst set replayed against every filter (cross/)");
+    h5::Handle fg = h5::create_group(root, "filters");
+    for (const auto& fr : r.filters) {
+        h5::Handle g = h5::create_group(fg.get(), fr.name);
+        std::vector<double> ratio, start_ratio;
+        std::vector<std::int64_t> evals;
+        std::vector<std::string> starts, results;
+        for (const auto& rs : fr.restarts) {
+            ratio.push_back(rs.ratio);
+            start_ratio.push_back(rs.start_ratio);
+            evals.push_back(rs.evals);
+            starts.push_back(rs.start);
+            results.push_back(rs.nlopt_result);
+        }
+        const hsize_t R = hsize_t(ratio.size());
+        h5::write_doubles(g.get(), "restart_ratio", ratio.data(), {R}, "", "best ratio per restart");
+        h5::write_doubles(g.get(), "restart_start_ratio", start_ratio.data(), {R}, "", "ratio at each start point");
+        h5::write_int64s(g.get(), "restart_evals", evals.data(), {R}, "objective evaluations per restart");
+        h5::set_attr(g.get(), "starts", join(starts));
+        h5::set_attr(g.get(), "nlopt_results", join(results));
+        h5::set_attr(g.get(), "best", std::int64_t(fr.best));
+        h5::set_attr(g.get(), "ratio", fr.worst.ratio);
+    }
+    std::vector<WorstSignals> sets;
+    for (const auto& fr : r.filters) sets.push_back(fr.worst);
+    write_sets_and_cross(root, cfg, sets, r.cross, r.steps);
+    file.commit();
+}
+
+void worst_write_replay(const std::string& path, const RunConfig& cfg, const std::string& source,
+                        const std::vector<WorstSignals>& sets, const WorstReplay& r, std::int64_t steps,
+                        bool keep_initial_error) {
+    AtomicH5 file(path);
+    const hid_t root = file.get();
+    h5::set_attr(root, "format", "hinf-worst-replay");
+    write_identity(root, cfg, steps);
+    h5::set_attr(root, "replayed", source);
+    h5::set_attr(root, "keep_initial_error", std::int64_t(keep_initial_error ? 1 : 0));
+    write_sets_and_cross(root, cfg, sets, r, steps);
+    file.commit();
+}
+
+std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& cfg, std::int64_t* steps_out,
+                                     bool* keep_initial_error_out) {
+    h5::Handle file = h5::open_file(path, false);
+    const hid_t root = file.get();
+    const std::string where = "--replay " + path + ": ";
+    HINF_CHECK(h5::has_attr(root, "format") && (h5::get_attr_string(root, "format") == "hinf-worst" ||
+                                                h5::get_attr_string(root, "format") == "hinf-worst-replay"),
+               where + "not a file written by `hinf worst` (no format = hinf-worst)");
+    const std::string sys = h5::get_attr_string(root, "system"), names = h5::get_attr_string(root, "state_names");
+    HINF_CHECK(sys == cfg.system->name() && names == join(cfg.system->state_names()),
+               where + "its signals are for system '" + sys + "' (states " + names + "), the config's is '" +
+                   cfg.system->name() + "' (states " + join(cfg.system->state_names()) + ")");
+    const std::int64_t nv = h5::get_attr_int(root, "nv"), m = h5::get_attr_int(root, "m");
+    HINF_CHECK(nv == cfg.nv && m == cfg.m, where + "its signals have " + std::to_string(nv) + " disturbance and " +
+                                               std::to_string(m) + " noise channels, the config's system " +
+                                               std::to_string(cfg.nv) + " and " + std::to_string(cfg.m));
+    const double dt = h5::get_attr_double(root, "dt");
+    HINF_CHECK(dt == cfg.dt, where + "its signals are sampled at dt = " + std::to_string(dt) + " s, the config has " +
+                                 std::to_string(cfg.dt) + " s");
+    const std::int64_t K = h5::get_attr_int(root, "steps");
+    HINF_CHECK(K >= 1 && K <= cfg.steps_until(), where + "its signals last " + std::to_string(K) +
+                                                     " steps, longer than the config's horizon (" +
+                                                     std::to_string(cfg.steps_until()) + " steps)");
+    *steps_out = K;
+    *keep_initial_error_out = h5::get_attr_int(root, "keep_initial_error") != 0;
+    std::vector<WorstSignals> sets;
+    h5::Handle sg = h5::open_group(root, "sets");
+    for (int d = 0; h5::exists(sg.get(), std::to_string(d)); ++d) {
+        h5::Handle g = h5::open_group(sg.get(), std::to_string(d));
+        WorstSignals s;
+        s.source = h5::get_attr_string(g.get(), "source");
+        s.ratio = h5::get_attr_double(g.get(), "ratio");
+        std::vector<hsize_t> dv, dn;
+        s.signals.v = h5::read_doubles(g.get(), "v", &dv);
+        s.signals.n = h5::read_doubles(g.get(), "n", &dn);
+        HINF_CHECK(dv.size() == 2 && dn.size() == 2 && std::int64_t(dv[0]) == K && std::int64_t(dn[0]) == K &&
+                       std::int64_t(dv[1]) == nv && std::int64_t(dn[1]) == m,
+                   where + "set " + std::to_string(d) + " has the wrong shape (damaged file?)");
+        for (double x : s.signals.v) HINF_CHECK(std::isfinite(x), where + "set " + std::to_string(d) + " holds a non-finite v");
+        for (double x : s.signals.n) HINF_CHECK(std::isfinite(x), where + "set " + std::to_string(d) + " holds a non-finite n");
+        sets.push_back(std::move(s));
+    }
+    HINF_CHECK(!sets.empty(), where + "holds no signal sets");
+    return sets;
+}
+
+}  // namespace hinf

@@ -1,0 +1,118 @@
+// The worst-case search (issue 13, part 2): for each filter, the disturbance v(t) and noise n(t) of a fixed
+// energy budget that maximise its attenuation ratio int x~'Qx~ dt / int (v'v + n'n) dt, found by a
+// derivative-free optimiser (NLopt) over a low-dimensional parametrisation; and the replay of saved worst
+// signals against any filter set. Not the argument parsing (cli/worst_cmd.cpp) nor the truth (sim/truth).
+//
+// Shape legend: K = steps, n = states, nv = disturbance inputs, m = outputs, C = nv + m signal channels,
+// P = pieces per channel, S = sinusoids, F = filters, R = restarts, D = signal sets.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "filters/filter.hpp"
+#include "net/network.hpp"
+#include "sim/truth.hpp"
+
+namespace hinf {
+
+/// The search's knobs. Defaults: docs/compare.md, "Worst case".
+struct WorstOptions {
+    double energy = -1;          // budget int (v'v + n'n) dt; -1: the nominal draws' expected (sv^2 nv + sn^2 m) T
+    double until = -1;           // horizon (< 0: t_final)
+    int pieces = 4;              // P: piecewise-constant segments per channel
+    int sines = 2;               // S: sinusoids (one shared log-frequency each, a sin and a cos amplitude per channel)
+    int random_starts = 4;       // starts from Philox draws (RNG_STREAM_WORST, a = start): the same for every filter
+    std::vector<std::string> scenario_starts = {"nominal", "energy_pulse", "bias"};  // compare scenarios as starts
+    bool game_start = true;      // a DNN filter with a network also starts from the game's v* = B'p / (2 rho), n* = -dC
+    int evals = 200;             // objective evaluations per restart
+    std::string algorithm = "LN_SBPLX";  // a local derivative-free NLopt algorithm (worst_algorithms())
+    bool keep_initial_error = false;     // false: every filter starts at x^0 = x0 (the pure energy gain)
+    bool quiet = false;
+};
+
+/// The game a DNN filter was trained for: its network gives p = dV/dx~ and rho its level (seed 000 eq. (6)).
+struct WorstGame {
+    const FrozenNetwork* network = nullptr;  // nullptr: the filter has no game (EKF, UKF, ...)
+    double rho = 0;
+};
+
+/// One restart of one filter's search.
+struct WorstRestart {
+    std::string start;         // "random:3", "scenario:energy_pulse", "game"
+    double start_ratio = 0;    // the ratio at the start point
+    double ratio = 0;          // the best ratio this restart found
+    int evals = 0;
+    std::string nlopt_result;  // NLopt's return code, as text
+};
+
+/// One named pair of signals (the worst found for `source`), energy-normalised to the budget.
+struct WorstSignals {
+    std::string source;  // the filter they were found for
+    double ratio = 0;    // that filter's ratio under them
+    Signals signals;     // v [K x nv], n [K x m]
+};
+
+struct WorstFilterResult {
+    std::string name;
+    std::vector<WorstRestart> restarts;  // [R] in start order
+    int best = 0;                        // index of the largest ratio
+    WorstSignals worst;
+};
+
+/// Every filter run on every signal set (the same signals against every filter).
+struct WorstReplay {
+    std::vector<std::string> sets, filters;  // [D], [F]
+    std::vector<double> ratio;               // [D x F]
+    std::vector<double> diverged_at;         // [D x F] (< 0: never)
+    std::vector<double> signal_energy;       // [D]
+    std::int64_t stride = 1;                 // err keeps every stride-th step
+    std::vector<std::vector<double>> err;    // [D x F][ceil(K / stride) x n] x - x^
+};
+
+struct WorstResult {
+    double energy = 0;
+    std::int64_t steps = 0;
+    int parameters = 0;  // dimension of the search space (without the start's own amplitude)
+    std::vector<WorstFilterResult> filters;
+    WorstReplay cross;   // every worst set against every filter
+    double wall_seconds = 0;
+};
+
+/// The local NLopt algorithms the search accepts, comma-separated.
+std::string worst_algorithms();
+
+/// The config the search scores under: cfg itself, or with x^0 = x0 unless keep_initial_error.
+RunConfig worst_config(const RunConfig& cfg, const WorstOptions& opt);
+
+/// The budget opt.energy resolves to on cfg over `steps` steps (checks it is finite and positive).
+double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t steps);
+
+/// The attenuation ratio of filter f (a clone is stepped) under the given signals on cfg (initial estimate
+/// engine_filter_start(cfg, 0)): int x~'Qx~ dt / int (v'v + n'n) dt, the sums of eval/engine.cpp.
+double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s, std::int64_t steps);
+
+/// The search: R restarts per filter, OpenMP over (filter, restart), each a pure function of its inputs:
+/// the result does not depend on the thread count. games: [F] (or empty). Ends with the replay of every
+/// worst set against every filter (WorstResult::cross). Runs on worst_config(cfg, opt).
+WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                         const std::vector<WorstGame>& games, const WorstOptions& opt);
+
+/// Every filter on every set, through the engine (one run per set, run 0's initial estimate).
+WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                         const std::vector<WorstSignals>& sets, std::int64_t steps, bool quiet = true);
+
+/// worst.h5 (atomically): the search's restarts, worst signals and cross table (layout: docs/formats.md).
+void worst_write(const std::string& path, const RunConfig& cfg, const WorstOptions& opt, const WorstResult& r);
+/// replay.h5 (atomically): saved sets (from the file `source`) replayed against a filter set.
+void worst_write_replay(const std::string& path, const RunConfig& cfg, const std::string& source,
+                        const std::vector<WorstSignals>& sets, const WorstReplay& r, std::int64_t steps,
+                        bool keep_initial_error);
+
+/// The signal sets of a worst.h5; checks that the file was written for cfg's system (name, dimensions, dt,
+/// horizon) and throws naming the file and the difference. steps_out: the horizon the file was made for;
+/// keep_initial_error_out: how the search scored (a replay scores the same way).
+std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& cfg, std::int64_t* steps_out,
+                                     bool* keep_initial_error_out);
+
+}  // namespace hinf
