@@ -1,0 +1,191 @@
+// The worst-case search (issue 13 parts 2-3): on linear systems with a fixed-gain filter the exact worst-case
+// ratio over the horizon is the largest singular value of the error system's input-output map (computed here
+// by power iteration, independently of the search); the search must reach 90 % of it and may never exceed it.
+// Budget: LN_SBPLX, 3 starts of 500 (scalar) / 400 (oscillator) evaluations; measured 96.9 % and 95.1 % of the exact
+// value (SBPLX at 300 evaluations: 92 %, 93 %; LN_BOBYQA reached 97 % on the scalar but 54 % on the oscillator).
+// Also: the ratio the search reports is the engine's, bit for bit, and does not depend on the thread count.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <omp.h>
+
+#include "eval/engine.hpp"
+#include "eval/worst.hpp"
+#include "filters/ekf.hpp"
+#include "filters/gain_law.hpp"
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+
+using namespace hinf;
+using hinf::test::TempDir;
+
+namespace {
+
+// x^_{k+1} = x^_k + dt (A(x^_k) + L (y_k - C(x^_k))): a Luenberger filter with one constant gain L [n x m].
+class FixedGainFilter final : public OnlineFilter {
+public:
+    FixedGainFilter(const FilterModel& model, std::vector<double> L) : model_(model), L_(std::move(L)) {}
+    std::string name() const override { return "fixed_gain"; }
+    void reset(const FilterStart& s) override { xhat_ = s.xhat0; }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), m = sys.output_dim();
+        std::vector<double> a(n), c(m), e(m);
+        sys.drift(a.data(), xhat_.data(), in.t, 1);
+        sys.measurement(c.data(), xhat_.data(), in.t, 1);
+        for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[j];
+        luenberger_advance(xhat_.data(), xhat_.data(), a.data(), L_.data(), e.data(), n, m, model_.dt);
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<FixedGainFilter>(*this); }
+
+private:
+    FilterModel model_;
+    std::vector<double> L_, xhat_;
+};
+
+// The error system of that filter on x_{k+1} = x_k + dt (A x_k + B v_k), y_k = C x_k + n_k:
+// e_{k+1} = Phi e_k + Gam w_k, Phi = I + dt (A - L C), Gam = [dt B, -dt L], e_0 = 0, scored e_0 ... e_{K-1}.
+// Returns max over w of sum e'Qe / sum w'w (dt cancels) by power iteration on G'QG.
+double exact_finite_horizon_gain(const std::vector<double>& Phi, const std::vector<double>& Gam,
+                                 const std::vector<double>& Q, int n, int p, std::int64_t K) {
+    std::vector<double> w(K * p), e(K * n), g(n), gn(n), Qe(n);
+    for (std::int64_t i = 0; i < K * p; ++i) w[i] = 1.0 + 0.001 * double(i % 7);  // not orthogonal to the top one
+    double lambda = 0;
+    for (int it = 0; it < 3000; ++it) {
+        // e = G w
+        std::vector<double> x(n, 0.0), xn(n);
+        for (std::int64_t k = 0; k < K; ++k) {
+            for (int i = 0; i < n; ++i) e[k * n + i] = x[i];
+            for (int i = 0; i < n; ++i) {
+                double s = 0;
+                for (int j = 0; j < n; ++j) s += Phi[i * n + j] * x[j];
+                for (int j = 0; j < p; ++j) s += Gam[i * p + j] * w[k * p + j];
+                xn[i] = s;
+            }
+            x = xn;
+        }
+        // w' = G' Q e: adjoint g_k = sum_{j > k} Phi^{j-k-1}' Q e_j, backwards; w'_k = Gam' g_k
+        std::fill(g.begin(), g.end(), 0.0);
+        double ww = 0, eqe = 0;
+        for (std::int64_t k = K - 1; k >= 0; --k) {
+            std::vector<double> wk(p, 0.0);
+            for (int j = 0; j < p; ++j)
+                for (int i = 0; i < n; ++i) wk[j] += Gam[i * p + j] * g[i];
+            // g_{k-1} = Q e_k + Phi' g_k
+            for (int i = 0; i < n; ++i) {
+                double s = 0;
+                for (int j = 0; j < n; ++j) s += Q[i * n + j] * e[k * n + j] + Phi[j * n + i] * g[j];
+                gn[i] = s;
+            }
+            for (int j = 0; j < p; ++j) ww += w[k * p + j] * w[k * p + j];
+            eqe += quadratic_form(Q.data(), e.data() + k * n, n);
+            for (int j = 0; j < p; ++j) w[k * p + j] = wk[j];
+            g = gn;
+        }
+        lambda = eqe / ww;  // Rayleigh quotient of the previous iterate
+        double norm = 0;
+        for (double v : w) norm += v * v;
+        norm = std::sqrt(norm);
+        for (double& v : w) v /= norm;
+    }
+    return lambda;
+}
+
+RunConfig linear_config(const std::string& system, const std::string& n_keys, double t_final) {
+    return load_run_config(ConfigDoc::from_text(system + "[filter]\n" + n_keys + "dt = 0.01\nt_final = " +
+                                                    std::to_string(t_final) +
+                                                    "\n[online]\ndisturbance_std = 1.0\nnoise_std = 1.0\n",
+                                                "linear.toml"));
+}
+
+}  // namespace
+
+TEST_CASE("worst-case search reaches the exact worst-case gain of a fixed-gain filter", "[eval][worst][known]") {
+    SECTION("scalar: x' = -x + v, y = x + n, L = 1 (worst at DC)") {
+        RunConfig cfg = linear_config(
+            "[system]\nkind = \"expr\"\nstates = [\"x\"]\nunits = [\"m\"]\ndisturbances = 1\nmeasurements = 1\n"
+            "f = [\"-x\"]\ng = [[\"1\"]]\nh = [\"x\"]\n",
+            "Q = [1.0]\nx0 = [0.0]\nxhat0 = [0.0]\n", 5.0);
+        FixedGainFilter f(filter_model(cfg), {1.0});
+        const double dt = cfg.dt, phi = 1.0 + dt * (-1.0 - 1.0);
+        const std::int64_t K = cfg.steps_until();
+        const double exact = exact_finite_horizon_gain({phi}, {dt, -dt}, {1.0}, 1, 2, K);
+        const double hinf_norm2 = dt * dt * 2.0 / ((1 - phi) * (1 - phi));  // |G(e^{i0})|^2: the infinite horizon
+        CHECK(exact <= hinf_norm2);
+        CHECK(exact >= 0.9 * hinf_norm2);  // 5 s is ten time constants: the finite horizon is close to the norm
+        WorstOptions opt;
+        opt.random_starts = 2;
+        opt.scenario_starts = {"nominal"};
+        opt.evals = 500;
+        opt.quiet = true;
+        WorstResult r = worst_search(cfg, {&f}, {}, opt);
+        const double found = r.filters[0].worst.ratio;
+        INFO("exact " << exact << ", H-inf norm^2 " << hinf_norm2 << ", found " << found);
+        CHECK(found >= 0.90 * exact);
+        CHECK(found <= exact * (1 + 1e-9));  // a ratio above the exact maximum would be a wrong ratio
+    }
+    SECTION("oscillator: resonance at 1 Hz, zeta = 0.05, L = [1, 0.5] (worst is a sinusoid)") {
+        const double w0 = 2 * M_PI, zeta = 0.05;
+        RunConfig cfg = linear_config(
+            "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\nunits = [\"m\", \"m/s\"]\ndisturbances = 1\n"
+            "measurements = 1\nparameters = { a = " + std::to_string(w0 * w0) + ", b = " +
+                std::to_string(2 * zeta * w0) + " }\nf = [\"w\", \"-a*p - b*w\"]\ng = [[\"0\"], [\"1\"]]\nh = [\"p\"]\n",
+            "Q = [1.0, 1.0]\nx0 = [0.0, 0.0]\nxhat0 = [0.0, 0.0]\n", 8.0);
+        const double l1 = 1.0, l2 = 0.5, dt = cfg.dt, a = w0 * w0, b = 2 * zeta * w0;
+        FixedGainFilter f(filter_model(cfg), {l1, l2});
+        // Phi = I + dt (A - L C), A = [[0, 1], [-a, -b]], C = [1, 0]; Gam = [dt B, -dt L]
+        const std::vector<double> Phi = {1 - dt * l1, dt, -dt * a - dt * l2, 1 - dt * b};
+        const std::vector<double> Gam = {0.0, -dt * l1, dt, -dt * l2};
+        const std::int64_t K = cfg.steps_until();
+        const double exact = exact_finite_horizon_gain(Phi, Gam, {1, 0, 0, 1}, 2, 2, K);
+        WorstOptions opt;
+        opt.random_starts = 3;
+        opt.scenario_starts = {"nominal"};
+        opt.evals = 400;
+        opt.quiet = true;
+        WorstResult r = worst_search(cfg, {&f}, {}, opt);
+        const double found = r.filters[0].worst.ratio;
+        INFO("exact " << exact << ", found " << found);
+        CHECK(found >= 0.90 * exact);
+        CHECK(found <= exact * (1 + 1e-9));
+    }
+}
+
+TEST_CASE("worst-case search: the engine replays the same ratio, any thread count, budget kept", "[eval][worst]") {
+    ConfigDoc doc = ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml"));
+    RunConfig cfg = load_run_config(std::move(doc));
+    auto ekf = make_ekf(filter_model(cfg));
+    WorstOptions opt;
+    opt.until = 2.0;
+    opt.random_starts = 2;
+    opt.scenario_starts = {"energy_pulse"};
+    opt.evals = 30;
+    opt.quiet = true;
+    omp_set_num_threads(1);
+    WorstResult r1 = worst_search(cfg, {ekf.get()}, {}, opt);
+    omp_set_num_threads(2);
+    WorstResult r2 = worst_search(cfg, {ekf.get()}, {}, opt);
+    REQUIRE(r1.filters[0].restarts.size() == 3);
+    for (std::size_t i = 0; i < 3; ++i) CHECK(r1.filters[0].restarts[i].ratio == r2.filters[0].restarts[i].ratio);
+    CHECK(r1.filters[0].worst.signals.v == r2.filters[0].worst.signals.v);
+    // the replay through the engine (eval/engine.cpp) gives the search's ratio bit for bit
+    CHECK(r1.cross.ratio[0] == r1.filters[0].worst.ratio);
+    // every candidate carries exactly the budget
+    CHECK(r1.cross.signal_energy[0] == Approx(r1.energy).epsilon(1e-12));
+    // the search improved on its starts
+    for (const auto& rs : r1.filters[0].restarts) CHECK(rs.ratio >= rs.start_ratio);
+
+    // the file round-trips; a file for another system is refused with a line naming the difference
+    TempDir d("worst");
+    worst_write(d / "worst.h5", worst_config(cfg, opt), opt, r1);
+    std::int64_t steps = 0;
+    bool keep = true;
+    std::vector<WorstSignals> sets = worst_read(d / "worst.h5", cfg, &steps, &keep);
+    CHECK(steps == r1.steps);
+    CHECK_FALSE(keep);
+    REQUIRE(sets.size() == 1);
+    CHECK(sets[0].signals.n == r1.filters[0].worst.signals.n);
+    RunConfig missile = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/missile_hinf.toml")));
+    CHECK_THROWS_WITH(worst_read(d / "worst.h5", missile, &steps, &keep), Catch::Contains("its signals are for system"));
+}
