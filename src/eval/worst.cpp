@@ -11,6 +11,8 @@
 #include <cstdio>
 #include <memory>
 #include <omp.h>
+#include <sstream>
+#include <toml++/toml.h>
 
 #include "eval/engine.hpp"
 #include "filters/gain_law.hpp"
@@ -417,7 +419,16 @@ std::string join(const std::vector<std::string>& v) {
     return s;
 }
 
+// The [system] table as TOML text: two expression systems share name() and may share state names
+std::string system_table(const RunConfig& cfg) {
+    const toml::node* n = cfg.doc.root().get("system");
+    std::ostringstream ss;
+    if (n != nullptr && n->is_table()) ss << *n->as_table();
+    return ss.str();
+}
+
 void write_identity(hid_t root, const RunConfig& cfg, std::int64_t steps) {
+    h5::set_attr(root, "system_table", system_table(cfg));
     h5::set_attr(root, "system", cfg.system->name());
     h5::set_attr(root, "state_names", join(cfg.system->state_names()));
     h5::set_attr(root, "n", std::int64_t(cfg.n));
@@ -531,6 +542,9 @@ std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& c
     HINF_CHECK(sys == cfg.system->name() && names == join(cfg.system->state_names()),
                where + "its signals are for system '" + sys + "' (states " + names + "), the config's is '" +
                    cfg.system->name() + "' (states " + join(cfg.system->state_names()) + ")");
+    HINF_CHECK(h5::get_attr_string(root, "system_table") == system_table(cfg),
+               where + "its signals are for another [system] table (" + sys + " with other keys or parameters) than "
+                       "the config's");
     const std::int64_t nv = h5::get_attr_int(root, "nv"), m = h5::get_attr_int(root, "m");
     HINF_CHECK(nv == cfg.nv && m == cfg.m, where + "its signals have " + std::to_string(nv) + " disturbance and " +
                                                std::to_string(m) + " noise channels, the config's system " +
