@@ -59,7 +59,7 @@ void add_train_commands(CLI::App& app) {
         opt.until = args->until;
         opt.quiet = args->quiet;
         TrainSummary s = train_start(cfg, opt);
-        if (s.status != 0) std::exit(s.status);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
     });
 
@@ -74,7 +74,7 @@ void add_train_commands(CLI::App& app) {
         opt.until = args->until;
         opt.quiet = args->quiet;
         TrainSummary s = train_resume(args->checkpoint, opt);
-        if (s.status != 0) std::exit(s.status);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, std::filesystem::path(args->checkpoint).parent_path().string());
     });
 }
