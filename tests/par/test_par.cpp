@@ -15,7 +15,7 @@ namespace {
 
 // mpirun as root on a 2-core CI box: oversubscription allowed, root allowed, no network probing needed
 std::string mpirun(int np) {
-    return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 " +
+    return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 " +
            std::string(HINF_MPIEXEC) + " --oversubscribe -np " + std::to_string(np) + " ";
 }
 
@@ -99,4 +99,78 @@ TEST_CASE("more processes than Monte Carlo runs: one line from rank 0 and a non-
     CHECK(r.output.rfind("hinf: error: 3 MPI processes for 2 run(s)", 0) == 0);
     // the line is printed once (by rank 0), whatever mpirun adds after it
     CHECK(r.output.find("MPI processes for") == r.output.rfind("MPI processes for"));
+}
+
+namespace {
+
+// 6 chunks of 50 samples per minibatch: split 6/3/2 over 1/2/3 processes
+std::string data_parallel_config(const std::string& t_final) {
+    return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +
+           "\n[network]\nhidden = [16]\nchunk = 50\n[training]\nsamples = 400\nbatch = 300\nadam_steps = 3\n"
+           "checkpoint_every = 2\n";
+}
+
+void check_same_run(const std::string& a, const std::string& b) {
+    for (const char* f : {"/checkpoint.h5", "/trajectory.h5"}) {
+        const auto diff = hinf::test::h5_differences(a + f, b + f, {});
+        for (const auto& p : diff) UNSCOPED_INFO("differs: " << f << " " << p);
+        CHECK(diff.empty());
+    }
+}
+
+}  // namespace
+
+TEST_CASE("data-parallel training: the weights after a few steps are the same bits for mpirun -np 1, 2, 3 as for "
+          "one plain process", "[par][mpi][train]") {
+    if (!have_mpi()) {
+        WARN("built without MPI: nothing to launch");
+        return;
+    }
+    TempDir d("par-train");
+    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.04"));
+    CommandResult one = hinf::test::run_hinf("train " + cfg + " --threads 1 --quiet --out " + d / "plain");
+    INFO(one.output);
+    REQUIRE(one.status == 0);
+    for (int np : {2, 3}) {
+        const std::string out = d / ("np" + std::to_string(np));
+        CommandResult r = hinf::test::run_command(mpirun(np) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + out);
+        INFO("mpirun -np " << np << "\n" << r.output);
+        REQUIRE(r.status == 0);
+        check_same_run(d / "plain", out);
+    }
+    // more processes than chunks: one line, non-zero exit
+    CommandResult bad = hinf::test::run_command(mpirun(7) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + d / "bad");
+    INFO(bad.output);
+    CHECK(bad.status == 2);
+    CHECK(bad.output.rfind("hinf: error: 7 MPI processes for a minibatch of 6 chunk(s)", 0) == 0);
+}
+
+TEST_CASE("kill -9 of an MPI training run, resume under another process count: the same bits as an uninterrupted "
+          "run", "[par][mpi][train][resume]") {
+    if (!have_mpi()) {
+        WARN("built without MPI: nothing to launch");
+        return;
+    }
+    TempDir d("par-kill");
+    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.5"));
+    CommandResult one = hinf::test::run_hinf("train " + cfg + " --threads 1 --quiet --out " + d / "plain");
+    INFO(one.output);
+    REQUIRE(one.status == 0);
+    // the whole job (mpirun and its ranks, which OpenMPI puts in process groups of their own, all in one
+    // session) is killed once the first checkpoint is there
+    const std::string out = d / "killed";
+    CommandResult killed = hinf::test::run_command(
+        "bash -c 'setsid " + mpirun(2) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + out +
+        " >/dev/null 2>&1 & p=$!; for i in $(seq 500); do [ -f " + out + "/checkpoint.h5 ] && break; sleep 0.01; done; "
+        "pkill -KILL -s $p; wait $p; echo killed $?'");
+    INFO(killed.output);
+    CHECK(killed.output.find("killed 137") != std::string::npos);
+    CommandResult resumed = hinf::test::run_command(mpirun(3) + HINF_CLI_PATH + " resume " + out +
+                                                    "/checkpoint.h5 --threads 1 --quiet");
+    INFO(resumed.output);
+    REQUIRE(resumed.status == 0);
+    // it continued from a checkpoint before the end: the kill came mid-run
+    CHECK(resumed.output.find("trained time steps 0..") == std::string::npos);
+    CHECK(resumed.output.find("trained time steps 50..50") == std::string::npos);
+    check_same_run(d / "plain", out);
 }
