@@ -174,3 +174,38 @@ TEST_CASE("kill -9 of an MPI training run, resume under another process count: t
     CHECK(resumed.output.find("trained time steps 50..50") == std::string::npos);
     check_same_run(d / "plain", out);
 }
+
+TEST_CASE("hinf sweep: one training per value and process group, each as its own run, and a second job resumes what "
+          "a killed one left and skips what it finished", "[par][mpi][sweep]") {
+    TempDir d("par-sweep");
+    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.04"));
+    // seed 2 as a killed job leaves it: a checkpoint part of the way, no summary
+    CommandResult part = hinf::test::run_hinf("train " + cfg + " --set training.seed=2 --until 0.02 --threads 1 --quiet --out " +
+                                              d / "sweep/training.seed=2");
+    INFO(part.output);
+    REQUIRE(part.status == 0);
+    const std::string launch = have_mpi() ? mpirun(2) + HINF_CLI_PATH : std::string(HINF_CLI_PATH);
+    CommandResult r = hinf::test::run_command(launch + " sweep " + cfg + " --vary training.seed=1,2,3 --threads 1 --out " + d / "sweep");
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("resumed") != std::string::npos);
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 6);  // header line, table of 3, files line: rank 0 alone
+    std::ifstream csv(d / "sweep/sweep.csv");
+    std::string line;
+    int rows = 0;
+    while (std::getline(csv, line)) rows += line.rfind("training.seed,", 0) == 0;
+    CHECK(rows == 3);
+    // each value's run is the run `hinf train --set training.seed=V` gives
+    for (const char* seed : {"2", "3"}) {
+        const std::string plain = d / (std::string("plain") + seed);
+        REQUIRE(hinf::test::run_hinf("train " + cfg + " --set training.seed=" + seed + " --threads 1 --quiet --out " + plain).status == 0);
+        check_same_run(plain, d / (std::string("sweep/training.seed=") + seed));
+    }
+    CommandResult again = hinf::test::run_command(launch + " sweep " + cfg + " --vary training.seed=1,2,3 --threads 1 --out " + d / "sweep");
+    INFO(again.output);
+    CHECK(again.status == 0);
+    CHECK(std::count(again.output.begin(), again.output.end(), '\n') == 6);
+    CHECK(again.output.find("done before") != std::string::npos);
+    CHECK(again.output.find("trained ") == std::string::npos);
+    hinf::test::expect_one_line_error("sweep " + cfg + " --vary training.seed= --out " + d / "bad", "a sweep needs at least one value");
+}
