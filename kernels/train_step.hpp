@@ -1,7 +1,7 @@
 // One training step's gradient over a minibatch, split over OpenMP threads in fixed-size chunks:
 // each chunk runs forward -> head -> HJIE loss -> backward and writes its own partial gradient; the
 // partials are summed in chunk order, so the result does not depend on the number of threads.
-// Not the time-step loop or the sampling of errors (src/train/driver.cpp), not the Adam update (adam.hpp).
+// Not the time-step loop or the sampling of errors (src/train/trainer.cpp, src/train/samples.cpp), not the Adam update (adam.hpp).
 //
 // Shape legend: M = minibatch, C = chunk size, n = states, P = parameters, O = network outputs.
 #pragma once

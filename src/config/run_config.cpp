@@ -9,7 +9,7 @@
 
 namespace hinf {
 
-std::int64_t RunConfig::steps_until(double until) const {
+std::int64_t ProblemConfig::steps_until(double until) const {
     return static_cast<std::int64_t>(std::llround(final_time(until) / dt));
 }
 

@@ -11,8 +11,8 @@
 
 namespace hinf {
 
-struct RunConfig {
-    ConfigDoc doc;                    // the effective config (with --set applied)
+/// What every phase reads: the system, the game ([filter]) and the time grid.
+struct ProblemConfig {
     std::shared_ptr<System> system;
     int n = 0, nv = 0, m = 0;
 
@@ -24,6 +24,16 @@ struct RunConfig {
     std::vector<double> x0, xhat0;         // n
     double dt = 0.01, t_final = 70.0;
 
+    /// The horizon of a run asked to stop at `until`: min(until, t_final); until < 0 means t_final.
+    double final_time(double until = -1) const { return until >= 0 && until < t_final ? until : t_final; }
+    /// The one place times become steps: llround(final_time(until) / dt).
+    std::int64_t steps_until(double until = -1) const;
+    /// t_k = k dt, the time of step k.
+    double time_of(std::int64_t step) const { return double(step) * dt; }
+};
+
+/// What only the offline phase (train, resume, bench) reads: the network, Adam, sampling, the objective.
+struct TrainingConfig {
     // [network]
     std::vector<int> hidden = {256, 128, 32};
     double slope_positive = 1.0, slope_negative = 0.01;
@@ -53,20 +63,23 @@ struct RunConfig {
     double margin = 0.02, h2_weight = 0.1, disturbance_intensity = 4.0, noise_intensity = 4.0;
     double horizon = 0.0;               // 0: t_final
     double max_step_correction = 0.5;   // kappa: dt * |k dC| <= kappa |x~| (sets eps when eps = 0)
+};
 
+/// What only the on-line phase (operate, compare, filter) reads: the simulated noise and the Monte Carlo.
+struct OnlineConfig {
     // [online]
     std::string mode = "oracle";
     double disturbance_std = 20.0, noise_std = 20.0;
     std::int64_t runs = 1;
     std::uint64_t online_seed = 7;
     double settle_time = 5.0;  // error statistics are also reported over t >= settle_time [s]
+};
 
-    /// The horizon of a run asked to stop at `until`: min(until, t_final); until < 0 means t_final.
-    double final_time(double until = -1) const { return until >= 0 && until < t_final ? until : t_final; }
-    /// The one place times become steps: llround(final_time(until) / dt).
-    std::int64_t steps_until(double until = -1) const;
-    /// t_k = k dt, the time of step k.
-    double time_of(std::int64_t step) const { return double(step) * dt; }
+/// One config file, checked once: the three parts above plus the effective text. A function that needs only
+/// one part takes that part.
+struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
+    ConfigDoc doc;  // the effective config (with --set applied)
+
     /// Resolved scales (auto values filled from x0, xhat0, rho).
     double resolved_input_scale() const;
     double resolved_output_scale() const;

@@ -1,5 +1,5 @@
 // TOML config reading with strict checking (types, ranges, unknown keys) on top of toml++.
-// Not the meaning of keys: see src/io/run_config.cpp and docs/formats.md.
+// Not the meaning of keys: see src/config/run_config.cpp and docs/formats.md.
 #include "hinf/config.hpp"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // One time step's training data: N errors around x~(t) and their per-sample constants
-// dA_i, B_i, dC_i, x~_i^T Q x~_i (DESIGN.md: computed once per time step, independent of the weights).
+// dA_i, B_i, dC_i, x~_i^T Q x~_i (docs/architecture.md: computed once per time step, independent of the weights).
 #pragma once
 #include <cstdint>
 #include <vector>

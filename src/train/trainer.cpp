@@ -223,7 +223,7 @@ public:
     }
 
 private:
-    // One time step of the offline phase (DESIGN.md, docs/architecture.md): four named phases filling one record,
+    // One time step of the offline phase (docs/architecture.md): four named phases filling one record,
     // which becomes one trajectory row. false on numerical trouble (diagnostic printed).
     bool time_step(StepRecord* rec) {
         const std::int64_t step = ck_.state.step;

@@ -1,4 +1,4 @@
-// The offline phase (seed 000 Fig. 3 / DESIGN.md "One time step"): the thin driver that chains
+// The offline phase (seed 000 Fig. 3; docs/architecture.md "One training time step"): the thin driver that chains
 // time steps, writes the trajectory as it goes and a checkpoint every S steps.
 #pragma once
 #include <cstdint>
