@@ -52,7 +52,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
 
 template <typename T>
 StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const std::int64_t* idx, int M,
-                       const StepConfig& cfg, StepWorkspace<T>& ws) {
+                       const StepConfig& cfg, StepWorkspace<T>& ws, const StepSplit* split) {
     const MlpShape& sh = cfg.shape;
     const int n = sys.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     const int chunks = (M + C - 1) / C;
@@ -62,10 +62,20 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     gemm_prepare(sh.gemm);
     const T* wt = pack(ws, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
+    // this process's chunks [c_first, c_last): all of them without a split
+    const int ranks = split != nullptr ? split->ranks : 1, rank = split != nullptr ? split->rank : 0;
+    const int c_first = step_split_begin(chunks, rank, ranks), c_last = step_split_begin(chunks, rank + 1, ranks);
+    std::vector<std::int64_t> chunk_begin, sample_begin;
+    if (ranks > 1) {
+        for (int r = 0; r <= ranks; ++r) {
+            chunk_begin.push_back(step_split_begin(chunks, r, ranks));
+            sample_begin.push_back(std::min<std::int64_t>(M, chunk_begin.back() * C));
+        }
+    }
 
     // pass 1: forward, head, per-sample loss pieces
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
+    for (int c = c_first; c < c_last; ++c) {
         const int b0 = c * C, B = std::min(C, M - b0);
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(c) * As;
@@ -80,6 +90,8 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
             ws.values[b0 + s] = hjie_sample_forward(p, Pm, sys, i, cfg.hjie, cfg.objective);
         }
     }
+    // every process needs every sample's loss pieces: the loss (and so dL/dp) is a function of all of them
+    if (ranks > 1) split->allgather(ws.values.data(), sizeof(HjieSampleValue), sample_begin.data());
     // ordered reduction of the loss
     double sum_hinge = 0, sum_h2 = 0;
     for (int s = 0; s < M; ++s) {
@@ -96,7 +108,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
 
     // pass 2: per-sample dL/dp -> dL/do -> partial dL/dtheta per chunk
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
+    for (int c = c_first; c < c_last; ++c) {
         const int b0 = c * C, B = std::min(C, M - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
@@ -115,6 +127,8 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
+    // every chunk's partial to every process (an all-gather, not an all-reduce, whose order MPI leaves open)
+    if (ranks > 1) split->allgather(ws.partial.data(), Ps * std::int64_t(sizeof(T)), chunk_begin.data());
     // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in
     // blocks of components so that the inner loop runs along contiguous memory (vectorised)
     constexpr std::int64_t kBlock = 2048;
@@ -162,9 +176,9 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
 template struct StepWorkspace<float>;
 template struct StepWorkspace<double>;
 template StepLoss step_gradient<float>(float*, const float*, const HjieSystemView&, const std::int64_t*, int,
-                                       const StepConfig&, StepWorkspace<float>&);
+                                       const StepConfig&, StepWorkspace<float>&, const StepSplit*);
 template StepLoss step_gradient<double>(double*, const double*, const HjieSystemView&, const std::int64_t*, int,
-                                        const StepConfig&, StepWorkspace<double>&);
+                                        const StepConfig&, StepWorkspace<double>&, const StepSplit*);
 template void network_eval<float>(double*, double*, const float*, const double*, std::int64_t, const StepConfig&,
                                   StepWorkspace<float>&);
 template void network_eval<double>(double*, double*, const double*, const double*, std::int64_t, const StepConfig&,

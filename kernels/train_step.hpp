@@ -68,10 +68,22 @@ struct StepLoss {
     double h2 = 0;     // mean h2 (before eta)
 };
 
-/// grad [P] = dL/dtheta over samples idx[0..M) of sys (overwritten). Returns the loss at theta.
+/// A data-parallel split of step_gradient's chunks over processes (issue 16). Process `rank` of `ranks`
+/// computes chunks [step_split_begin(chunks, rank, ranks), step_split_begin(chunks, rank + 1, ranks)) of the
+/// minibatch; `allgather` then gives every process every process's items (base holds [begin[r], begin[r + 1])
+/// of item_bytes each from rank r). The chunks, and so the sums in chunk order, do not depend on `ranks`.
+struct StepSplit {
+    int rank = 0, ranks = 1;
+    void (*allgather)(void* base, std::int64_t item_bytes, const std::int64_t* begin) = nullptr;
+};
+/// First chunk of rank r: consecutive blocks of chunks.
+inline int step_split_begin(int chunks, int r, int ranks) { return int(std::int64_t(chunks) * r / ranks); }
+
+/// grad [P] = dL/dtheta over samples idx[0..M) of sys (overwritten). Returns the loss at theta. With a split,
+/// every process passes the same theta, idx and M and gets the same bits as one process without a split.
 template <typename T>
 StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const std::int64_t* idx, int M,
-                       const StepConfig& cfg, StepWorkspace<T>& ws);
+                       const StepConfig& cfg, StepWorkspace<T>& ws, const StepSplit* split = nullptr);
 
 /// Forward only: p [count x n] = dV/dx~ at xt [count x n]; P [count x n x n] for the quadratic head
 /// (may be null). count <= ws.capacity.

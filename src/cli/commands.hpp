@@ -5,7 +5,7 @@
 
 namespace hinf::cli {
 
-void add_train_commands(CLI::App& app);   // train, resume
+void add_train_commands(CLI::App& app);   // train, sweep, resume
 void add_operate_command(CLI::App& app);  // operate
 void add_bench_command(CLI::App& app);    // bench
 /// `hinf lmi`: seed 002's LMI filter design (src/cli/lmi_cmd.cpp).

@@ -89,6 +89,16 @@ void add_compare_command(CLI::App& app) {
         for (const auto& fr : s.filters) same = same && fr.stream_hash == s.truth_stream_hash;
         std::printf("measurement streams identical for all filters: %s; wall %.1f s; files: %s/compare.h5, compare.csv\n",
                     same ? "yes" : "NO", s.wall_seconds, opt.out_dir.c_str());
+        if (s.rank_seconds.size() > 1) {
+            double mx = 0, sum = 0;
+            for (double v : s.rank_seconds) {
+                mx = std::max(mx, v);
+                sum += v;
+            }
+            const double mean = sum / double(s.rank_seconds.size());
+            std::printf("load balance over %zu processes: busy %.2f s max, %.2f s mean (max/mean %.3f)\n",
+                        s.rank_seconds.size(), mx, mean, mean > 0 ? mx / mean : 1.0);
+        }
         HINF_CHECK(same, "compare: a filter was fed a different measurement stream (bug)");
         if (a->plot) {
             const std::string script = std::string(HINF_SOURCE_DIR) + "/scripts/plot";

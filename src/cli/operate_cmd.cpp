@@ -46,7 +46,7 @@ void add_operate_command(CLI::App& app) {
             if (sys.has("kind") && sys.get_string("kind", "") == "ito_delay") {
                 int rc = lmi::delay_operate(doc, a->out.empty() ? default_out_dir(a->config, "") : a->out,
                                             static_cast<int>(a->runs), a->threads);
-                if (rc != 0) std::exit(rc);
+                if (rc != 0) throw CLI::RuntimeError(rc);
                 return;
             }
         }

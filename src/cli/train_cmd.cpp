@@ -1,9 +1,13 @@
 // `hinf train` and `hinf resume`: argument parsing and the end-of-run summary.
+#include <algorithm>
 #include <cstdio>
+#include <sstream>
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "io/progress.hpp"
+#include "par/par.hpp"
+#include "train/sweep.hpp"
 #include "train/trainer.hpp"
 
 namespace hinf::cli {
@@ -59,8 +63,46 @@ void add_train_commands(CLI::App& app) {
         opt.until = args->until;
         opt.quiet = args->quiet;
         TrainSummary s = train_start(cfg, opt);
-        if (s.status != 0) std::exit(s.status);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
+    });
+
+    auto sw = std::make_shared<TrainArgs>();
+    auto vary = std::make_shared<std::string>();
+    CLI::App* sweep = app.add_subcommand(
+        "sweep", "Train one config for several values of one key as one job (mpirun: one training per process group)");
+    sweep->add_option("config", sw->config, "Scenario config (TOML)")->required();
+    sweep->add_option("--vary", *vary, "KEY=V1,V2,...: one training per value, e.g. training.seed=1,2,3")->required();
+    sweep->add_option("--out", sw->out, "Output directory (default runs/out/<config name>/sweep); one KEY=V inside per value");
+    sweep->add_option("--until", sw->until, "Stop each training at this simulated time [s]");
+    sweep->add_option("--threads", sw->threads, "OpenMP threads per process");
+    sweep->add_option("--set", sw->sets, "Override a config key for every value (repeatable)");
+    sweep->callback([sw, vary]() {
+        apply_threads(sw->threads);
+        SweepOptions opt;
+        const std::size_t eq = vary->find('=');
+        HINF_CHECK(eq != std::string::npos && eq > 0, "--vary " + *vary + ": expected KEY=V1,V2,... (e.g. training.seed=1,2,3)");
+        opt.key = vary->substr(0, eq);
+        std::stringstream in(vary->substr(eq + 1));
+        for (std::string v; std::getline(in, v, ',');) opt.values.push_back(v);
+        HINF_CHECK(!opt.values.empty(), "a sweep needs at least one value: --vary " + opt.key + "=V1,V2,...");
+        opt.sets = sw->sets;
+        opt.until = sw->until;
+        opt.out_dir = sw->out.empty() ? default_out_dir(sw->config, "sweep") : sw->out;
+        const int groups = std::min<int>(int(opt.values.size()), par_world_size());
+        std::printf("sweep: %zu value(s) of %s over %d process group(s) of %d process(es)\n", opt.values.size(),
+                    opt.key.c_str(), std::max(groups, 1), par_world_size() / std::max(groups, 1));
+        std::fflush(stdout);
+        std::vector<SweepRow> rows = sweep_run(sw->config, opt);
+        std::printf("%-24s %-12s %6s %9s %10s %12s %10s %10s %8s\n", opt.key.c_str(), "how", "status", "steps",
+                    "wall [s]", "final loss", "rel.resid", "viol.ok", "cos");
+        for (const auto& r : rows)
+            std::printf("%-24s %-12s %6d %9lld %10.2f %12.4g %10.3g %9.1f%% %8.3f\n", r.value.c_str(), r.how.c_str(),
+                        r.summary.status, static_cast<long long>(r.summary.last_step), r.summary.wall_seconds,
+                        r.summary.final_loss, r.summary.median_rel_residual,
+                        100 * r.summary.fraction_steps_violation_ok, r.summary.mean_cosine);
+        std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv)\n",
+                    opt.out_dir.c_str());
     });
 
     CLI::App* resume = app.add_subcommand("resume", "Continue a training run from its checkpoint (bit-identical)");
@@ -74,7 +116,7 @@ void add_train_commands(CLI::App& app) {
         opt.until = args->until;
         opt.quiet = args->quiet;
         TrainSummary s = train_resume(args->checkpoint, opt);
-        if (s.status != 0) std::exit(s.status);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, std::filesystem::path(args->checkpoint).parent_path().string());
     });
 }

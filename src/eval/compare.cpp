@@ -96,6 +96,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     sum.scenario = opt.scenario.name;
     sum.runs = R;
     sum.steps = steps;
+    sum.rank_seconds = er.rank_seconds;
     sum.truth_stream_hash = hash_start;
     for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = hash_bytes(sum.truth_stream_hash, &er.truth_hash[r], 8);
 

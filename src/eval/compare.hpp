@@ -39,6 +39,7 @@ struct CompareSummary {
     std::uint64_t truth_stream_hash = 0;  // FNV-1a of the simulated measurements, in run and step order
     std::vector<CompareFilterResult> filters;
     double wall_seconds = 0;
+    std::vector<double> rank_seconds;  // [MPI processes] time each spent on its runs (one entry without mpirun)
 };
 
 /// Runs every filter (prototypes, cloned per thread) on the same R simulated runs of cfg's system; writes

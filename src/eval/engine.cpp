@@ -4,11 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <omp.h>
 
 #include "filters/gain_law.hpp"
 #include "hinf/error.hpp"
 #include "io/progress.hpp"
+#include "par/par.hpp"
 
 namespace hinf {
 
@@ -88,7 +90,58 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     return r;
 }
 
+// One run's results as bytes, for the all-gather between ranks: the truth hash, then each filter's stats.
+struct RunWriter {
+    std::vector<char> bytes;
+    void put(const void* p, std::size_t n) { bytes.insert(bytes.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n); }
+    void put(double v) { put(&v, sizeof v); }
+    void put(std::uint64_t v) { put(&v, sizeof v); }
+    void put(const std::vector<double>& v) {
+        put(std::uint64_t(v.size()));
+        put(v.data(), sizeof(double) * v.size());
+    }
+};
+
+struct RunReader {
+    const char* p;
+    const char* end;
+    void get(void* dst, std::size_t n) {
+        HINF_CHECK(p + n <= end, "engine: a rank sent a truncated result (bug)");
+        std::memcpy(dst, p, n);
+        p += n;
+    }
+    double get_double() { double v; get(&v, sizeof v); return v; }
+    std::uint64_t get_u64() { std::uint64_t v; get(&v, sizeof v); return v; }
+    std::vector<double> get_vector() {
+        std::vector<double> v(get_u64());
+        get(v.data(), sizeof(double) * v.size());
+        return v;
+    }
+};
+
+void put_stats(RunWriter& w, const FilterRunStats& s) {
+    for (double v : {s.diverged_at, s.settled_steps, s.sq_pos, s.sq_vel, s.sq_pos_settled, s.sq_vel_settled,
+                     s.error_energy, s.signal_energy, s.seconds})
+        w.put(v);
+    w.put(s.stream_hash);
+    for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed})
+        w.put(*v);
+}
+
+FilterRunStats get_stats(RunReader& rd) {
+    FilterRunStats s;
+    for (double* v : {&s.diverged_at, &s.settled_steps, &s.sq_pos, &s.sq_vel, &s.sq_pos_settled, &s.sq_vel_settled,
+                      &s.error_energy, &s.signal_energy, &s.seconds})
+        *v = rd.get_double();
+    s.stream_hash = rd.get_u64();
+    for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed})
+        *v = rd.get_vector();
+    return s;
+}
+
 }  // namespace
+
+std::int64_t engine_rank_of(std::int64_t run, int ranks) { return run % ranks; }
 
 EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                         const EngineOptions& opt, const StepObserver* observer) {
@@ -106,15 +159,27 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
     res.truth_hash.assign(R, 0);
     res.t.resize(K);
     for (std::int64_t k = 0; k < K; ++k) res.t[k] = cfg.time_of(k);
-    Progress progress(opt.label, 0, R, opt.quiet);
+    // under mpirun: run r is computed by rank r mod size (runs cost alike, and a filter's divergence makes
+    // later runs cheaper at random, so dealing them out evens the load better than blocks); each run draws
+    // from its own counter-based streams, so who computes it does not change a bit of it
+    const int rank = par_rank(), ranks = par_size();
+    HINF_CHECK(ranks <= R, std::to_string(ranks) + " MPI processes for " + std::to_string(R) +
+                               " run(s): start at most as many processes as runs (mpirun -np)");
+    std::vector<std::int64_t> mine;
+    for (std::int64_t r = 0; r < R; ++r)
+        if (engine_rank_of(r, ranks) == rank) mine.push_back(r);
+    const std::int64_t L = std::int64_t(mine.size());
+    Progress progress(opt.label, 0, L, opt.quiet);
     std::int64_t done = 0;
+    const auto c0 = std::chrono::steady_clock::now();
 #pragma omp parallel
     {
         std::vector<std::unique_ptr<OnlineFilter>> local;
         for (const OnlineFilter* f : filters) local.push_back(f->clone());
         std::unique_ptr<StepObserver> obs = observer != nullptr ? observer->clone() : nullptr;
 #pragma omp for schedule(dynamic)
-        for (std::int64_t r = 0; r < R; ++r) {
+        for (std::int64_t j = 0; j < L; ++j) {
+            const std::int64_t r = mine[j];
             TruthRun tr = truth_simulate(cfg, opt.scenario, std::uint64_t(r), K,
                                          opt.signals != nullptr ? &(*opt.signals)[r] : nullptr);
             res.truth_hash[r] = hash_bytes(hash_start, tr.y.data(), sizeof(double) * tr.y.size());
@@ -122,8 +187,31 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
                 res.runs[k][r] = run_one_filter(cfg, *local[k], tr, res.t, std::uint64_t(r), opt, obs.get(), k);
             if (r == 0) res.truth0 = std::move(tr);
 #pragma omp critical
-            progress.update(++done, "runs |");
+            progress.update(++done, ranks > 1 ? "runs of rank 0 |" : "runs |");
         }
+    }
+    res.rank_seconds = par_allgather_double(std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count());
+    if (ranks == 1) return res;
+    // run 0's truth for the files, on the ranks that did not compute run 0: one more simulation, the same bits
+    if (engine_rank_of(0, ranks) != rank)
+        res.truth0 = truth_simulate(cfg, opt.scenario, 0, K, opt.signals != nullptr ? &(*opt.signals)[0] : nullptr);
+
+    // every rank's runs to every rank, then placed in run order: the reductions that follow see the same
+    // [F][R] table whatever the number of processes
+    RunWriter w;
+    for (std::int64_t r : mine) {
+        w.put(res.truth_hash[r]);
+        for (int k = 0; k < F; ++k) put_stats(w, res.runs[k][r]);
+    }
+    const std::vector<std::vector<char>> all = par_allgather(w.bytes);
+    for (int q = 0; q < ranks; ++q) {
+        RunReader rd{all[q].data(), all[q].data() + all[q].size()};
+        for (std::int64_t r = 0; r < R; ++r) {
+            if (engine_rank_of(r, ranks) != q) continue;
+            res.truth_hash[r] = rd.get_u64();
+            for (int k = 0; k < F; ++k) res.runs[k][r] = get_stats(rd);
+        }
+        HINF_CHECK(rd.p == rd.end, "engine: a rank sent more than its runs (bug)");
     }
     return res;
 }

@@ -85,12 +85,17 @@ struct EngineResult {
     std::vector<std::uint64_t> truth_hash;          // [R] FNV-1a of each run's measurements
     TruthRun truth0;                                // run 0's truth (for plots and files)
     std::vector<double> t;                          // [K] t_k
+    std::vector<double> rank_seconds;               // [processes] wall time each spent on its runs (load balance)
 };
 
 /// Runs every filter (prototypes, cloned per thread) on the same R simulated runs; OpenMP over runs, results in
-/// run order: they do not depend on the thread count.
+/// run order: they do not depend on the thread count. Under mpirun the runs are dealt out over the processes
+/// (engine_rank_of) and every process ends with the whole table, the same bits as one process computes.
 EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                         const EngineOptions& opt, const StepObserver* observer = nullptr);
+
+/// The process that computes run `run` of a Monte Carlo among `ranks`.
+std::int64_t engine_rank_of(std::int64_t run, int ranks);
 
 /// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0 with P0 = diag(max(e0^2, 1)).
 FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);

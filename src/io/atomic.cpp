@@ -6,8 +6,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "hinf/error.hpp"
+#include "par/par.hpp"
 
 namespace hinf {
 
@@ -28,17 +30,33 @@ void commit_rename(const std::string& tmp, const std::string& path) {
 }
 
 AtomicH5::AtomicH5(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
+    if (par_rank() != 0) {
+        // under mpirun every rank computes the same result and rank 0 alone writes it: the others write into
+        // memory (HDF5's core driver without a backing store), so the code that fills the file stays one
+        h5::Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
+        H5Pset_fapl_core(fapl.get(), 1 << 20, 0);
+        tmp_ = path_ + ".rank" + std::to_string(par_rank());
+        file_ = h5::Handle(H5Fcreate(tmp_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()));
+        HINF_CHECK(file_.valid(), "cannot create an in-memory HDF5 file on rank " + std::to_string(par_rank()));
+        in_memory_ = true;
+        return;
+    }
     file_ = h5::create_file(tmp_);
 }
 
 AtomicH5::~AtomicH5() {
-    if (committed_) return;
+    if (committed_ || in_memory_) return;
     file_.reset();
     std::error_code ec;
     std::filesystem::remove(tmp_, ec);
 }
 
 void AtomicH5::commit() {
+    if (in_memory_) {
+        file_.reset();
+        committed_ = true;
+        return;
+    }
     h5::flush(file_.get());
     file_.reset();
     commit_rename(tmp_, path_);
@@ -46,6 +64,11 @@ void AtomicH5::commit() {
 }
 
 void write_text_atomic(const std::string& path, const std::function<void(std::ostream&)>& body) {
+    if (par_rank() != 0) {  // rank 0 writes (see AtomicH5)
+        std::ostringstream discard;
+        body(discard);
+        return;
+    }
     const std::string tmp = path + ".tmp";
     {
         std::ofstream out(tmp);

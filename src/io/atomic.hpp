@@ -1,6 +1,7 @@
 // Atomic result files: every file hinf writes as a result (operate.h5, compare.h5/.csv, estimates*, lmi,
 // bench.h5) is written as PATH.tmp, flushed, fsynced, closed and only then renamed to PATH, and the directory
 // is fsynced. A crash at any moment leaves either the previous PATH or the new one, never a half-written PATH.
+// Under mpirun only rank 0 (of its group) writes; the other ranks fill the same file in memory and drop it.
 // Checkpoints follow the same protocol with a read-back and a kept previous copy (io/checkpoint.hpp).
 #pragma once
 #include <hdf5.h>
@@ -35,6 +36,7 @@ private:
     std::string path_, tmp_;
     h5::Handle file_;
     bool committed_ = false;
+    bool in_memory_ = false;  // a rank other than 0 of an MPI job: nothing reaches the disk
 };
 
 /// Writes a text file atomically: body writes into the stream; a failed write (disk full) throws naming PATH.

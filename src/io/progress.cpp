@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <unistd.h>
 
+#include "par/par.hpp"
+
 namespace hinf {
 
 std::string format_duration(double s) {
@@ -18,7 +20,7 @@ std::string format_duration(double s) {
 }
 
 Progress::Progress(std::string label, std::int64_t first, std::int64_t total, bool quiet)
-    : label_(std::move(label)), first_(first), total_(total), quiet_(quiet), tty_(isatty(STDERR_FILENO) != 0) {
+    : label_(std::move(label)), first_(first), total_(total), quiet_(quiet || par_world_rank() != 0), tty_(isatty(STDERR_FILENO) != 0) {
     start_ = last_ = std::chrono::steady_clock::now();
 }
 

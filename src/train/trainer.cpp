@@ -16,6 +16,7 @@
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
 #include "io/trajectory.hpp"
+#include "par/par.hpp"
 #include "sampling.hpp"
 #include "filters/gain_law.hpp"
 #include "train/samples.hpp"
@@ -145,7 +146,7 @@ public:
         ck_.state.xhat = cfg_.xhat0;
         ck_.config_text = cfg_.doc.text();
         std::filesystem::create_directories(dir_);
-        traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
+        if (writer_) traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
                                          {{"format", "hinf-trajectory"},
                                           {"filter_type", cfg_.type},
                                           {"variant", cfg_.variant},
@@ -155,7 +156,7 @@ public:
 
     void start_from(Checkpoint<T> ck) {
         ck_ = std::move(ck);
-        traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -174,6 +175,11 @@ public:
         cos_.resize(N);
         ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
 
+        const int chunks = int((cfg_.batch + ck_.net.step.chunk - 1) / ck_.net.step.chunk);
+        HINF_CHECK(split_.ranks <= chunks,
+                   std::to_string(split_.ranks) + " MPI processes for a minibatch of " + std::to_string(chunks) +
+                       " chunk(s) (training.batch " + std::to_string(cfg_.batch) + " / network.chunk " +
+                       std::to_string(ck_.net.step.chunk) + "): start at most as many processes as chunks");
         Progress progress("train", ck_.state.step, last_step, quiet);
         auto t0 = std::chrono::steady_clock::now();
         std::vector<double> medians, medians2;
@@ -212,7 +218,7 @@ public:
         sum.median_rel_residual = percentile(medians, 0.5);
         sum.median_rel_residual2 = percentile(medians2, 0.5);
         sum.fraction_steps_violation2_ok /= cnt;
-        traj_.flush();
+        if (writer_) traj_.flush();
         return sum;
     }
 
@@ -245,7 +251,7 @@ private:
             kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
                                    perm_.data());
             kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
-                                                   int(cfg_.batch), ck_.net.step, ws_);
+                                                   int(cfg_.batch), ck_.net.step, ws_, split_.ranks > 1 ? &split_ : nullptr);
             if (k == 1) rec->loss_first = L.loss;
             if (k == cfg_.adam_steps) rec->loss_last = L.loss;
             // the limit applies once this step's updates have acted: the first loss of a time step
@@ -347,7 +353,7 @@ private:
         rec->v_star = wc.v_star;
         rec->n_star = wc.n_star;
         rec->p = p;
-        traj_.append(record_row(*rec, cfg_));
+        if (writer_) traj_.append(record_row(*rec, cfg_));
         if (!all_finite(x_next) || !all_finite(xhat_next) || !all_finite(p) || !all_finite(wc.gain)) {
             diagnose(step, !all_finite(p) ? "network output p" : !all_finite(wc.gain) ? "gain" : "state", NAN);
             return false;
@@ -389,6 +395,7 @@ private:
     }
 
     void checkpoint() {
+        if (!writer_) return;
         traj_.snapshot();  // before the checkpoint's rename: the snapshot never has fewer rows
         ckpt_write(dir_ + "/checkpoint.h5", ck_, cfg_);
     }
@@ -400,12 +407,13 @@ private:
         traj_ = TrajectoryWriter();  // close before the file is replaced
         if (std::filesystem::exists(path)) {
             ck_ = ckpt_read<T>(path);
-            traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+            if (writer_)
+                traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
         } else {
             start_fresh();  // no checkpoint yet: back to the initial network and state
         }
         ck_.state.learning_rate_scale = scale;
-        std::fprintf(stderr, "hinf: rolled back to time step %lld with learning rate %g (roll-back %lld of %lld)\n",
+        if (writer_) std::fprintf(stderr, "hinf: rolled back to time step %lld with learning rate %g (roll-back %lld of %lld)\n",
                      static_cast<long long>(ck_.state.step), cfg_.learning_rate * scale, static_cast<long long>(count),
                      static_cast<long long>(cfg_.max_rollbacks));
         return true;
@@ -422,6 +430,7 @@ private:
                                      : "No checkpoint was written yet (lower training.learning_rate and train again)";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
+        if (!writer_) return;  // every process of the run diverges alike; one says so
         std::fprintf(stderr,
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
                      "loss %s, |x~| %g, learning rate %g. %s\n",
@@ -432,6 +441,10 @@ private:
 
     RunConfig cfg_;
     std::string dir_;
+    // under mpirun (or in a sweep's group): every process holds the whole state and takes every step; the
+    // minibatch's chunks are split over the processes (data parallel); process 0 alone writes files
+    bool writer_ = par_root();
+    kern::StepSplit split_{par_rank(), par_size(), par_allgather_items};
     Checkpoint<T> ck_;
     TrajectoryWriter traj_;
     kern::StepWorkspace<T> ws_;

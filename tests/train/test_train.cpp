@@ -97,7 +97,7 @@ TEST_CASE("mixed H2/H-infinity filter: 1 and 2 threads bit-identical, resume bit
     }
 }
 
-TEST_CASE("mixed filter: x^ + x~ equals x at every step; eqs. (11) and (23) as printed do not", "[train][mixed]") {
+TEST_CASE("mixed filter: x^ + x~ equals x at every step, eqs. (11) and (23) as printed do not", "[train][mixed]") {
     test::TempDir d("mgap");
     RunConfig cfg = small_config("dissipative", "double", true, "h2hinf");
     TrainSummary s = train(cfg, d / "run", -1, 2);

@@ -1,0 +1,139 @@
+// The sweep driver (see sweep.hpp): groups of processes, one directory per value, a summary line per value
+// that marks it finished, the table gathered in value order.
+#include "train/sweep.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "hinf/config.hpp"
+#include "hinf/error.hpp"
+#include "io/atomic.hpp"
+#include "par/par.hpp"
+
+namespace hinf {
+
+namespace {
+
+const char* kSummaryHeader =
+    "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
+    "fraction_steps_violation_ok,mean_cosine";
+
+// one CSV line per value (values with a comma are refused up front)
+std::string row_line(const SweepRow& r) {
+    std::ostringstream o;
+    o.precision(17);
+    const TrainSummary& s = r.summary;
+    o << r.value << ',' << r.how << ',' << s.status << ',' << s.first_step << ',' << s.last_step << ','
+      << s.wall_seconds << ',' << s.final_loss << ',' << s.median_rel_residual << ',' << s.fraction_steps_rel_ok
+      << ',' << s.fraction_steps_violation_ok << ',' << s.mean_cosine;
+    return o.str();
+}
+
+SweepRow parse_line(const std::string& line, const std::string& where) {
+    std::vector<std::string> f;
+    std::stringstream in(line);
+    for (std::string cell; std::getline(in, cell, ',');) f.push_back(cell);
+    HINF_CHECK(f.size() == 11, where + ": not a sweep summary line (delete the file to train that value again)");
+    SweepRow r;
+    r.value = f[0];
+    r.how = f[1];
+    TrainSummary& s = r.summary;
+    s.status = std::stoi(f[2]);
+    s.first_step = std::stoll(f[3]);
+    s.last_step = std::stoll(f[4]);
+    s.wall_seconds = std::stod(f[5]);
+    s.final_loss = std::stod(f[6]);
+    s.median_rel_residual = std::stod(f[7]);
+    s.fraction_steps_rel_ok = std::stod(f[8]);
+    s.fraction_steps_violation_ok = std::stod(f[9]);
+    s.mean_cosine = std::stod(f[10]);
+    return r;
+}
+
+SweepRow train_value(const std::string& config_path, const SweepOptions& opt, const std::string& value) {
+    SweepRow row;
+    row.value = value;
+    row.dir = opt.out_dir + "/" + sweep_dir_name(opt.key, value);
+    const std::string done = row.dir + "/summary.csv", ckpt = row.dir + "/checkpoint.h5";
+    if (std::filesystem::exists(done)) {  // finished by an earlier job: its line, not a new training
+        std::ifstream in(done);
+        std::string header, line;
+        std::getline(in, header);
+        std::getline(in, line);
+        SweepRow r = parse_line(line, done);
+        r.dir = row.dir;
+        r.how = "done before";
+        return r;
+    }
+    TrainOptions to;
+    to.out_dir = row.dir;
+    to.until = opt.until;
+    to.quiet = true;  // several trainings at once: the table at the end says how each went
+    if (std::filesystem::exists(ckpt)) {
+        row.how = "resumed";
+        row.summary = train_resume(ckpt, to);
+    } else {
+        ConfigDoc doc = ConfigDoc::from_file(config_path);
+        for (const auto& s : opt.sets) doc.set(s);
+        doc.set(opt.key + "=" + value);
+        row.how = "trained";
+        row.summary = train_start(load_run_config(std::move(doc)), to);
+    }
+    write_text_atomic(done, [&](std::ostream& o) { o << kSummaryHeader << '\n' << row_line(row) << '\n'; });
+    return row;
+}
+
+}  // namespace
+
+std::string sweep_dir_name(const std::string& key, const std::string& value) {
+    std::string s = key + "=" + value;
+    for (char& c : s)
+        if (c == '/' || c == '\\' || c == ' ' || c == '"' || c == '\'' || c == '[' || c == ']') c = '_';
+    return s;
+}
+
+std::vector<SweepRow> sweep_run(const std::string& config_path, const SweepOptions& opt) {
+    HINF_CHECK(!opt.key.empty() && !opt.values.empty(),
+               "a sweep needs a key and at least one value: --vary KEY=V1,V2,... (e.g. --vary training.seed=1,2,3)");
+    for (const auto& v : opt.values)
+        HINF_CHECK(!v.empty() && v.find(',') == std::string::npos, "--vary: empty value in the list for " + opt.key);
+    {  // every value must make a valid config before any training starts (one line, every rank alike)
+        for (const auto& v : opt.values) {
+            ConfigDoc doc = ConfigDoc::from_file(config_path);
+            for (const auto& s : opt.sets) doc.set(s);
+            doc.set(opt.key + "=" + v);
+            load_run_config(std::move(doc));
+        }
+    }
+    std::filesystem::create_directories(opt.out_dir);
+    const int V = int(opt.values.size());
+    const int groups = std::min(V, par_world_size());
+    const int group = par_split(groups);
+    const bool group_root = par_root();
+    std::vector<std::string> mine;  // "index,line" of the values this group trained (sent by its root)
+    for (int i = group; i < V; i += groups) {
+        SweepRow r = train_value(config_path, opt, opt.values[i]);
+        if (group_root) mine.push_back(std::to_string(i) + ',' + row_line(r));
+    }
+    par_unsplit();
+    std::string text;
+    for (const auto& m : mine) text += m + '\n';
+    std::vector<SweepRow> rows(V);
+    for (const auto& bytes : par_allgather(std::vector<char>(text.begin(), text.end()))) {
+        std::stringstream in(std::string(bytes.begin(), bytes.end()));
+        for (std::string line; std::getline(in, line);) {
+            const std::size_t comma = line.find(',');
+            const int i = std::stoi(line.substr(0, comma));
+            rows[i] = parse_line(line.substr(comma + 1), "sweep");
+            rows[i].dir = opt.out_dir + "/" + sweep_dir_name(opt.key, opt.values[i]);
+        }
+    }
+    write_text_atomic(opt.out_dir + "/sweep.csv", [&](std::ostream& o) {
+        o << "key," << kSummaryHeader << ",dir\n";
+        for (const auto& r : rows) o << opt.key << ',' << row_line(r) << ',' << r.dir << '\n';
+    });
+    return rows;
+}
+
+}  // namespace hinf
