@@ -16,5 +16,7 @@ void add_compare_command(CLI::App& app);
 void add_filter_command(CLI::App& app);
 /// `hinf worst`: worst-case disturbance and noise per filter, and their replay (src/cli/worst_cmd.cpp).
 void add_worst_command(CLI::App& app);
+// export: a trained DNN filter as dependency-free C99 (docs/export.md)
+void add_export_command(CLI::App& app);
 
 }  // namespace hinf::cli

@@ -73,6 +73,7 @@ int run(int argc, char** argv) {
     hinf::cli::add_compare_command(app);
     hinf::cli::add_filter_command(app);
     hinf::cli::add_worst_command(app);
+    hinf::cli::add_export_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::RuntimeError& e) {

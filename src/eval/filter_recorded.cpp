@@ -20,13 +20,8 @@ namespace hinf {
 
 namespace {
 
-struct Path {
-    std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
-    std::vector<double> xhat_final;      // [n]
-    bool has_cov = false;
-};
 
-void write_csv(const std::string& path, const RunConfig& cfg, const Measurements& ms, const Path& p) {
+void write_csv(const std::string& path, const RunConfig& cfg, const Measurements& ms, const RecordedPath& p) {
     const int n = cfg.n, m = cfg.m;
     const auto names = cfg.system->state_names();
     write_text_atomic(path, [&](std::ostream& out) {
@@ -55,6 +50,79 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
 
 }  // namespace
 
+std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std) {
+    const int n = cfg.n;
+    HINF_CHECK(initial_std.empty() || int(initial_std.size()) == n,
+               "--initial-std has " + std::to_string(initial_std.size()) + " values, the system has " +
+                   std::to_string(n) + " states");
+    std::vector<double> P0(std::size_t(n) * n, 0.0);
+    for (int i = 0; i < n; ++i) {
+        const double d = cfg.x0[i] - cfg.xhat0[i];  // what `compare` tells the filters
+        const double sd = initial_std.empty() ? std::sqrt(std::max(d * d, 1.0)) : initial_std[i];
+        HINF_CHECK(sd > 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be > 0");
+        P0[i * n + i] = sd * sd;
+    }
+    return P0;
+}
+
+RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Measurements& ms,
+                                  const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
+                                  RecordedPath* out) {
+    const int n = sys.state_dim(), m = sys.output_dim();
+    const std::int64_t K = ms.rows;
+    HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
+    HINF_CHECK(int(xhat0.size()) == n && P0.size() == std::size_t(n) * n, "filter: initial estimate size");
+    HINF_CHECK(!f.uses_true_state(), "filter '" + f.name() +
+                                         "' reads the true state (oracle mode); recorded data have none: use "
+                                         "--mode measured");
+    RecordedResult r;
+    r.name = f.name();
+    r.steps = K;
+    r.innovation_rms.assign(m, 0.0);
+    r.innovation_mean.assign(m, 0.0);
+    RecordedPath& p = *out;
+    p = RecordedPath();
+    FilterStart start;
+    start.xhat0 = xhat0;
+    start.P0 = P0;
+    f.reset(start);
+    p.has_cov = f.covariance() != nullptr;
+    p.xhat.reserve(std::size_t(K) * n);
+    p.innov.reserve(std::size_t(K) * m);
+    if (p.has_cov) p.P.reserve(std::size_t(K) * n * n);
+    std::vector<double> c(m);
+    std::int64_t used = 0;
+    Progress progress("filter " + r.name, 0, K, quiet);
+    StreamResult sr = filter_stream(f, ms.y.data(), m, ms.t.data(), K, nullptr, n,
+                                    [&](std::int64_t k, const double* xh, bool frozen) {
+        p.xhat.insert(p.xhat.end(), xh, xh + n);
+        if (p.has_cov) {
+            const double* P = f.covariance();
+            p.P.insert(p.P.end(), P, P + std::size_t(n) * n);
+        }
+        const double* y = ms.y.data() + k * m;
+        sys.measurement(c.data(), xh, ms.t[k], 1);
+        for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);
+        if (frozen) return;  // frozen at its last finite estimate
+        for (int j = 0; j < m; ++j) {
+            r.innovation_mean[j] += y[j] - c[j];
+            r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
+        }
+        ++used;
+        if (k % 1000 == 999) progress.update(k + 1, "");
+    });
+    r.diverged_at = sr.diverged_at;
+    const double seconds = sr.seconds;
+    p.xhat_final.assign(f.estimate(), f.estimate() + n);
+    for (int j = 0; j < m; ++j) {
+        r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));
+        r.innovation_rms[j] = std::sqrt(r.innovation_rms[j] / double(std::max<std::int64_t>(used, 1)));
+    }
+    r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
+    progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
+    return r;
+}
+
 std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
                                             const Measurements& ms, const RecordedOptions& opt) {
     const System& sys = *cfg.system;
@@ -62,55 +130,16 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
     const std::int64_t K = ms.rows;
     HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
     HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
-    std::filesystem::create_directories(opt.out_dir);
-    std::vector<RecordedResult> results;
-    std::vector<Path> paths;
-    for (OnlineFilter* f : filters) {
+    for (OnlineFilter* f : filters)
         HINF_CHECK(!f->uses_true_state(), "filter '" + f->name() +
                                               "' reads the true state (oracle mode); recorded data have none: use "
                                               "--mode measured");
-        RecordedResult r;
-        r.name = f->name();
-        r.steps = K;
-        r.innovation_rms.assign(m, 0.0);
-        r.innovation_mean.assign(m, 0.0);
-        Path p;
-        FilterStart start;
-        start.xhat0 = opt.xhat0;
-        start.P0 = opt.P0;
-        f->reset(start);
-        p.has_cov = f->covariance() != nullptr;
-        std::vector<double> c(m);
-        std::int64_t used = 0;
-        Progress progress("filter " + r.name, 0, K, opt.quiet);
-        StreamResult sr = filter_stream(*f, ms.y.data(), m, ms.t.data(), K, nullptr, n,
-                                        [&](std::int64_t k, const double* xh, bool frozen) {
-            p.xhat.insert(p.xhat.end(), xh, xh + n);
-            if (p.has_cov) {
-                const double* P = f->covariance();
-                p.P.insert(p.P.end(), P, P + std::size_t(n) * n);
-            }
-            const double* y = ms.y.data() + k * m;
-            sys.measurement(c.data(), xh, ms.t[k], 1);
-            for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);
-            if (frozen) return;  // frozen at its last finite estimate
-            for (int j = 0; j < m; ++j) {
-                r.innovation_mean[j] += y[j] - c[j];
-                r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
-            }
-            ++used;
-            if (k % 1000 == 999) progress.update(k + 1, "");
-        });
-        r.diverged_at = sr.diverged_at;
-        const double seconds = sr.seconds;
-        p.xhat_final.assign(f->estimate(), f->estimate() + n);
-        for (int j = 0; j < m; ++j) {
-            r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));
-            r.innovation_rms[j] = std::sqrt(r.innovation_rms[j] / double(std::max<std::int64_t>(used, 1)));
-        }
-        r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
-        progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
-        results.push_back(r);
+    std::filesystem::create_directories(opt.out_dir);
+    std::vector<RecordedResult> results;
+    std::vector<RecordedPath> paths;
+    for (OnlineFilter* f : filters) {
+        RecordedPath p;
+        results.push_back(filter_record_path(*f, sys, ms, opt.xhat0, opt.P0, opt.quiet, &p));
         paths.push_back(std::move(p));
     }
 
@@ -139,7 +168,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
         for (std::size_t i = 0; i < results.size(); ++i) {
             const RecordedResult& r = results[i];
-            const Path& p = paths[i];
+            const RecordedPath& p = paths[i];
             h5::Handle g = h5::create_group(root, r.name);
             h5::set_attr(g.get(), "mode", "measured");
             h5::set_attr(g.get(), "diverged_at", r.diverged_at);

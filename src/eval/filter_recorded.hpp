@@ -29,6 +29,23 @@ struct RecordedResult {
     double us_per_step = 0;
 };
 
+/// One filter's path over a record (the arrays of estimates.h5).
+struct RecordedPath {
+    std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
+    std::vector<double> xhat_final;      // [n]
+    bool has_cov = false;
+};
+
+/// `hinf filter`'s initial covariance told to EKF/UKF/PF: diag(initial_std^2), or with none given
+/// diag(max((x0 - xhat0)^2, 1)) of the config (what `compare` tells them).
+std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std);
+
+/// Resets f to xhat0 / P0 and steps it over the whole record; *out receives its path. The one loop of
+/// `hinf filter` and of the library's Filter::run.
+RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Measurements& ms,
+                                  const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
+                                  RecordedPath* out);
+
 /// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;
 /// writes out_dir/estimates.h5 (one group per filter) and out_dir/estimates_<filter>.csv.
 /// Filters that read the true state are refused (there is none).

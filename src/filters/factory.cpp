@@ -42,6 +42,14 @@ const SimpleFilter kSimpleFilters[] = {
      [](const FilterSetArgs&, const FilterModel&, const FilterModel& exact) { return make_open_loop_filter(exact); }},
 };
 
+// "missile (states x, y, z, vx, vy, vz; 1 disturbance, 6 outputs)": what a network is tied to
+std::string system_signature(const System& sys) {
+    std::string names;
+    for (const auto& s : sys.state_names()) names += (names.empty() ? "" : ", ") + s;
+    return "'" + sys.name() + "' (states " + names + "; " + std::to_string(sys.disturbance_dim()) +
+           " disturbance(s), " + std::to_string(sys.output_dim()) + " output(s))";
+}
+
 }  // namespace
 
 std::string filter_names() {
@@ -80,6 +88,11 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
                 HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
                                                 " states, the config's system has " + std::to_string(cfg.n));
+                // the same state count is not the same system: the kind, the outputs and the state names must agree
+                const std::string trained = system_signature(*ncfg.system), here = system_signature(*cfg.system);
+                HINF_CHECK(trained == here, "network '" + path + "' was trained for the system " + trained +
+                                                ", the config's system is " + here +
+                                                " (use a network trained on this config's system)");
                 for (const std::string& mode : split_list(a.modes)) {
                     HINF_CHECK(mode == "oracle" || mode == "measured",
                                "--mode '" + mode + "' is not one of: oracle, measured");

@@ -157,4 +157,17 @@ Measurements read_measurements(const MeasurementSource& src) {
               "with datasets t and y)");
 }
 
+Measurements measurements_from_arrays(const double* t, const double* y, std::int64_t rows, int outputs,
+                                     const std::string& name) {
+    HINF_CHECK(outputs >= 1, "measurements: the system has no outputs");
+    HINF_CHECK(rows >= 0, name + ": negative row count");
+    Measurements ms;
+    ms.m = outputs;
+    ms.rows = rows;
+    ms.t.assign(t, t + rows);
+    ms.y.assign(y, y + rows * outputs);
+    check_rows(ms, name, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
+    return ms;
+}
+
 }  // namespace hinf

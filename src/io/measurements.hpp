@@ -33,4 +33,9 @@ constexpr double kUniformTolerance = 1e-6;
 /// time not strictly increasing, non-uniform spacing, fewer than 2 rows.
 Measurements read_measurements(const MeasurementSource& src);
 
+/// The same checks on arrays in memory (the library and the Python module): t [rows], y [rows x outputs];
+/// `name` stands for the file in the messages.
+Measurements measurements_from_arrays(const double* t, const double* y, std::int64_t rows, int outputs,
+                                     const std::string& name);
+
 }  // namespace hinf

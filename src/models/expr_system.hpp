@@ -53,6 +53,8 @@ class ExprSystem : public System {
     std::vector<std::string> state_units() const override { return units_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
     std::vector<std::string> compiled(const std::string& which) const;
+    /// The named constants of [system] parameters, in order (the C export declares them).
+    const std::vector<std::pair<std::string, double>>& parameters() const { return parameters_; }
 
     struct Compiled;   // one entry: a constant, or the index of its muParser program
     struct Workspace;  // muParser programs bound to their own state buffer: one per concurrent caller

@@ -208,6 +208,9 @@ public:
             std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |",
                           cfg_.time_of(ck_.state.step), rec.loss_first, rec.loss_last, rec.rel_median, rec.violation);
             progress.update(ck_.state.step, detail);
+            if (on_step_)
+                on_step_(TrainStepInfo{ck_.state.step, last_step, cfg_.time_of(ck_.state.step), rec.loss_first,
+                                       rec.loss_last, rec.rel_median, rec.violation});
         }
         sum.last_step = ck_.state.step;
         sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -454,12 +457,16 @@ private:
     std::vector<T> grad_;
     std::vector<std::int64_t> idx_, perm_;
     double rec_loss_finite_ = NAN;  // loss after the last time step that ended finite
+
+public:
+    std::function<void(const TrainStepInfo&)> on_step_;  // TrainOptions::on_step
 };
 
 template <typename T>
 TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
+    tr.on_step_ = opt.on_step;
     return tr.run(cfg.steps_until(opt.until), opt.quiet);
 }
 
@@ -475,6 +482,7 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     if (dir.empty()) dir = ".";
     Trainer<T> tr(cfg, dir);
     tr.start_from(std::move(ck));
+    tr.on_step_ = opt.on_step;
     return tr.run(last, opt.quiet);
 }
 

@@ -2,16 +2,28 @@
 // time steps, writes the trajectory as it goes and a checkpoint every S steps.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "config/run_config.hpp"
 
 namespace hinf {
 
+/// One finished time step, for a caller watching the run (the library's progress callback).
+struct TrainStepInfo {
+    std::int64_t step = 0, last_step = 0;  // time steps completed; where the run stops
+    double t = 0;                          // simulated time reached [s]
+    double loss_first = 0, loss_last = 0;  // before / after the step's Adam steps
+    double rel_median = 0, violation = 0;  // the progress line's rel.resid and viol
+};
+
 struct TrainOptions {
     std::string out_dir = "runs/out/train";
     double until = -1;  // stop at this simulated time [s]; < 0: the config's t_final
     bool quiet = false;
+    // called after each time step (after its checkpoint); an exception thrown here ends the run with the
+    // last checkpoint in place
+    std::function<void(const TrainStepInfo&)> on_step;
 };
 
 struct TrainSummary {

@@ -1,0 +1,177 @@
+// The public library facade: what a program that links hinf::hinf (find_package(hinf)) or the Python module
+// calls. Load a config and a trained network, build a filter by name, step it or run it over a record, train.
+// Not the command line (src/cli) and none of the internals (src/): this header includes only the standard
+// library and hinf/error.hpp. docs/library.md shows it in use.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hinf/error.hpp"
+
+/// @file
+/// Errors: every function here reports bad input (a missing or malformed file, a config key out of range, a
+/// wrong-sized array, an unknown filter name, a network trained for another system) by throwing hinf::Error
+/// (hinf/error.hpp), a std::runtime_error whose what() is one line "<what is wrong> (<how to fix>) [file:line]",
+/// the same line the `hinf` program prints. Nothing here exits the process or prints to stdout.
+///
+/// Arrays are row-major: a state is n doubles, a record of K measurements is K x m, a covariance n x n.
+
+namespace hinf {
+
+/// The library's version, "0.1.0".
+std::string version();
+
+/// A checked run config (the TOML file `hinf train` reads; keys: docs/formats.md).
+class Config {
+public:
+    /// Reads and checks path; each override is "section.key=value" (as `hinf ... --set`).
+    static Config load(const std::string& path, const std::vector<std::string>& overrides = {});
+    /// The same from TOML text; `name` stands for the file in error messages.
+    static Config from_text(const std::string& toml, const std::string& name = "<text>",
+                            const std::vector<std::string>& overrides = {});
+
+    int states() const;        ///< n
+    int outputs() const;       ///< m
+    int disturbances() const;  ///< nv
+    double dt() const;         ///< [filter] dt [s]
+    double t_final() const;    ///< [filter] t_final [s]
+    std::string system() const;                    ///< "missile", "maneuvering_missile" or "expr"
+    std::vector<std::string> state_names() const;  ///< n names
+    std::vector<std::string> state_units() const;  ///< n units
+    std::vector<double> initial_state() const;     ///< [filter] x0 [n]
+    std::vector<double> initial_estimate() const;  ///< [filter] xhat0 [n]
+    std::string text() const;                      ///< the effective TOML (overrides applied)
+
+    /// y = C(x, t) [m] of the config's system, for simulating or checking a record.
+    std::vector<double> measure(const std::vector<double>& x, double t) const;
+    /// x + dt (A(x, t) + B(x, t) v), the one Euler step the truth and every filter take (v [nv], empty: 0).
+    std::vector<double> advance(const std::vector<double>& x, const std::vector<double>& v, double t, double dt) const;
+
+    struct Impl;
+    std::shared_ptr<const Impl> impl;  ///< internal
+};
+
+/// A trained network, frozen, from a checkpoint (DIR/checkpoint.h5 of `hinf train`).
+class TrainedNetwork {
+public:
+    static TrainedNetwork load(const std::string& checkpoint_path);
+    std::string path() const;
+    Config config() const;        ///< the config it was trained with (stored in the checkpoint)
+    std::string variant() const;  ///< "dissipative" or "paper"
+    std::string precision() const;  ///< "float" or "double"
+    /// p = dV/dx~ [count x n] at x~ [count x n].
+    std::vector<double> gradient(const std::vector<double>& xtilde) const;
+    /// V(x~) (Gauss-Legendre quadrature of p along 0 -> x~).
+    double value(const std::vector<double>& xtilde) const;
+
+    struct Impl;
+    std::shared_ptr<Impl> impl;  ///< internal
+};
+
+/// How a filter is built. Defaults are those of `hinf filter`.
+struct FilterOptions {
+    std::vector<TrainedNetwork> networks;  ///< for "dnn": one filter per network (measured mode); required for dnn
+    double dt = 0;                  ///< step interval [s] for step(); 0: the config's dt (run() uses the record's)
+    std::vector<double> initial_estimate;  ///< x^(t_0) [n]; empty: the config's [filter] xhat0
+    /// EKF/UKF/PF: standard deviation of x^(t_0)'s error [n]; empty: |x0 - xhat0| of the config, at least 1
+    std::vector<double> initial_std;
+    std::int64_t particles = 2000;  ///< pf: particle count
+    double roughening = 0;          ///< pf: roughening constant K
+    int glf_vertices = 8;           ///< glf: vertex count N
+};
+
+/// What a filter gave over a record of K measurements (the layout of `hinf filter`'s estimates.h5).
+struct FilterTrace {
+    std::string name;
+    std::int64_t steps = 0;            ///< K
+    int n = 0, m = 0;
+    std::vector<double> xhat;          ///< [K x n]: row k estimates x(t_k) from y(t_0) .. y(t_{k-1})
+    std::vector<double> covariance;    ///< [K x n x n] the filter's error covariance of row k; empty if it has none
+    std::vector<double> innovation;    ///< [K x m] y_k - C(xhat_k, t_k)
+    std::vector<double> xhat_final;    ///< [n] the estimate of x(t_{K-1} + dt) after the last measurement
+    double diverged_at = -1;           ///< time [s] the filter diverged at (frozen after it); < 0: never
+    std::vector<double> innovation_rms, innovation_mean;  ///< [m] over the steps before a divergence
+};
+
+/// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, glf or open_loop.
+class Filter {
+public:
+    /// The names create() knows: "ekf, ukf, pf, open_loop, glf, dnn".
+    static std::string names();
+    /// Builds the filter `name` for cfg's system. For "dnn" with several networks, one filter per network:
+    /// use create_all. Throws hinf::Error for an unknown name, a dnn without a network, or a network trained
+    /// for another system.
+    static Filter create(const Config& cfg, const std::string& name, const FilterOptions& options = {});
+    /// Every filter of a comma list ("dnn,ekf,ukf"), dnn once per network.
+    static std::vector<Filter> create_all(const Config& cfg, const std::string& names,
+                                          const FilterOptions& options = {});
+
+    std::string name() const;  ///< e.g. "ekf", "dnn_dissipative_measured"
+    int states() const;
+    int outputs() const;
+    double dt() const;  ///< the step interval step() advances by
+    bool has_covariance() const;
+
+    /// The options it was built with (networks, initial estimate, ...).
+    const FilterOptions& options() const;
+    /// Back to x^(t_0) (and its covariance) of the options.
+    void reset();
+    /// Consumes y(t_k) [m] at time t_k; afterwards estimate() is the estimate of x(t_k + dt). Returns false
+    /// when the filter diverged (it then stays at its last finite estimate and ignores further steps).
+    bool step(const double* y, double t);
+    bool step(const std::vector<double>& y, double t);
+    std::vector<double> estimate() const;    ///< [n]
+    std::vector<double> covariance() const;  ///< [n x n]; empty for filters without one (dnn, glf, open_loop)
+    bool diverged() const;
+
+    /// Runs a fresh copy of the filter over a record: t [K] strictly increasing and uniformly spaced, y [K x m],
+    /// checked as `hinf filter` checks a file. The filter steps on the record's own interval, exactly as
+    /// `hinf filter` does: the same numbers, bit for bit. Does not change this filter's state.
+    FilterTrace run(const std::vector<double>& t, const std::vector<double>& y) const;
+    FilterTrace run(const double* t, const double* y, std::int64_t K) const;
+
+    struct Impl;
+    std::shared_ptr<Impl> impl;  ///< internal
+};
+
+/// One time step of training, as the progress line of `hinf train` shows it.
+struct TrainProgress {
+    std::int64_t step = 0;       ///< time steps completed
+    std::int64_t last_step = 0;  ///< where this run stops
+    double t = 0;                ///< simulated time [s] reached
+    double loss_first = 0, loss_last = 0;  ///< loss before and after the step's Adam steps
+    double rel_residual = 0;     ///< median |HJIE residual| / scale over the samples
+    double violation = 0;        ///< share of samples violating HJIE <= 0 by more than 1 % of the scale
+};
+
+/// How to train. A callback that throws stops training: the last checkpoint stays, `resume` continues it.
+struct TrainSettings {
+    std::string out_dir;  ///< required: DIR/trajectory.h5, DIR/checkpoint.h5
+    double until = -1;    ///< stop at this simulated time [s]; < 0: the config's t_final
+    bool quiet = true;    ///< no progress lines on stderr
+    bool force = false;   ///< start over when out_dir already holds a checkpoint (else that is an error)
+    int threads = 0;      ///< OpenMP threads; 0: OpenMP's default
+    std::function<void(const TrainProgress&)> on_progress;  ///< after every time step
+};
+
+/// What a training run reached (the summary `hinf train` prints).
+struct TrainReport {
+    bool diverged = false;         ///< stopped on numerical trouble (the last good checkpoint is kept)
+    std::int64_t first_step = 0, last_step = 0;
+    double wall_seconds = 0;
+    double final_loss = 0;
+    double median_rel_residual = 0;
+    double fraction_steps_violation_ok = 0;  ///< share of time steps with <= 1 % of samples violating HJIE <= 0
+    double mean_cosine = 0;                  ///< mean cos(p, x~)
+    std::string checkpoint;                  ///< DIR/checkpoint.h5
+};
+
+/// Trains a network for cfg (the offline phase, as `hinf train`).
+TrainReport train(const Config& cfg, const TrainSettings& settings);
+/// Continues the run of a checkpoint into its directory (as `hinf resume`); settings.out_dir is ignored.
+TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings);
+
+}  // namespace hinf

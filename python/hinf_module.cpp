@@ -1,0 +1,314 @@
+// The Python binding hinf._hinf (pybind11) of the public facade include/hinf/hinf.hpp: configs, networks, filters
+// (NumPy arrays in and out), training with a progress callback. hinf::Error becomes the Python exception
+// hinf.Error with the same one-line message. Not the result-file readers (python/hinf/__init__.py, h5py).
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <sstream>
+
+#include "hinf/hinf.hpp"
+
+namespace py = pybind11;
+
+namespace {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+std::string shape_text(const Array& a) {
+    std::ostringstream os;
+    os << "(";
+    for (py::ssize_t i = 0; i < a.ndim(); ++i) os << (i ? ", " : "") << a.shape(i);
+    os << (a.ndim() == 1 ? ",)" : ")");
+    return os.str();
+}
+
+// A 1-d array of `want` values (a [1 x want] or [want x 1] row or column too), as a vector.
+std::vector<double> vector_of(const Array& a, std::size_t want, const std::string& what) {
+    HINF_CHECK(std::size_t(a.size()) == want && a.ndim() <= 2,
+               what + " has shape " + shape_text(a) + "; expected " + std::to_string(want) + " values");
+    return std::vector<double>(a.data(), a.data() + a.size());
+}
+
+// A new NumPy array holding a copy of v (small results: estimates, states).
+Array to_array(const std::vector<double>& v) { return Array(py::ssize_t(v.size()), v.data()); }
+
+// A NumPy view of a vector owned by the Python object `owner` (no copy).
+py::array view(std::vector<double>& v, std::vector<py::ssize_t> shape, py::handle owner) {
+    return py::array_t<double>(shape, v.data(), owner);
+}
+
+hinf::FilterOptions filter_options(const py::object& network, double dt, const py::object& initial_estimate,
+                                   const py::object& initial_std, std::int64_t particles, double roughening,
+                                   int glf_vertices, int n) {
+    hinf::FilterOptions o;
+    auto one_network = [](const py::handle& h) {
+        if (py::isinstance<py::str>(h)) return hinf::TrainedNetwork::load(h.cast<std::string>());
+        return h.cast<hinf::TrainedNetwork>();
+    };
+    if (!network.is_none()) {
+        if (py::isinstance<py::str>(network) || py::isinstance<hinf::TrainedNetwork>(network))
+            o.networks.push_back(one_network(network));
+        else
+            for (const py::handle& h : network) o.networks.push_back(one_network(h));
+    }
+    o.dt = dt;
+    if (!initial_estimate.is_none())
+        o.initial_estimate = vector_of(initial_estimate.cast<Array>(), std::size_t(n), "initial_estimate");
+    if (!initial_std.is_none()) o.initial_std = vector_of(initial_std.cast<Array>(), std::size_t(n), "initial_std");
+    o.particles = particles;
+    o.roughening = roughening;
+    o.glf_vertices = glf_vertices;
+    return o;
+}
+
+// train/resume settings; the callback runs with the GIL held and lets Ctrl-C through
+hinf::TrainSettings train_settings(const std::string& out, double until, const py::object& progress, bool quiet,
+                                   bool force, int threads) {
+    hinf::TrainSettings s;
+    s.out_dir = out;
+    s.until = until;
+    s.quiet = quiet;
+    s.force = force;
+    s.threads = threads;
+    if (!progress.is_none()) {
+        // the training copies the callback without the GIL: hold the Python object behind a shared_ptr whose
+        // last owner takes the GIL to release it
+        std::shared_ptr<py::object> cb(new py::object(progress), [](py::object* o) {
+            py::gil_scoped_acquire gil;
+            delete o;
+        });
+        s.on_progress = [cb](const hinf::TrainProgress& p) {
+            py::gil_scoped_acquire gil;
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            (*cb)(p);
+        };
+    }
+    return s;
+}
+
+py::dict report_dict(const hinf::TrainReport& r) {
+    py::dict d;
+    d["diverged"] = r.diverged;
+    d["first_step"] = r.first_step;
+    d["last_step"] = r.last_step;
+    d["wall_seconds"] = r.wall_seconds;
+    d["final_loss"] = r.final_loss;
+    d["median_rel_residual"] = r.median_rel_residual;
+    d["fraction_steps_violation_ok"] = r.fraction_steps_violation_ok;
+    d["mean_cosine"] = r.mean_cosine;
+    d["checkpoint"] = r.checkpoint;
+    return d;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_hinf, m) {
+    m.doc() = "hinf: H-infinity HJIE-trained DNN filters and their baselines (docs/python.md)";
+    py::register_exception<hinf::Error>(m, "Error", PyExc_RuntimeError);
+    m.def("version", &hinf::version);
+
+    py::class_<hinf::Config>(m, "Config", "A checked run config (TOML; keys: docs/formats.md)")
+        .def(py::init([](const std::string& path, const std::vector<std::string>& set) {
+                 return hinf::Config::load(path, set);
+             }),
+             py::arg("path"), py::arg("set") = std::vector<std::string>{},
+             "Reads and checks a config; set: overrides such as ['training.seed=3']")
+        .def_static("from_text", &hinf::Config::from_text, py::arg("toml"), py::arg("name") = "<text>",
+                    py::arg("set") = std::vector<std::string>{})
+        .def_property_readonly("states", &hinf::Config::states)
+        .def_property_readonly("outputs", &hinf::Config::outputs)
+        .def_property_readonly("disturbances", &hinf::Config::disturbances)
+        .def_property_readonly("dt", &hinf::Config::dt)
+        .def_property_readonly("t_final", &hinf::Config::t_final)
+        .def_property_readonly("system", &hinf::Config::system)
+        .def_property_readonly("state_names", &hinf::Config::state_names)
+        .def_property_readonly("state_units", &hinf::Config::state_units)
+        .def_property_readonly("initial_state", [](const hinf::Config& c) { return to_array(c.initial_state()); })
+        .def_property_readonly("initial_estimate",
+                               [](const hinf::Config& c) { return to_array(c.initial_estimate()); })
+        .def_property_readonly("text", &hinf::Config::text)
+        .def(
+            "measure",
+            [](const hinf::Config& c, const Array& x, double t) {
+                return to_array(c.measure(vector_of(x, std::size_t(c.states()), "measure: x"), t));
+            },
+            py::arg("x"), py::arg("t") = 0.0, "y = C(x, t) without noise")
+        .def(
+            "advance",
+            [](const hinf::Config& c, const Array& x, const py::object& v, double t, double dt) {
+                std::vector<double> vv;
+                if (!v.is_none()) vv = vector_of(v.cast<Array>(), std::size_t(c.disturbances()), "advance: v");
+                return to_array(c.advance(vector_of(x, std::size_t(c.states()), "advance: x"), vv, t,
+                                                dt > 0 ? dt : c.dt()));
+            },
+            py::arg("x"), py::arg("v") = py::none(), py::arg("t") = 0.0, py::arg("dt") = 0.0,
+            "x + dt (A(x, t) + B(x, t) v): the Euler step of the truth and every filter (dt 0: the config's)")
+        .def("__repr__", [](const hinf::Config& c) {
+            return "<hinf.Config system=" + c.system() + " n=" + std::to_string(c.states()) +
+                   " m=" + std::to_string(c.outputs()) + ">";
+        });
+
+    py::class_<hinf::TrainedNetwork>(m, "Network", "A trained network, frozen, from DIR/checkpoint.h5")
+        .def(py::init(&hinf::TrainedNetwork::load), py::arg("checkpoint"))
+        .def_property_readonly("path", &hinf::TrainedNetwork::path)
+        .def_property_readonly("config", &hinf::TrainedNetwork::config)
+        .def_property_readonly("variant", &hinf::TrainedNetwork::variant)
+        .def_property_readonly("precision", &hinf::TrainedNetwork::precision)
+        .def(
+            "gradient",
+            [](const hinf::TrainedNetwork& net, const Array& xt) {
+                const int n = net.config().states();
+                HINF_CHECK((xt.ndim() == 1 && xt.shape(0) == n) || (xt.ndim() == 2 && xt.shape(1) == n),
+                           "Network.gradient: x~ has shape " + shape_text(xt) + "; expected (" + std::to_string(n) +
+                               ",) or (count, " + std::to_string(n) + ")");
+                std::vector<double> p = net.gradient(std::vector<double>(xt.data(), xt.data() + xt.size()));
+                Array out = to_array(p);
+                if (xt.ndim() == 1) return py::object(out);
+                return py::object(out.reshape({xt.shape(0), py::ssize_t(n)}));
+            },
+            py::arg("xtilde"), "p = dV/dx~ at x~ ([n] or [count x n])")
+        .def(
+            "value",
+            [](const hinf::TrainedNetwork& net, const Array& xt) {
+                return net.value(vector_of(xt, std::size_t(net.config().states()), "Network.value: x~"));
+            },
+            py::arg("xtilde"));
+
+    py::class_<hinf::FilterTrace>(m, "FilterTrace",
+                                  "One filter over a record: xhat [K x n] (row k estimates x(t_k) from y before t_k), "
+                                  "covariance [K x n x n] or None, innovation [K x m], xhat_final [n], diverged_at")
+        .def_readonly("name", &hinf::FilterTrace::name)
+        .def_readonly("steps", &hinf::FilterTrace::steps)
+        .def_readonly("diverged_at", &hinf::FilterTrace::diverged_at)
+        .def_property_readonly("xhat",
+                               [](py::object self) {
+                                   auto& t = self.cast<hinf::FilterTrace&>();
+                                   return view(t.xhat, {py::ssize_t(t.steps), t.n}, self);
+                               })
+        .def_property_readonly("covariance",
+                               [](py::object self) -> py::object {
+                                   auto& t = self.cast<hinf::FilterTrace&>();
+                                   if (t.covariance.empty()) return py::none();
+                                   return view(t.covariance, {py::ssize_t(t.steps), t.n, t.n}, self);
+                               })
+        .def_property_readonly("innovation",
+                               [](py::object self) {
+                                   auto& t = self.cast<hinf::FilterTrace&>();
+                                   return view(t.innovation, {py::ssize_t(t.steps), t.m}, self);
+                               })
+        .def_property_readonly("xhat_final",
+                               [](py::object self) {
+                                   auto& t = self.cast<hinf::FilterTrace&>();
+                                   return view(t.xhat_final, {py::ssize_t(t.n)}, self);
+                               })
+        .def_property_readonly("innovation_rms", [](const hinf::FilterTrace& t) { return to_array(t.innovation_rms); })
+        .def_property_readonly("innovation_mean", [](const hinf::FilterTrace& t) { return to_array(t.innovation_mean); })
+        .def("__repr__", [](const hinf::FilterTrace& t) {
+            return "<hinf.FilterTrace " + t.name + " steps=" + std::to_string(t.steps) +
+                   (t.diverged_at >= 0 ? " diverged" : "") + ">";
+        });
+
+    auto make_filter = [](const hinf::Config& cfg, const std::string& name, const py::object& network, double dt,
+                          const py::object& x0, const py::object& sd, std::int64_t particles, double roughening,
+                          int glf_vertices) {
+        return hinf::Filter::create(
+            cfg, name, filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, cfg.states()));
+    };
+    py::class_<hinf::Filter>(m, "Filter", "An on-line filter: dnn (measured mode), ekf, ukf, pf, glf or open_loop")
+        .def(py::init(make_filter), py::arg("config"), py::arg("name"), py::arg("network") = py::none(),
+             py::arg("dt") = 0.0, py::arg("initial_estimate") = py::none(), py::arg("initial_std") = py::none(),
+             py::arg("particles") = 2000, py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8)
+        .def_property_readonly("name", &hinf::Filter::name)
+        .def_property_readonly("states", &hinf::Filter::states)
+        .def_property_readonly("outputs", &hinf::Filter::outputs)
+        .def_property_readonly("dt", &hinf::Filter::dt)
+        .def_property_readonly("has_covariance", &hinf::Filter::has_covariance)
+        .def_property_readonly("diverged", &hinf::Filter::diverged)
+        .def("reset", &hinf::Filter::reset)
+        .def(
+            "step",
+            [](hinf::Filter& f, const Array& y, double t) {
+                return f.step(vector_of(y, std::size_t(f.outputs()), "Filter.step: y"), t);
+            },
+            py::arg("y"), py::arg("t"),
+            "Consumes y(t_k); then estimate is the estimate of x(t_k + dt). False once the filter diverged.")
+        .def_property_readonly("estimate", [](const hinf::Filter& f) { return to_array(f.estimate()); })
+        .def_property_readonly("covariance",
+                               [](const hinf::Filter& f) -> py::object {
+                                   std::vector<double> P = f.covariance();
+                                   if (P.empty()) return py::none();
+                                   return to_array(P).reshape({f.states(), f.states()});
+                               })
+        .def(
+            "run",
+            [](const hinf::Filter& f, const Array& t, const Array& y) {
+                const int m = f.outputs();
+                HINF_CHECK(t.ndim() == 1, "Filter.run: t has shape " + shape_text(t) + "; expected (K,), one time per row");
+                const py::ssize_t K = t.shape(0);
+                const bool ok = (y.ndim() == 2 && y.shape(0) == K && y.shape(1) == m) ||
+                                (m == 1 && y.ndim() == 1 && y.shape(0) == K);
+                HINF_CHECK(ok, "Filter.run: y has shape " + shape_text(y) + "; expected (" + std::to_string(K) + ", " +
+                                   std::to_string(m) + "): one row per time, one column per output");
+                py::gil_scoped_release nogil;
+                return f.run(t.data(), y.data(), std::int64_t(K));
+            },
+            py::arg("t"), py::arg("y"),
+            "Runs a fresh copy over a record t [K], y [K x m] exactly as `hinf filter` does; returns a FilterTrace")
+        .def("__repr__", [](const hinf::Filter& f) { return "<hinf.Filter " + f.name() + ">"; });
+
+    m.def(
+        "filters",
+        [](const hinf::Config& cfg, const std::string& names, const py::object& network, double dt, const py::object& x0,
+           const py::object& sd, std::int64_t particles, double roughening, int glf_vertices) {
+            return hinf::Filter::create_all(
+                cfg, names, filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, cfg.states()));
+        },
+        py::arg("config"), py::arg("names"), py::arg("network") = py::none(), py::arg("dt") = 0.0,
+        py::arg("initial_estimate") = py::none(), py::arg("initial_std") = py::none(), py::arg("particles") = 2000,
+        py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8,
+        "Every filter of a comma list ('dnn,ekf,ukf'), dnn once per network, in the order `hinf filter` uses");
+    m.def("filter_names", &hinf::Filter::names);
+
+    py::class_<hinf::TrainProgress>(m, "TrainProgress", "One finished time step of training")
+        .def_readonly("step", &hinf::TrainProgress::step)
+        .def_readonly("last_step", &hinf::TrainProgress::last_step)
+        .def_readonly("t", &hinf::TrainProgress::t)
+        .def_readonly("loss_first", &hinf::TrainProgress::loss_first)
+        .def_readonly("loss_last", &hinf::TrainProgress::loss_last)
+        .def_readonly("rel_residual", &hinf::TrainProgress::rel_residual)
+        .def_readonly("violation", &hinf::TrainProgress::violation)
+        .def("__repr__", [](const hinf::TrainProgress& p) {
+            return "<hinf.TrainProgress step " + std::to_string(p.step) + "/" + std::to_string(p.last_step) + ">";
+        });
+
+    m.def(
+        "train",
+        [](const hinf::Config& cfg, const std::string& out, double until, const py::object& progress, bool quiet,
+           bool force, int threads) {
+            hinf::TrainSettings s = train_settings(out, until, progress, quiet, force, threads);
+            hinf::TrainReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::train(cfg, s);
+            }
+            return report_dict(r);
+        },
+        py::arg("config"), py::arg("out"), py::arg("until") = -1.0, py::arg("progress") = py::none(),
+        py::arg("quiet") = true, py::arg("force") = false, py::arg("threads") = 0,
+        "Trains a network (as `hinf train`) into out/; progress(p: TrainProgress) after every time step");
+    m.def(
+        "resume",
+        [](const std::string& checkpoint, double until, const py::object& progress, bool quiet, int threads) {
+            hinf::TrainSettings s = train_settings("", until, progress, quiet, false, threads);
+            hinf::TrainReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::resume(checkpoint, s);
+            }
+            return report_dict(r);
+        },
+        py::arg("checkpoint"), py::arg("until") = -1.0, py::arg("progress") = py::none(), py::arg("quiet") = true,
+        py::arg("threads") = 0, "Continues a run from its checkpoint (as `hinf resume`)");
+}

@@ -1,0 +1,365 @@
+// The public facade (include/hinf/hinf.hpp) over the library's modules: configs, checkpoints, the filter
+// factory, the recorded-data loop of `hinf filter` and the trainer. Thin: every number comes from the code the
+// `hinf` program runs. Not the command line (src/cli).
+#include "hinf/hinf.hpp"
+
+#include <omp.h>
+
+#include <filesystem>
+#include <mutex>
+
+#include "config/run_config.hpp"
+#include "eval/filter_recorded.hpp"
+#include "filters/factory.hpp"
+#include "hinf/config.hpp"
+#include "io/checkpoint.hpp"
+#include "io/measurements.hpp"
+#include "models/system.hpp"
+#include "net/network.hpp"
+#include "train/trainer.hpp"
+
+namespace hinf {
+
+std::string version() { return "0.1.0"; }
+
+// ---------------------------------------------------------------------------------------------- Config
+
+struct Config::Impl {
+    RunConfig cfg;
+};
+
+namespace {
+Config config_of(RunConfig cfg) {
+    auto impl = std::make_shared<Config::Impl>();
+    impl->cfg = std::move(cfg);
+    Config c;
+    c.impl = impl;
+    return c;
+}
+const RunConfig& run_config(const Config& c) {
+    HINF_CHECK(c.impl != nullptr, "hinf::Config is empty (make it with Config::load or Config::from_text)");
+    return c.impl->cfg;
+}
+void check_size(std::size_t got, std::size_t want, const std::string& what) {
+    HINF_CHECK(got == want, what + " has " + std::to_string(got) + " values, expected " + std::to_string(want));
+}
+}  // namespace
+
+Config Config::load(const std::string& path, const std::vector<std::string>& overrides) {
+    ConfigDoc doc = ConfigDoc::from_file(path);
+    for (const auto& s : overrides) doc.set(s);
+    return config_of(load_run_config(std::move(doc)));
+}
+
+Config Config::from_text(const std::string& toml, const std::string& name, const std::vector<std::string>& overrides) {
+    ConfigDoc doc = ConfigDoc::from_text(toml, name);
+    for (const auto& s : overrides) doc.set(s);
+    return config_of(load_run_config(std::move(doc)));
+}
+
+int Config::states() const { return run_config(*this).n; }
+int Config::outputs() const { return run_config(*this).m; }
+int Config::disturbances() const { return run_config(*this).nv; }
+double Config::dt() const { return run_config(*this).dt; }
+double Config::t_final() const { return run_config(*this).t_final; }
+std::string Config::system() const { return run_config(*this).system->name(); }
+std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }
+std::vector<std::string> Config::state_units() const { return run_config(*this).system->state_units(); }
+std::vector<double> Config::initial_state() const { return run_config(*this).x0; }
+std::vector<double> Config::initial_estimate() const { return run_config(*this).xhat0; }
+std::string Config::text() const { return run_config(*this).doc.text(); }
+
+std::vector<double> Config::measure(const std::vector<double>& x, double t) const {
+    const RunConfig& cfg = run_config(*this);
+    check_size(x.size(), std::size_t(cfg.n), "measure: the state x");
+    std::vector<double> y(cfg.m);
+    cfg.system->measurement(y.data(), x.data(), t, 1);
+    return y;
+}
+
+std::vector<double> Config::advance(const std::vector<double>& x, const std::vector<double>& v, double t,
+                                    double dt) const {
+    const RunConfig& cfg = run_config(*this);
+    check_size(x.size(), std::size_t(cfg.n), "advance: the state x");
+    HINF_CHECK(v.empty() || v.size() == std::size_t(cfg.nv),
+               "advance: the disturbance v has " + std::to_string(v.size()) + " values, expected " +
+                   std::to_string(cfg.nv) + " (or none for v = 0)");
+    std::vector<double> out(cfg.n);
+    system_advance(*cfg.system, out.data(), x.data(), v.empty() ? nullptr : v.data(), t, dt);
+    return out;
+}
+
+// --------------------------------------------------------------------------------------------- Network
+
+struct TrainedNetwork::Impl {
+    std::string path, precision;
+    RunConfig cfg;
+    std::unique_ptr<FrozenNetwork> net;
+    std::mutex mutex;  // FrozenNetwork::gradient uses the network's own workspace
+};
+
+namespace {
+TrainedNetwork::Impl& network_impl(const TrainedNetwork& n) {
+    HINF_CHECK(n.impl != nullptr, "hinf::Network is empty (make it with TrainedNetwork::load)");
+    return *n.impl;
+}
+}  // namespace
+
+TrainedNetwork TrainedNetwork::load(const std::string& checkpoint_path) {
+    auto impl = std::make_shared<Impl>();
+    impl->path = checkpoint_path;
+    impl->net = ckpt_frozen_network(checkpoint_path, &impl->cfg);
+    impl->precision = ckpt_precision(checkpoint_path);
+    TrainedNetwork n;
+    n.impl = impl;
+    return n;
+}
+
+std::string TrainedNetwork::path() const { return network_impl(*this).path; }
+Config TrainedNetwork::config() const { return config_of(network_impl(*this).cfg); }
+std::string TrainedNetwork::variant() const { return network_impl(*this).cfg.variant; }
+std::string TrainedNetwork::precision() const { return network_impl(*this).precision; }
+
+std::vector<double> TrainedNetwork::gradient(const std::vector<double>& xtilde) const {
+    Impl& im = network_impl(*this);
+    const std::size_t n = std::size_t(im.cfg.n);
+    HINF_CHECK(!xtilde.empty() && xtilde.size() % n == 0,
+               "TrainedNetwork::gradient: x~ has " + std::to_string(xtilde.size()) + " values, not a multiple of the " +
+                   std::to_string(n) + " states (pass count x n values)");
+    std::vector<double> p(xtilde.size());
+    std::lock_guard<std::mutex> lock(im.mutex);
+    im.net->gradient(p.data(), xtilde.data(), std::int64_t(xtilde.size() / n));
+    return p;
+}
+
+double TrainedNetwork::value(const std::vector<double>& xtilde) const {
+    Impl& im = network_impl(*this);
+    check_size(xtilde.size(), std::size_t(im.cfg.n), "TrainedNetwork::value: x~");
+    std::lock_guard<std::mutex> lock(im.mutex);
+    return im.net->value(xtilde.data(), im.cfg.n);
+}
+
+// ---------------------------------------------------------------------------------------------- Filter
+
+struct Filter::Impl {
+    std::shared_ptr<const Config::Impl> config;
+    std::string request;  // the one name asked for
+    FilterOptions options;
+    double dt = 0;
+    std::vector<double> xhat0, P0;
+    FilterSet set;  // owns the filter (and the networks it was built from)
+    OnlineFilter* filter = nullptr;
+    std::int64_t steps = 0;
+    bool diverged = false;
+
+    const RunConfig& cfg() const { return config->cfg; }
+
+    // The filter set `hinf filter` builds for this one name, stepping by dt.
+    FilterSet build(double step_dt) const {
+        const RunConfig& c = cfg();
+        FilterModel model{c.system.get(), step_dt, c.disturbance_std, c.noise_std};
+        std::vector<std::string> paths;
+        for (const TrainedNetwork& n : options.networks) paths.push_back(network_impl(n).path);
+        return build_filter_set(c, FilterSetArgs{request, paths, "measured", options.particles, options.roughening,
+                                                 options.glf_vertices},
+                                model, model);
+    }
+    void reset() {
+        FilterStart start;
+        start.xhat0 = xhat0;
+        start.P0 = P0;
+        filter->reset(start);
+        steps = 0;
+        diverged = false;
+    }
+};
+
+namespace {
+Filter::Impl& filter_impl(const Filter& f) {
+    HINF_CHECK(f.impl != nullptr, "hinf::Filter is empty (make it with Filter::create)");
+    return *f.impl;
+}
+}  // namespace
+
+std::string Filter::names() { return filter_names(); }
+
+Filter Filter::create(const Config& cfg, const std::string& name, const FilterOptions& options) {
+    const RunConfig& c = run_config(cfg);
+    HINF_CHECK(name.find(',') == std::string::npos,
+               "Filter::create: '" + name + "' names several filters; create takes one (use create_all for a list)");
+    bool known = false;
+    for (const std::string& k : split_list(filter_names() + ",")) known = known || k == name || " " + name == k;
+    HINF_CHECK(known, "unknown filter '" + name + "' (use one of: " + filter_names() + ")");
+    HINF_CHECK(name != "dnn" || !options.networks.empty(),
+               "the dnn filter needs a trained network: pass one (a DIR/checkpoint.h5 of `hinf train` or hinf.train)");
+    HINF_CHECK(name != "dnn" || options.networks.size() <= 1,
+               "Filter::create: dnn with " + std::to_string(options.networks.size()) +
+                   " networks gives one filter per network (use create_all)");
+    HINF_CHECK(options.particles >= 1, "particles must be >= 1 (got " + std::to_string(options.particles) + ")");
+    HINF_CHECK(options.dt >= 0, "dt must be > 0, or 0 for the config's dt (got " + std::to_string(options.dt) + ")");
+    auto im = std::make_shared<Impl>();
+    im->config = cfg.impl;
+    im->request = name;
+    im->options = options;
+    im->dt = options.dt > 0 ? options.dt : c.dt;
+    im->xhat0 = options.initial_estimate.empty() ? c.xhat0 : options.initial_estimate;
+    HINF_CHECK(int(im->xhat0.size()) == c.n, "initial_estimate has " + std::to_string(im->xhat0.size()) +
+                                                 " values, the system has " + std::to_string(c.n) + " states");
+    im->P0 = recorded_initial_covariance(c, options.initial_std);
+    im->set = im->build(im->dt);
+    HINF_CHECK(im->set.filters.size() == 1, "Filter::create: '" + name + "' gave " +
+                                                std::to_string(im->set.filters.size()) + " filters (use create_all)");
+    im->filter = im->set.filters.front().get();
+    im->reset();
+    Filter f;
+    f.impl = im;
+    return f;
+}
+
+std::vector<Filter> Filter::create_all(const Config& cfg, const std::string& names, const FilterOptions& options) {
+    std::vector<Filter> out;
+    const std::vector<std::string> list = split_list(names);
+    HINF_CHECK(!list.empty(), "no filter named (use " + filter_names() + ")");
+    for (const std::string& name : list) {
+        if (name == "dnn" && options.networks.size() > 1) {
+            for (const TrainedNetwork& n : options.networks) {
+                FilterOptions one = options;
+                one.networks = {n};
+                out.push_back(create(cfg, name, one));
+            }
+        } else
+            out.push_back(create(cfg, name, options));
+    }
+    for (std::size_t i = 0; i < out.size(); ++i)
+        for (std::size_t j = 0; j < i; ++j)
+            HINF_CHECK(out[i].name() != out[j].name(),
+                       "two filters are named '" + out[i].name() + "' (the same filter or network variant twice)");
+    return out;
+}
+
+std::string Filter::name() const { return filter_impl(*this).filter->name(); }
+int Filter::states() const { return filter_impl(*this).cfg().n; }
+int Filter::outputs() const { return filter_impl(*this).cfg().m; }
+double Filter::dt() const { return filter_impl(*this).dt; }
+bool Filter::has_covariance() const { return filter_impl(*this).filter->covariance() != nullptr; }
+const FilterOptions& Filter::options() const { return filter_impl(*this).options; }
+void Filter::reset() { filter_impl(*this).reset(); }
+bool Filter::diverged() const { return filter_impl(*this).diverged; }
+
+bool Filter::step(const double* y, double t) {
+    Impl& im = filter_impl(*this);
+    HINF_CHECK(y != nullptr, "Filter::step: no measurement");
+    if (im.diverged) return false;  // frozen at its last finite estimate, as in `hinf filter`
+    const FilterStatus st = im.filter->step(FilterInput{y, t, im.steps, nullptr});
+    ++im.steps;
+    im.diverged = st != FILTER_OK;
+    return !im.diverged;
+}
+
+bool Filter::step(const std::vector<double>& y, double t) {
+    check_size(y.size(), std::size_t(outputs()), "Filter::step: the measurement y");
+    return step(y.data(), t);
+}
+
+std::vector<double> Filter::estimate() const {
+    const Impl& im = filter_impl(*this);
+    const double* x = im.filter->estimate();
+    return std::vector<double>(x, x + im.cfg().n);
+}
+
+std::vector<double> Filter::covariance() const {
+    const Impl& im = filter_impl(*this);
+    const double* P = im.filter->covariance();
+    if (P == nullptr) return {};
+    return std::vector<double>(P, P + std::size_t(im.cfg().n) * im.cfg().n);
+}
+
+FilterTrace Filter::run(const std::vector<double>& t, const std::vector<double>& y) const {
+    const int m = outputs();
+    HINF_CHECK(y.size() == t.size() * std::size_t(m),
+               "Filter::run: y has " + std::to_string(y.size()) + " values for " + std::to_string(t.size()) +
+                   " times; expected times x outputs = " + std::to_string(t.size() * std::size_t(m)));
+    return run(t.data(), y.data(), std::int64_t(t.size()));
+}
+
+FilterTrace Filter::run(const double* t, const double* y, std::int64_t K) const {
+    const Impl& im = filter_impl(*this);
+    const RunConfig& c = im.cfg();
+    Measurements ms = measurements_from_arrays(t, y, K, c.m, "the record");
+    // `hinf filter` builds its filters on the record's interval: the same here, so the numbers are the same bits
+    FilterSet fresh;
+    std::unique_ptr<OnlineFilter> copy;
+    OnlineFilter* f = nullptr;
+    if (ms.dt == im.dt) {
+        copy = im.filter->clone();
+        f = copy.get();
+    } else {
+        fresh = im.build(ms.dt);
+        f = fresh.filters.front().get();
+    }
+    RecordedPath path;
+    RecordedResult r = filter_record_path(*f, *c.system, ms, im.xhat0, im.P0, true, &path);
+    FilterTrace tr;
+    tr.name = r.name;
+    tr.steps = K;
+    tr.n = c.n;
+    tr.m = c.m;
+    tr.xhat = std::move(path.xhat);
+    tr.covariance = std::move(path.P);
+    tr.innovation = std::move(path.innov);
+    tr.xhat_final = std::move(path.xhat_final);
+    tr.diverged_at = r.diverged_at;
+    tr.innovation_rms = r.innovation_rms;
+    tr.innovation_mean = r.innovation_mean;
+    return tr;
+}
+
+// ------------------------------------------------------------------------------------------------ train
+
+namespace {
+TrainOptions train_options(const TrainSettings& s) {
+    HINF_CHECK(s.threads >= 0 && s.threads <= 1024, "threads " + std::to_string(s.threads) + " must be between 0 and 1024");
+    if (s.threads > 0) omp_set_num_threads(s.threads);
+    TrainOptions opt;
+    opt.out_dir = s.out_dir;
+    opt.until = s.until;
+    opt.quiet = s.quiet;
+    if (s.on_progress) {
+        auto cb = s.on_progress;
+        opt.on_step = [cb](const TrainStepInfo& i) {
+            cb(TrainProgress{i.step, i.last_step, i.t, i.loss_first, i.loss_last, i.rel_median, i.violation});
+        };
+    }
+    return opt;
+}
+
+TrainReport report_of(const TrainSummary& s, const std::string& dir) {
+    TrainReport r;
+    r.diverged = s.status != 0;
+    r.first_step = s.first_step;
+    r.last_step = s.last_step;
+    r.wall_seconds = s.wall_seconds;
+    r.final_loss = s.final_loss;
+    r.median_rel_residual = s.median_rel_residual;
+    r.fraction_steps_violation_ok = s.fraction_steps_violation_ok;
+    r.mean_cosine = s.mean_cosine;
+    r.checkpoint = dir + "/checkpoint.h5";
+    return r;
+}
+}  // namespace
+
+TrainReport train(const Config& cfg, const TrainSettings& settings) {
+    const RunConfig& c = run_config(cfg);
+    HINF_CHECK(!settings.out_dir.empty(), "train: out_dir is required (the directory for trajectory.h5 and checkpoint.h5)");
+    HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
+               settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +
+                   settings.out_dir + "/checkpoint.h5\"), or start afresh with force or another out_dir");
+    return report_of(train_start(c, train_options(settings)), settings.out_dir);
+}
+
+TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings) {
+    std::string dir = std::filesystem::path(checkpoint_path).parent_path().string();
+    return report_of(train_resume(checkpoint_path, train_options(settings)), dir.empty() ? "." : dir);
+}
+
+}  // namespace hinf

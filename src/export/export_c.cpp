@@ -1,0 +1,510 @@
+// See export_c.hpp. The C written here mirrors, operation for operation, what `hinf filter` runs for a DNN
+// filter in measured mode (filters/dnn.cpp): the naive forward pass of kernels/mlp.cpp, the heads of
+// kernels/head.cpp, the gain law of filters/gain_law.hpp and luenberger_advance. The network's GEMMs in hinf
+// sum in another order (blocked, FMA), so the two agree to round-off, not bit for bit (docs/export.md).
+#include "export/export_c.hpp"
+
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include "config/run_config.hpp"
+#include "hinf/error.hpp"
+#include "io/atomic.hpp"
+#include "io/checkpoint.hpp"
+#include "models/expr_system.hpp"
+#include "models/maneuvering_missile.hpp"
+#include "models/missile.hpp"
+
+namespace hinf {
+
+namespace {
+
+// a double literal that reads back to the same bits
+std::string lit(double v) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", v);
+    std::string s = buf;
+    if (s.find_first_of(".eEn") == std::string::npos) s += ".0";  // "2" -> "2.0" (a double, not an int)
+    return "(" + s + ")";
+}
+std::string flit(float v) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.9g", double(v));
+    std::string s = buf;
+    if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+    return s + "f";
+}
+
+// ------------------------------------------------------------------------------------------- systems
+// Each writer emits four static functions of one state: PREFIX_drift (A [n]), PREFIX_disturbance_gain (B [n x nv]),
+// PREFIX_measurement (C [m]), PREFIX_measurement_jacobian (dC/dx [m x n]).
+
+std::string missile_c(const MissileParams& p, const std::string& P) {
+    std::ostringstream c;
+    c << "/* seed 000's ballistic missile (models/missile.cpp), parameters of the checkpoint's config */\n"
+      << "static double " << P << "_density(double z) {\n"
+      << "    const int high = z >= " << lit(p.switch_altitude) << ";\n"
+      << "    const double r0 = high ? " << lit(p.rho_high) << " : " << lit(p.rho_low) << ";\n"
+      << "    const double al = high ? " << lit(p.alpha_high) << " : " << lit(p.alpha_low) << ";\n"
+      << "    return r0 * exp(-al * z);\n}\n\n"
+      << "static void " << P << "_drift(double* A, const double* X, double t) {\n"
+      << "    const double speed = sqrt(X[3] * X[3] + X[4] * X[4] + X[5] * X[5]);\n"
+      << "    const double drag = " << P << "_density(X[2]) * " << lit(p.gravity) << " * speed / (2.0 * "
+      << lit(p.ballistic) << ");\n"
+      << "    int i;\n    (void)t;\n";
+    for (int i = 0; i < 3; ++i) c << "    A[" << i << "] = -" << lit(p.position_gain[i]) << " * X[" << i << "];\n";
+    c << "    for (i = 3; i < 6; ++i) A[i] = -drag * X[i] - " << lit(p.velocity_damping) << " * X[i];\n"
+      << "    A[5] -= " << lit(p.gravity) << ";\n}\n\n"
+      << "static void " << P << "_disturbance_gain(double* B, const double* X, double t) {\n"
+      << "    int i;\n    (void)X;\n    (void)t;\n"
+      << "    for (i = 0; i < 6; ++i) B[i] = i < 3 ? 0.0 : 1.0;\n}\n\n"
+      << "static void " << P << "_measurement(double* C, const double* X, double t) {\n    (void)t;\n";
+    for (int i = 0; i < 3; ++i) c << "    C[" << i << "] = X[" << i << "] - " << lit(p.radar[i]) << ";\n";
+    c << "    C[3] = X[3];\n    C[4] = X[4];\n    C[5] = X[5];\n}\n\n";
+    return c.str();
+}
+
+std::string maneuvering_missile_c(const ManeuverParams& mp, const std::string& P) {
+    const MissileParams& p = mp.base;
+    std::ostringstream c;
+    c << "/* seed 001's maneuvering missile (models/maneuvering_missile.cpp), parameters of the checkpoint's config */\n"
+      << "static double " << P << "_density(double z) {\n"
+      << "    const int high = z >= " << lit(p.switch_altitude) << ";\n"
+      << "    const double r0 = high ? " << lit(p.rho_high) << " : " << lit(p.rho_low) << ";\n"
+      << "    const double al = high ? " << lit(p.alpha_high) << " : " << lit(p.alpha_low) << ";\n"
+      << "    return r0 * exp(-al * z);\n}\n\n"
+      << "static void " << P << "_drift(double* A, const double* X, double t) {\n"
+      << "    const double at = " << lit(mp.amplitude) << " * exp(-" << lit(mp.decay) << " * t) * (4.0 / "
+      << P << "_PI) * sin(" << lit(mp.wave_frequency) << " * t);\n"
+      << "    const double mt = exp(-" << lit(mp.decay) << " * t) * sin(" << lit(mp.maneuver_frequency) << " * t);\n"
+      << "    const double speed = sqrt(X[3] * X[3] + X[4] * X[4] + X[5] * X[5]);\n"
+      << "    const double drag = " << P << "_density(X[2]) * " << lit(p.gravity) << " * speed / (2.0 * "
+      << lit(p.ballistic) << ");\n";
+    for (int i = 0; i < 3; ++i) c << "    A[" << i << "] = -" << lit(p.position_gain[i]) << " * X[" << i << "];\n";
+    c << "    A[0] += at;\n"
+      << "    A[3] = -drag * X[3] - mt * X[3];\n"
+      << "    A[4] = -drag * X[4] - " << lit(p.velocity_damping) << " * X[4];\n"
+      << "    A[5] = -drag * X[5] - " << lit(p.velocity_damping) << " * X[5] - " << lit(p.gravity) << ";\n}\n\n"
+      << "static void " << P << "_disturbance_gain(double* B, const double* X, double t) {\n"
+      << "    int i;\n    (void)X;\n    (void)t;\n"
+      << "    for (i = 0; i < 36; ++i) B[i] = 0.0;\n"
+      << "    for (i = 3; i < 6; ++i) B[i * 6 + i] = 1.0;\n}\n\n"
+      << "static void " << P << "_measurement(double* C, const double* X, double t) {\n    (void)t;\n";
+    for (int i = 0; i < 3; ++i) c << "    C[" << i << "] = X[" << i << "] - " << lit(p.radar[i]) << ";\n";
+    c << "    C[3] = X[3];\n    C[4] = X[4];\n    C[5] = X[5];\n}\n\n";
+    return c.str();
+}
+
+// dC/dx of both missiles: the identity
+std::string identity_jacobian_c(const std::string& P) {
+    return "static void " + P + "_measurement_jacobian(double* H, const double* X, double t) {\n" +
+           "    int i;\n    (void)X;\n    (void)t;\n    for (i = 0; i < 36; ++i) H[i] = 0.0;\n" +
+           "    for (i = 0; i < 6; ++i) H[i * 6 + i] = 1.0;\n}\n\n";
+}
+
+const std::set<std::string>& c_reserved() {
+    // C99 keywords and the macros of <math.h>, <float.h> a local name cannot shadow
+    static const std::set<std::string> names = {
+        "auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else", "enum", "extern",
+        "float", "for", "goto", "if", "inline", "int", "long", "register", "restrict", "return", "short", "signed",
+        "sizeof", "static", "struct", "switch", "typedef", "union", "unsigned", "void", "volatile", "while",
+        "_Bool", "_Complex", "_Imaginary", "bool", "true", "false", "NAN", "INFINITY", "HUGE_VAL", "HUGE_VALF",
+        "HUGE_VALL", "M_PI", "Pi", "errno", "isfinite", "isnan", "isinf", "signbit", "fpclassify", "isnormal",
+        "DBL_EPSILON", "FLT_EPSILON", "NULL", "step"};
+    return names;
+}
+
+// An expression system through GiNaC's C print (the texts muParser evaluates in hinf, models/expr_system.cpp):
+// the states, parameters and t become local constants of each function.
+std::string expr_c(const ExprSystem& sys, const std::string& P) {
+    const std::vector<std::string> states = sys.state_names();
+    const std::vector<std::pair<std::string, double>>& params = sys.parameters();
+    auto check_name = [&](const std::string& name, const std::string& what) {
+        HINF_CHECK(!c_reserved().count(name) && name.rfind("hinf_", 0) != 0,
+                   "export: the " + what + " '" + name + "' is a C keyword or a name the exported C uses; rename it "
+                   "in [system] and train again to export this system");
+    };
+    for (const auto& s : states) check_name(s, "state");
+    for (const auto& p : params) check_name(p.first, "parameter");
+    auto locals = [&]() {
+        std::ostringstream c;
+        for (std::size_t i = 0; i < states.size(); ++i)
+            c << "    const double " << states[i] << " = hinf_x_[" << i << "];\n";
+        for (const auto& p : params) c << "    const double " << p.first << " = " << lit(p.second) << ";\n";
+        c << "    const double t = hinf_t_;\n";
+        for (const auto& s : states) c << "    (void)" << s << ";\n";
+        for (const auto& p : params) c << "    (void)" << p.first << ";\n";
+        c << "    (void)t;\n";
+        return c.str();
+    };
+    auto function = [&](const std::string& name, const std::string& which, const std::string& what) {
+        std::ostringstream c;
+        c << "/* " << what << " */\nstatic void " << P << "_" << name
+          << "(double* hinf_out_, const double* hinf_x_, double hinf_t_) {\n"
+          << locals();
+        const std::vector<std::string> texts = sys.compiled(which);
+        for (std::size_t k = 0; k < texts.size(); ++k) c << "    hinf_out_[" << k << "] = " << texts[k] << ";\n";
+        c << "}\n\n";
+        return c.str();
+    };
+    bool uses_step = false;
+    for (const char* which : {"f", "g", "h", "dh"})
+        for (const std::string& text : sys.compiled(which)) uses_step = uses_step || text.find("step(") != std::string::npos;
+    std::ostringstream c;
+    c << "/* the expression system of the checkpoint's config ([system] kind = \"expr\"), printed by GiNaC as C */\n"
+      << (uses_step ? "static double step(double s) { return s >= 0 ? 1.0 : 0.0; } /* as models/expr_system.cpp */\n" : "")
+      << "#define Pi " << P << "_PI\n\n"
+      << function("drift", "f", "A(x, t) [n]") << function("disturbance_gain", "g", "B(x, t) [n x nv]")
+      << function("measurement", "h", "C(x, t) [m]") << function("measurement_jacobian", "dh", "dC/dx [m x n]");
+    return c.str();
+}
+
+std::string system_c(const System& sys, const std::string& P) {
+    if (auto* s = dynamic_cast<const ManeuveringMissileSystem*>(&sys))
+        return maneuvering_missile_c(s->params(), P) + identity_jacobian_c(P);
+    if (auto* s = dynamic_cast<const MissileSystem*>(&sys)) return missile_c(s->params(), P) + identity_jacobian_c(P);
+    if (auto* s = dynamic_cast<const ExprSystem*>(&sys)) return expr_c(*s, P);
+    HINF_FAIL("export: the system '" + sys.name() + "' has no C writer (src/export/export_c.cpp: add one beside "
+              "missile_c)");
+}
+
+// ------------------------------------------------------------------------------------------ gain laws
+// One entry per training variant: the C of k = k(p, B, dC, x^) [n x m] with the signature
+//   static void PREFIX_gain(double* k, const double* p, const double* B, const double* dc, const double* xhat)
+// Another variant's gain law is one more function and one more row of kGainLaws.
+
+std::string hinf_gain_c(const RunConfig& ncfg, const std::string& P) {
+    // seed 000 eq. (8) as filters/gain_law.hpp worst_case: k* = 2 rho p dc^T / |p|^2, zero when p = 0
+    std::ostringstream c;
+    c << "/* seed 000 eq. (8): k* = 2 rho p dC^T / |p|^2 (zero when p = 0), rho of the network's training config */\n"
+      << "static void " << P << "_gain(double* k, const double* p, const double* B, const double* dc, "
+         "const double* xhat) {\n"
+      << "    const double rho = " << lit(ncfg.rho) << ";\n"
+      << "    double pp = 0;\n    int i, j;\n    (void)B;\n    (void)xhat;\n"
+      << "    for (i = 0; i < " << P << "_N; ++i) pp += p[i] * p[i];\n"
+      << "    for (i = 0; i < " << P << "_N * " << P << "_M; ++i) k[i] = 0.0;\n"
+      << "    if (pp > 0)\n"
+      << "        for (i = 0; i < " << P << "_N; ++i)\n"
+      << "            for (j = 0; j < " << P << "_M; ++j) k[i * " << P << "_M + j] = 2.0 * rho * p[i] * dc[j] / pp;\n"
+      << "}\n\n";
+    return c.str();
+}
+
+struct CGainLaw {
+    const char* variant;
+    std::string (*emit)(const RunConfig& ncfg, const std::string& prefix);
+    long long (*flops)(int n, int m);  // per call
+};
+const CGainLaw kGainLaws[] = {
+    {"dissipative", hinf_gain_c, [](int n, int m) { return 2LL * n + 4LL * n * m; }},
+    {"paper", hinf_gain_c, [](int n, int m) { return 2LL * n + 4LL * n * m; }},
+};
+
+// ---------------------------------------------------------------------------------------------- network
+
+template <typename T>
+struct NetworkC {
+    std::string data, code;
+    long long flops = 0, bytes = 0;
+};
+
+template <typename T>
+NetworkC<T> network_c(const Network<T>& net, const std::string& P) {
+    const kern::StepConfig& sc = net.step;
+    const kern::MlpShape& sh = sc.shape;
+    const bool single = sizeof(T) == sizeof(float);
+    const std::string TT = single ? "float" : "double";
+    const int L = sh.layers(), n = sc.head.n;
+    NetworkC<T> out;
+    std::ostringstream d;
+    d << "/* the network's parameters (kernels/mlp.hpp layout): for l = 1..L, W_l [D_l x D_(l-1)] row-major, "
+         "then b_l [D_l] */\n"
+      << "static const " << TT << " " << P << "_theta[" << net.theta.size() << "] = {\n";
+    for (std::size_t i = 0; i < net.theta.size(); ++i) {
+        d << (i % 8 == 0 ? "    " : " ") << (single ? flit(float(net.theta[i])) : lit(double(net.theta[i])))
+          << (i + 1 < net.theta.size() ? "," : "") << (i % 8 == 7 || i + 1 == net.theta.size() ? "\n" : "");
+    }
+    d << "};\n";
+    d << "static const int " << P << "_sizes[" << L + 1 << "] = {";
+    for (int l = 0; l <= L; ++l) d << (l ? ", " : "") << sh.sizes[l];
+    d << "};\nstatic const long " << P << "_offsets[" << L + 1 << "] = {0";
+    for (int l = 1; l <= L; ++l) d << ", " << sh.weight_offset(l);
+    d << "};\n\n";
+    out.data = d.str();
+    out.bytes = (long long)(net.theta.size() * sizeof(T));
+
+    int widest = 0;
+    for (int l = 0; l <= L; ++l) widest = std::max(widest, sh.sizes[l]);
+    std::ostringstream c;
+    const bool quad = sc.head.kind == kern::HEAD_QUADRATIC;
+    c << "/* p = dV/dx~ at x~ [n]: input x~ / s_in, LeakyReLU hidden layers, linear output (mlp_forward_naive), then\n"
+      << "   the " << (quad ? "quadratic head p = c (M M^T + eps I) x~, M = I + tril(o)" : "gradient head p = c o")
+      << " (kernels/head.cpp) */\n"
+      << "void " << P << "_gradient(double* p, const double* xt) {\n"
+      << "    " << TT << " buf[2][" << widest << "];\n"
+      << "    const double inv = 1.0 / " << lit(sc.input_scale) << ";\n"
+      << "    const " << TT << " a1 = (" << TT << ")" << lit(sh.slope_positive) << ", a2 = (" << TT << ")"
+      << lit(sh.slope_negative) << ";\n"
+      << "    const " << TT << "* in = buf[0];\n    " << TT << "* o = buf[1];\n"
+      << "    int l, i, j;\n"
+      << "    for (i = 0; i < " << n << "; ++i) buf[0][i] = (" << TT << ")(xt[i] * inv);\n"
+      << "    for (l = 1; l <= " << L << "; ++l) {\n"
+      << "        const int din = " << P << "_sizes[l - 1], dout = " << P << "_sizes[l];\n"
+      << "        const " << TT << "* W = " << P << "_theta + " << P << "_offsets[l];\n"
+      << "        const " << TT << "* b = W + (long)dout * din;\n"
+      << "        o = buf[l % 2];\n"
+      << "        for (j = 0; j < dout; ++j) {\n"
+      << "            " << TT << " z = b[j];\n"
+      << "            for (i = 0; i < din; ++i) z += W[(long)j * din + i] * in[i];\n"
+      << "            if (l < " << L << ") z = z > (" << TT << ")0 ? a1 * z : a2 * z;\n"
+      << "            o[j] = z;\n"
+      << "        }\n"
+      << "        in = o;\n"
+      << "    }\n";
+    if (quad) {
+        c << "    {\n"
+          << "        double M[" << n * n << "], Pm[" << n * n << "];\n"
+          << "        int a, b, k = 0;\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = (a == b) ? 1.0 : 0.0;\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b) M[a * " << n << " + b] += (double)in[k++];\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b) {\n"
+          << "                double s = 0;\n"
+          << "                for (k = 0; k <= b; ++k) s += M[a * " << n << " + k] * M[b * " << n << " + k];\n"
+          << "                s = " << lit(sc.head.scale) << " * (s + (a == b ? " << lit(sc.head.eps) << " : 0.0));\n"
+          << "                Pm[a * " << n << " + b] = s;\n"
+          << "                Pm[b * " << n << " + a] = s;\n"
+          << "            }\n"
+          << "        for (a = 0; a < " << n << "; ++a) {\n"
+          << "            double s = 0;\n"
+          << "            for (b = 0; b < " << n << "; ++b) s += Pm[a * " << n << " + b] * xt[b];\n"
+          << "            p[a] = s;\n"
+          << "        }\n"
+          << "    }\n";
+    } else {
+        c << "    for (i = 0; i < " << n << "; ++i) p[i] = " << lit(sc.head.scale) << " * (double)in[i];\n";
+    }
+    c << "}\n\n";
+    out.code = c.str();
+    // FLOPs: input scaling, per layer a multiply-add per weight, the bias, LeakyReLU's multiply; then the head
+    long long f = n;
+    for (int l = 1; l <= L; ++l) f += 2LL * sh.sizes[l] * sh.sizes[l - 1] + (l < L ? sh.sizes[l] : 0);
+    if (quad) {
+        f += n * (n + 1) / 2;  // M = I + tril(o)
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b <= a; ++b) f += 2LL * (b + 1) + 2;
+        f += 2LL * n * n;  // P x~
+    } else
+        f += n;
+    out.flops = f;
+    return out;
+}
+
+// ------------------------------------------------------------------------------------------- assembly
+
+std::string filter_c(const RunConfig& cfg, const std::string& P) {
+    std::ostringstream c;
+    const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
+    c << "/* x~ from the innovation e = y - C(x^): the minimum-norm least-squares solution of dC/dx(x^) x~ = e\n"
+      << "   (hinf: Eigen's complete orthogonal decomposition; here a one-sided Jacobi SVD, singular values below\n"
+      << "   min(m, n) eps sigma_max dropped as Eigen's rank threshold does) */\n"
+      << "static void " << P << "_error_from_innovation(double* xt, const double* xhat, double t, const double* e) {\n"
+      << "    double H[" << M << " * " << N << "], A[" << M << " * " << N << "], V[" << N << " * " << N << "];\n"
+      << "    const int tall = " << M << " >= " << N << ";\n"
+      << "    const int r = tall ? " << M << " : " << N << ", c = tall ? " << N << " : " << M << ";\n"
+      << "    double smax = 0, tol;\n"
+      << "    int i, j, q, sweep;\n"
+      << "    " << P << "_measurement_jacobian(H, xhat, t);\n"
+      << "    /* A [r x c] = H (tall) or H^T */\n"
+      << "    for (i = 0; i < r; ++i)\n"
+      << "        for (j = 0; j < c; ++j) A[i * c + j] = tall ? H[i * " << N << " + j] : H[j * " << N << " + i];\n"
+      << "    for (i = 0; i < c; ++i)\n"
+      << "        for (j = 0; j < c; ++j) V[i * c + j] = i == j ? 1.0 : 0.0;\n"
+      << "    for (sweep = 0; sweep < 60; ++sweep) {\n"
+      << "        int rotated = 0;\n"
+      << "        for (j = 0; j < c; ++j)\n"
+      << "            for (q = j + 1; q < c; ++q) {\n"
+      << "                double al = 0, be = 0, ga = 0, zeta, tn, cs, sn;\n"
+      << "                for (i = 0; i < r; ++i) {\n"
+      << "                    al += A[i * c + j] * A[i * c + j];\n"
+      << "                    be += A[i * c + q] * A[i * c + q];\n"
+      << "                    ga += A[i * c + j] * A[i * c + q];\n"
+      << "                }\n"
+      << "                if (ga == 0 || fabs(ga) <= 1e-15 * sqrt(al * be)) continue;\n"
+      << "                rotated = 1;\n"
+      << "                zeta = (be - al) / (2 * ga);\n"
+      << "                tn = (zeta >= 0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1 + zeta * zeta));\n"
+      << "                cs = 1 / sqrt(1 + tn * tn);\n"
+      << "                sn = cs * tn;\n"
+      << "                for (i = 0; i < r; ++i) {\n"
+      << "                    const double aj = A[i * c + j], aq = A[i * c + q];\n"
+      << "                    A[i * c + j] = cs * aj - sn * aq;\n"
+      << "                    A[i * c + q] = sn * aj + cs * aq;\n"
+      << "                }\n"
+      << "                for (i = 0; i < c; ++i) {\n"
+      << "                    const double vj = V[i * c + j], vq = V[i * c + q];\n"
+      << "                    V[i * c + j] = cs * vj - sn * vq;\n"
+      << "                    V[i * c + q] = sn * vj + cs * vq;\n"
+      << "                }\n"
+      << "            }\n"
+      << "        if (!rotated) break;\n"
+      << "    }\n"
+      << "    for (j = 0; j < c; ++j) {\n"
+      << "        double s2 = 0;\n"
+      << "        for (i = 0; i < r; ++i) s2 += A[i * c + j] * A[i * c + j];\n"
+      << "        if (sqrt(s2) > smax) smax = sqrt(s2);\n"
+      << "    }\n"
+      << "    tol = (double)c * DBL_EPSILON * smax;\n"
+      << "    for (i = 0; i < " << N << "; ++i) xt[i] = 0.0;\n"
+      << "    for (j = 0; j < c; ++j) {\n"
+      << "        /* column j of A is sigma_j u_j */\n"
+      << "        double s2 = 0, w = 0;\n"
+      << "        for (i = 0; i < r; ++i) s2 += A[i * c + j] * A[i * c + j];\n"
+      << "        if (!(sqrt(s2) > tol)) continue;\n"
+      << "        if (tall) { /* x = V S^-1 U^T e */\n"
+      << "            for (i = 0; i < r; ++i) w += A[i * c + j] * e[i];\n"
+      << "            for (i = 0; i < c; ++i) xt[i] += V[i * c + j] * (w / s2);\n"
+      << "        } else { /* H^T = U S V^T: x = U S^-1 V^T e */\n"
+      << "            for (i = 0; i < c; ++i) w += V[i * c + j] * e[i];\n"
+      << "            for (i = 0; i < r; ++i) xt[i] += A[i * c + j] * (w / s2);\n"
+      << "        }\n"
+      << "    }\n"
+      << "}\n\n";
+    c << "void " << P << "_init(" << P << "_state* s, const double* xhat0) {\n"
+      << "    static const double config_xhat0[" << N << "] = {";
+    for (int i = 0; i < cfg.n; ++i) c << (i ? ", " : "") << lit(cfg.xhat0[i]);
+    c << "};\n"
+      << "    int i;\n"
+      << "    for (i = 0; i < " << N << "; ++i) s->xhat[i] = xhat0 ? xhat0[i] : config_xhat0[i];\n"
+      << "    s->diverged = 0;\n"
+      << "}\n\n"
+      << "/* seed 000 eq. (19) in measured mode (filters/dnn.cpp): the network sees x~ from the innovation, the gain\n"
+      << "   uses dC = e = y - C(x^), and x^ <- x^ + dt (A(x^, t) + k e) (luenberger_advance) */\n"
+      << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt) {\n"
+      << "    double a[" << N << "], B[" << N << " * " << NV << "], ch[" << M << "], e[" << M << "], xt[" << N
+      << "], p[" << N << "], k[" << N << " * " << M << "];\n"
+      << "    int i, j, finite = 1;\n"
+      << "    if (s->diverged) return 1;\n"
+      << "    " << P << "_drift(a, s->xhat, t);\n"
+      << "    " << P << "_measurement(ch, s->xhat, t);\n"
+      << "    for (j = 0; j < " << M << "; ++j) e[j] = y[j] - ch[j];\n"
+      << "    " << P << "_disturbance_gain(B, s->xhat, t);\n"
+      << "    " << P << "_error_from_innovation(xt, s->xhat, t, e);\n"
+      << "    " << P << "_gradient(p, xt);\n"
+      << "    " << P << "_gain(k, p, B, e, s->xhat);\n"
+      << "    /* filters/filter.hpp filter_estimate_ok: finite and |x^| < 1e12; the gain finite */\n"
+      << "    for (i = 0; i < " << N << "; ++i)\n"
+      << "        if (!(s->xhat[i] == s->xhat[i]) || s->xhat[i] >= 1e12 || s->xhat[i] <= -1e12) finite = 0;\n"
+      << "    for (i = 0; i < " << N << " * " << M << "; ++i)\n"
+      << "        if (!isfinite(k[i])) finite = 0;\n"
+      << "    if (!finite) {\n"
+      << "        s->diverged = 1;\n"
+      << "        return 1;\n"
+      << "    }\n"
+      << "    for (i = 0; i < " << N << "; ++i) {\n"
+      << "        double ke = 0;\n"
+      << "        for (j = 0; j < " << M << "; ++j) ke += k[i * " << M << " + j] * e[j];\n"
+      << "        s->xhat[i] = s->xhat[i] + dt * (a[i] + ke);\n"
+      << "    }\n"
+      << "    return 0;\n"
+      << "}\n";
+    return c.str();
+}
+
+bool is_c_identifier(const std::string& s) {
+    if (s.empty() || s.size() > 40 || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
+    for (char ch : s)
+        if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_')) return false;
+    return true;
+}
+
+template <typename T>
+ExportResult export_typed(const std::string& path, const RunConfig& cfg, const ExportOptions& opt) {
+    const std::string& P = opt.prefix;
+    const CGainLaw* law = nullptr;
+    std::string variants;
+    for (const CGainLaw& g : kGainLaws) {
+        variants += std::string(variants.empty() ? "" : ", ") + g.variant;
+        if (cfg.variant == g.variant) law = &g;
+    }
+    HINF_CHECK(law != nullptr, "export: checkpoint '" + path + "' is a '" + cfg.variant +
+                                   "' network, which has no C gain law (exportable: " + variants +
+                                   "; add one to kGainLaws in src/export/export_c.cpp)");
+    Checkpoint<T> ck = ckpt_read<T>(path);
+    NetworkC<T> net = network_c(ck.net, P);
+    const std::string sys = system_c(*cfg.system, P);
+    const int n = cfg.n, m = cfg.m, nv = cfg.nv;
+
+    ExportResult res;
+    res.parameters = (long long)ck.net.theta.size();
+    res.weight_bytes = net.bytes;
+    res.variant = cfg.variant;
+    res.precision = sizeof(T) == sizeof(float) ? "float" : "double";
+    res.system = cfg.system->name();
+    // per step, system functions aside: the network and head, the gain, e = y - C, the least squares of a
+    // diagonal-free H (about 6 r c per Jacobi pair sweep, counted once), the update
+    res.flops_per_step = net.flops + law->flops(n, m) + m + 6LL * std::max(n, m) * std::min(n, m) * std::min(n, m) +
+                         n * (2LL * m + 2);
+
+    std::string upper = P;
+    for (char& ch : upper) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+    std::ostringstream h;
+    h << "/* " << P << ".h: a trained hinf DNN filter, exported by `hinf export` (docs/export.md). C99, no dependency\n"
+      << "   but libm. From: " << path << "\n"
+      << "   system '" << res.system << "', variant '" << res.variant << "', " << res.precision
+      << " network " ;
+    for (std::size_t l = 0; l < ck.net.step.shape.sizes.size(); ++l) h << (l ? "-" : "") << ck.net.step.shape.sizes[l];
+    h << " (" << res.parameters << " parameters), rho = " << cfg.rho << ", mode measured.\n"
+      << "   Use: " << P << "_state s; " << P << "_init(&s, NULL); then per measurement y(t_k) [m]:\n"
+      << "   " << P << "_step(&s, y, t_k, " << P << "_DT); s.xhat [n] is then the estimate of x(t_k + dt). */\n"
+      << "#ifndef " << upper << "_H\n#define " << upper << "_H\n\n"
+      << "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
+      << "#define " << P << "_N " << n << "  /* states */\n"
+      << "#define " << P << "_M " << m << "  /* outputs */\n"
+      << "#define " << P << "_NV " << nv << " /* disturbance inputs */\n"
+      << "#define " << P << "_DT " << lit(cfg.dt) << " /* the training config's dt [s] */\n\n"
+      << "typedef struct {\n"
+      << "    double xhat[" << P << "_N]; /* the estimate */\n"
+      << "    int diverged;            /* 1 once a step met a non-finite estimate or gain: x^ stays frozen */\n"
+      << "} " << P << "_state;\n\n"
+      << "/* x^(t_0) = xhat0 [n], or the config's [filter] xhat0 when xhat0 is NULL */\n"
+      << "void " << P << "_init(" << P << "_state* s, const double* xhat0);\n"
+      << "/* consumes y(t) [m] (t: the time of the measurement, dt: the step to the next one); 0: ok, 1: diverged */\n"
+      << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt);\n"
+      << "/* the frozen network: p = dV/dx~ [n] at x~ [n] */\n"
+      << "void " << P << "_gradient(double* p, const double* xtilde);\n\n"
+      << "#ifdef __cplusplus\n}\n#endif\n\n#endif\n";
+
+    std::ostringstream c;
+    c << "/* " << P << ".c: see " << P << ".h. Generated by `hinf export`; regenerate rather than edit. */\n"
+      << "#include \"" << P << ".h\"\n\n#include <float.h>\n#include <math.h>\n\n"
+      << "#define " << P << "_PI 3.14159265358979323846\n\n"
+      << net.data << sys << law->emit(cfg, P) << net.code << filter_c(cfg, P);
+
+    std::filesystem::create_directories(opt.dir);
+    const std::string hpath = opt.dir + "/" + P + ".h", cpath = opt.dir + "/" + P + ".c";
+    write_text_atomic(hpath, [&](std::ostream& o) { o << h.str(); });
+    write_text_atomic(cpath, [&](std::ostream& o) { o << c.str(); });
+    res.files = {hpath, cpath};
+    return res;
+}
+
+}  // namespace
+
+ExportResult export_c(const std::string& checkpoint_path, const ExportOptions& opt) {
+    HINF_CHECK(is_c_identifier(opt.prefix), "--name '" + opt.prefix +
+                                                "' is not a C identifier (letters, digits, _, not starting with a "
+                                                "digit, at most 40 characters)");
+    HINF_CHECK(!opt.dir.empty(), "--c needs a directory");
+    ckpt_verify(checkpoint_path);
+    RunConfig cfg = ckpt_config(checkpoint_path);
+    return ckpt_precision(checkpoint_path) == "double" ? export_typed<double>(checkpoint_path, cfg, opt)
+                                                       : export_typed<float>(checkpoint_path, cfg, opt);
+}
+
+}  // namespace hinf

@@ -1,0 +1,28 @@
+// `hinf export CHECKPOINT --c DIR`: a trained DNN filter as a dependency-free C99 header/source pair (weights as
+// const arrays, the network's forward pass and head, the system's A, B, C and dC/dx, the gain law and the
+// measured-mode filter step of filters/dnn.cpp). Not a compiler of arbitrary systems: built-in systems are written
+// out by hand-kept C twins, expression systems through GiNaC's C print. docs/export.md.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace hinf {
+
+struct ExportOptions {
+    std::string dir;              // where PREFIX.h and PREFIX.c go
+    std::string prefix = "hinf_filter";  // C identifier prefix and file stem
+};
+
+struct ExportResult {
+    std::vector<std::string> files;  // the paths written
+    long long parameters = 0;        // network weights and biases
+    long long flops_per_step = 0;    // floating-point operations of one filter step (counted, docs/export.md)
+    long long weight_bytes = 0;      // const data of the weights
+    std::string variant, precision, system;
+};
+
+/// Writes DIR/PREFIX.h and DIR/PREFIX.c for the network of checkpoint_path; throws hinf::Error naming what
+/// cannot be exported (a variant without a C gain law, a state name that is a C keyword, a bad prefix).
+ExportResult export_c(const std::string& checkpoint_path, const ExportOptions& opt);
+
+}  // namespace hinf
