@@ -1,0 +1,149 @@
+// `hinf export --c`: the exported C99 filter, compiled with `cc -std=c99 -O2 ... -lm` and nothing else, reproduces
+// `hinf filter`'s DNN estimates on a record: to round-off of double arithmetic for a double network, to the float
+// network's round-off (amplified by the gain, then contracting) for a float one; built-in and expression systems,
+// both training variants. Bad use is one line.
+#include <catch2/catch.hpp>
+#include <sstream>
+
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+
+using hinf::test::expect_one_line_error;
+using hinf::test::run_command;
+using hinf::test::run_hinf;
+using hinf::test::TempDir;
+using hinf::test::write_file;
+
+namespace {
+
+// operate.h5's t and y as CSV rows "t,y_1,...,y_m" (17 digits: the same doubles)
+std::string record_csv(const TempDir& d, const std::string& operate_h5) {
+    hinf::h5::Handle f = hinf::h5::open_file(operate_h5, false);
+    std::vector<hsize_t> dims;
+    std::vector<double> t = hinf::h5::read_doubles(f.get(), "t");
+    std::vector<double> y = hinf::h5::read_doubles(f.get(), "y", &dims);
+    const std::size_t m = y.size() / t.size();
+    std::ostringstream out;
+    out.precision(17);
+    for (std::size_t k = 0; k < t.size(); ++k) {
+        out << t[k];
+        for (std::size_t j = 0; j < m; ++j) out << ',' << y[k * m + j];
+        out << '\n';
+    }
+    return write_file(d, "record.csv", out.str());
+}
+
+struct Compared {
+    double max_abs = 0, scale = 0, final_abs = 0;
+    std::size_t rows = 0;
+};
+
+// trains, records with operate (measured), runs `hinf filter` and the exported C on the record, compares
+Compared export_and_compare(const TempDir& d, const std::string& cfg, const std::string& train_args,
+                            const std::string& label) {
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet " + train_args);
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    const std::string net = d / "run/checkpoint.h5";
+    auto o = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 1 --quiet --out " + (d / "op"));
+    INFO(o.output);
+    REQUIRE(o.status == 0);
+    const std::string csv = record_csv(d, d / "op/operate.h5");
+    auto f = run_hinf("filter " + cfg + " --network " + net + " --measurements " + csv + " --quiet --out " + (d / "flt"));
+    INFO(f.output);
+    REQUIRE(f.status == 0);
+    auto e = run_hinf("export " + net + " --c " + (d / "c"));
+    INFO(e.output);
+    REQUIRE(e.status == 0);
+    // no include path but the exported pair's, no library but libm; warnings are errors
+    auto cc = run_command("cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -I " + (d / "c") + " -o " + (d / "run_record") +
+                          " " + hinf::test::source_path("tests/export/run_record.c") + " " + (d / "c/hinf_filter.c") +
+                          " -lm");
+    INFO(cc.output);
+    REQUIRE(cc.status == 0);
+    auto r = run_command(d / "run_record" + std::string(" ") + csv);
+    REQUIRE(r.status == 0);
+
+    hinf::h5::Handle h = hinf::h5::open_file(d / "flt/estimates.h5", false);
+    hinf::h5::Handle g = hinf::h5::open_group(h.get(), label);
+    std::vector<hsize_t> dims;
+    std::vector<double> xhat = hinf::h5::read_doubles(g.get(), "xhat", &dims);
+    std::vector<double> final = hinf::h5::read_doubles(g.get(), "xhat_final");
+    const std::size_t K = dims[0], n = dims[1];
+    std::istringstream in(r.output);
+    std::string line;
+    Compared c;
+    for (std::size_t k = 0; k <= K; ++k) {
+        REQUIRE(std::getline(in, line));
+        const bool last = k == K;
+        if (last) REQUIRE(line.rfind("final,", 0) == 0);
+        std::istringstream row(last ? line.substr(6) : line);
+        for (std::size_t i = 0; i < n; ++i) {
+            std::string cell;
+            REQUIRE(std::getline(row, cell, ','));
+            const double want = last ? final[i] : xhat[k * n + i];
+            const double diff = std::fabs(std::stod(cell) - want);
+            c.max_abs = std::max(c.max_abs, diff);
+            c.scale = std::max(c.scale, std::fabs(want));
+            if (last) c.final_abs = std::max(c.final_abs, diff);
+        }
+        ++c.rows;
+    }
+    REQUIRE(std::getline(in, line));
+    CHECK(line.rfind("us_per_step ", 0) == 0);
+    return c;
+}
+
+}  // namespace
+
+TEST_CASE("exported C filter of a double missile network matches hinf filter to double round-off", "[export]") {
+    for (const char* variant : {"dissipative", "paper"}) {
+        SECTION(variant) {
+            TempDir d("export-missile");
+            const std::string cfg = write_file(d, "tiny.toml",
+                                               "[system]\nkind = \"missile\"\n[filter]\nt_final = 3.0\nvariant = \"" +
+                                                   std::string(variant) +
+                                                   "\"\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n"
+                                                   "[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n"
+                                                   "checkpoint_every = 5\n");
+            Compared c = export_and_compare(d, cfg, "--until 0.1", std::string("dnn_") + variant + "_measured");
+            INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+            CHECK(c.rows == 301);
+            CHECK(c.scale > 100);  // the missile's positions: a real trajectory was compared
+            CHECK(c.max_abs <= 1e-11 * c.scale);
+        }
+    }
+}
+
+TEST_CASE("exported C filter of a float expression-system network matches hinf filter to float round-off", "[export]") {
+    TempDir d("export-expr");
+    const std::string cfg = hinf::test::source_path("runs/vanderpol.toml");
+    Compared c = export_and_compare(d, cfg,
+                                    "--until 0.3 --set training.samples=400 --set training.batch=200 "
+                                    "--set training.adam_steps=5",
+                                    "dnn_dissipative_measured");
+    INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale << ", after the last step " << c.final_abs);
+    CHECK(c.rows == 2001);
+    // the float network's round-off (~1e-7 relative) is amplified by the first large gain steps, then contracts
+    CHECK(c.max_abs <= 1e-4 * c.scale);
+    CHECK(c.final_abs <= 1e-6 * c.scale);
+}
+
+TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
+    TempDir d("export-bad");
+    expect_one_line_error("export " + (d / "missing.h5") + " --c " + (d / "c"), "missing.h5");
+    const std::string cfg = write_file(d, "tiny.toml", hinf::test::tiny_missile_config());
+    REQUIRE(run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet").status == 0);
+    expect_one_line_error("export " + (d / "run/checkpoint.h5") + " --c " + (d / "c") + " --name 2bad",
+                          "is not a C identifier");
+    // a state named like a C keyword cannot become a C local
+    const std::string kw = write_file(d, "kw.toml",
+                                      "[system]\nkind = \"expr\"\nstates = [\"int\"]\nmeasurements = 1\nf = [\"-int\"]\n"
+                                      "g = [[\"1\"]]\nh = [\"int\"]\n[filter]\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\n"
+                                      "t_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
+                                      "adam_steps = 1\ncheckpoint_every = 1\n");
+    auto t = run_hinf("train " + kw + " --out " + (d / "kw") + " --quiet");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    expect_one_line_error("export " + (d / "kw/checkpoint.h5") + " --c " + (d / "c"), "the state 'int' is a C keyword");
+}
