@@ -124,7 +124,7 @@ public:
     bool step(const double* y, double t);
     bool step(const std::vector<double>& y, double t);
     std::vector<double> estimate() const;    ///< [n]
-    std::vector<double> covariance() const;  ///< [n x n]; empty for filters without one (dnn, glf, open_loop)
+    std::vector<double> covariance() const;  ///< [n x n] (ekf, ukf); empty for filters without one (dnn, pf, glf, open_loop)
     bool diverged() const;
 
     /// Runs a fresh copy of the filter over a record: t [K] strictly increasing and uniformly spaced, y [K x m],

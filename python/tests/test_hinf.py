@@ -1,4 +1,4 @@
-"""pytest over the Python module: bit for bit against the `hinf` program on the same record, the progress callback,
+"""pytest over the Python module: bit for bit against the `hinf` program on the same record (built-in system), the progress callback,
 and bad use raising hinf.Error with hinf's one-line message. Run: PYTHONPATH=build/python HINF_CLI=build/hinf
 python3 -m pytest python/tests (ctest runs it as python_pytest; scripts/test also against the installed module)."""
 import os
@@ -55,17 +55,52 @@ def test_train_reports_progress_every_step(trained):
     assert seen[-1].t == pytest.approx(0.3)
 
 
-def test_filters_match_hinf_filter_bit_for_bit(trained, record, tmp_path):
-    cfg, ckpt, _, _, _ = trained
-    t, Y, path = record
-    names = "dnn,ekf,ukf,pf,open_loop"
-    subprocess.run([hinf_cli(), "filter", VANDERPOL, "--network", ckpt, "--measurements", path, "--filters", names,
-                    "--particles", "300", "--quiet", "--out", str(tmp_path)], check=True, capture_output=True)
-    written = hinf.read_results(str(tmp_path / "estimates.h5"))
+def run_cli_filter(config, record_path, names, out, network=None):
+    args = [hinf_cli(), "filter", config, "--measurements", record_path, "--filters", names, "--particles", "300",
+            "--quiet", "--out", str(out)]
+    if network:
+        args += ["--network", network]
+    subprocess.run(args, check=True, capture_output=True)
+    written = hinf.read_results(str(out / "estimates.h5"))
     assert written["attrs"]["format"] == "hinf-estimates"
-    # the CLI's config has no overrides: the Python side loads the same file
-    filters = hinf.filters(hinf.Config(VANDERPOL), names, network=ckpt, particles=300)
-    assert [f.name for f in filters] == ["dnn_dissipative_measured", "ekf", "ukf", "pf", "open_loop"]
+    return written
+
+
+MISSILE = """[system]
+kind = "missile"
+[filter]
+t_final = 2.0
+[network]
+hidden = [16, 8]
+[training]
+samples = 100
+batch = 50
+adam_steps = 3
+checkpoint_every = 5
+"""
+
+
+def test_missile_filters_match_hinf_filter_bit_for_bit(tmp_path):
+    """Every filter, built-in system: Filter.run gives the bits of `hinf filter`'s estimates.h5."""
+    config = tmp_path / "missile.toml"
+    config.write_text(MISSILE)
+    cfg = hinf.Config(str(config))
+    hinf.train(cfg, str(tmp_path / "run"), until=0.1)
+    ckpt = str(tmp_path / "run" / "checkpoint.h5")
+    rng = np.random.default_rng(2)
+    K = 150
+    t = 3.0 + np.arange(K) * cfg.dt  # a record need not start at 0
+    Y = np.empty((K, cfg.outputs))
+    x = cfg.initial_state
+    for k in range(K):
+        Y[k] = cfg.measure(x, t[k]) + 20 * rng.standard_normal(cfg.outputs)
+        x = cfg.advance(x, 20 * rng.standard_normal(cfg.disturbances), t[k])
+    path = str(tmp_path / "record.csv")
+    np.savetxt(path, np.column_stack([t, Y]), delimiter=",", fmt="%.17g")
+    names = "dnn,ekf,ukf,pf,open_loop,glf"
+    written = run_cli_filter(str(config), path, names, tmp_path / "flt", network=ckpt)
+    filters = hinf.filters(cfg, names, network=hinf.Network(ckpt), particles=300)
+    assert [f.name for f in filters] == ["dnn_dissipative_measured", "ekf", "ukf", "pf", "open_loop", "glf"]
     for f in filters:
         trace = f.run(t, Y)
         g = written[f.name]
@@ -77,29 +112,27 @@ def test_filters_match_hinf_filter_bit_for_bit(trained, record, tmp_path):
         else:
             assert trace.covariance is None and "P" not in g
         assert trace.diverged_at == g["attrs"]["diverged_at"]
+        assert np.array_equal(trace.innovation_rms, g["attrs"]["innovation_rms"]), f.name
 
 
-def test_glf_on_the_missile_matches_hinf_filter_bit_for_bit(tmp_path):
-    """glf needs an LMI design the Van der Pol system has none for (SDPA: infeasible); the missile has one."""
-    config = os.path.join(ROOT, "runs", "missile_hinf.toml")
-    cfg = hinf.Config(config)
-    rng = np.random.default_rng(2)
-    K = 150
-    t = np.arange(K) * cfg.dt
-    Y = np.empty((K, cfg.outputs))
-    x = cfg.initial_state
-    for k in range(K):
-        Y[k] = cfg.measure(x, t[k]) + 20 * rng.standard_normal(cfg.outputs)
-        x = cfg.advance(x, 20 * rng.standard_normal(cfg.disturbances), t[k])
-    path = str(tmp_path / "record.csv")
-    np.savetxt(path, np.column_stack([t, Y]), delimiter=",", fmt="%.17g")
-    subprocess.run([hinf_cli(), "filter", config, "--measurements", path, "--filters", "glf,ekf", "--quiet", "--out",
-                    str(tmp_path)], check=True, capture_output=True)
-    written = hinf.read_results(str(tmp_path / "estimates.h5"))
-    for f in hinf.filters(cfg, "glf,ekf"):
+def test_expression_system_filters_match_hinf_filter(trained, record, tmp_path):
+    """Van der Pol as expressions: the same filters, to round-off. GiNaC orders the terms of a sum or product by
+    hashes that depend on where its library is loaded, so the printed expressions, and with them the last bits,
+    differ from process to process (the `hinf` program's own runs differ alike: docs/python.md)."""
+    cfg, ckpt, _, _, _ = trained
+    t, Y, path = record
+    names = "dnn,ekf,ukf,pf,open_loop"
+    written = run_cli_filter(VANDERPOL, path, names, tmp_path, network=ckpt)
+    filters = hinf.filters(hinf.Config(VANDERPOL), names, network=ckpt, particles=300)
+    assert [f.name for f in filters] == ["dnn_dissipative_measured", "ekf", "ukf", "pf", "open_loop"]
+    for f in filters:
         trace = f.run(t, Y)
-        assert np.array_equal(trace.xhat, written[f.name]["xhat"]), f.name
-        assert np.array_equal(trace.innovation, written[f.name]["innovation"]), f.name
+        g = written[f.name]
+        scale = np.abs(g["xhat"]).max()
+        # the float network rounds its input: a last-bit change of x~ can move p by float round-off (1e-7)
+        np.testing.assert_allclose(trace.xhat, g["xhat"], rtol=0, atol=1e-5 * scale, err_msg=f.name)
+        np.testing.assert_allclose(trace.innovation, g["innovation"], rtol=0, atol=1e-5 * scale, err_msg=f.name)
+        assert (trace.covariance is None) == ("P" not in g)
 
 
 def test_step_by_step_equals_run(trained, record):
