@@ -1,0 +1,138 @@
+// The public facade (include/hinf/hinf.hpp): training through the library with a progress callback, filters by
+// name giving `hinf filter`'s bits on the same record, step() against run(), and bad use as one-line hinf::Error.
+// (python/tests covers the same through the Python module; this runs under the sanitizers too.)
+#include <catch2/catch.hpp>
+#include <sstream>
+
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+#include "hinf/hinf.hpp"
+
+using hinf::test::run_hinf;
+using hinf::test::TempDir;
+using hinf::test::write_file;
+
+namespace {
+
+const char* kTinyMissile =
+    "[system]\nkind = \"missile\"\n[filter]\nt_final = 2.0\n[network]\nhidden = [8]\n[training]\nsamples = 50\n"
+    "batch = 20\nadam_steps = 2\ncheckpoint_every = 3\n";
+
+// a noisy record of the config's own system, and its CSV (17 digits: the same doubles)
+void simulate(const hinf::Config& cfg, std::int64_t K, std::vector<double>* t, std::vector<double>* y,
+              std::string* csv) {
+    const int m = cfg.outputs();
+    std::vector<double> x = cfg.initial_state();
+    std::ostringstream out;
+    out.precision(17);
+    for (std::int64_t k = 0; k < K; ++k) {
+        const double tk = 1.5 + double(k) * cfg.dt();
+        std::vector<double> c = cfg.measure(x, tk);
+        t->push_back(tk);
+        out << tk;
+        for (int j = 0; j < m; ++j) {
+            y->push_back(c[j] + 20.0 * std::sin(0.7 * double(k * m + j)));  // deterministic "noise"
+            out << ',' << y->back();
+        }
+        out << '\n';
+        x = cfg.advance(x, {5.0 * std::cos(0.3 * double(k))}, tk, cfg.dt());
+    }
+    *csv = out.str();
+}
+
+bool one_line_error(const std::function<void()>& call, const std::string& fragment) {
+    try {
+        call();
+    } catch (const hinf::Error& e) {
+        const std::string what = e.what();
+        INFO(what);
+        CHECK(what.find('\n') == std::string::npos);
+        return what.find(fragment) != std::string::npos;
+    }
+    return false;
+}
+
+}  // namespace
+
+TEST_CASE("library: train with a callback, then every filter gives hinf filter's bits", "[api]") {
+    TempDir d("api");
+    const std::string path = write_file(d, "tiny.toml", kTinyMissile);
+    const hinf::Config cfg = hinf::Config::load(path);
+    REQUIRE(cfg.states() == 6);
+    REQUIRE(cfg.system() == "missile");
+
+    hinf::TrainSettings s;
+    s.out_dir = d / "run";
+    s.until = 0.06;
+    std::vector<std::int64_t> steps;
+    s.on_progress = [&](const hinf::TrainProgress& p) { steps.push_back(p.step); };
+    const hinf::TrainReport r = hinf::train(cfg, s);
+    CHECK_FALSE(r.diverged);
+    CHECK(r.last_step == 6);
+    CHECK(steps == std::vector<std::int64_t>{1, 2, 3, 4, 5, 6});
+
+    std::vector<double> t, y;
+    std::string csv;
+    simulate(cfg, 120, &t, &y, &csv);
+    const std::string record = write_file(d, "record.csv", csv);
+    auto cli = run_hinf("filter " + path + " --network " + r.checkpoint + " --measurements " + record +
+                        " --filters dnn,ekf,ukf,pf,open_loop --particles 200 --quiet --out " + (d / "flt"));
+    INFO(cli.output);
+    REQUIRE(cli.status == 0);
+
+    hinf::FilterOptions o;
+    o.networks = {hinf::TrainedNetwork::load(r.checkpoint)};
+    o.particles = 200;
+    std::vector<hinf::Filter> filters = hinf::Filter::create_all(cfg, "dnn,ekf,ukf,pf,open_loop", o);
+    REQUIRE(filters.size() == 5);
+    hinf::h5::Handle f = hinf::h5::open_file(d / "flt/estimates.h5", false);
+    for (hinf::Filter& filter : filters) {
+        INFO(filter.name());
+        const hinf::FilterTrace tr = filter.run(t, y);
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), filter.name());
+        CHECK(hinf::test::bitwise_equal(tr.xhat, hinf::h5::read_doubles(g.get(), "xhat")));
+        CHECK(hinf::test::bitwise_equal(tr.innovation, hinf::h5::read_doubles(g.get(), "innovation")));
+        CHECK(hinf::test::bitwise_equal(tr.xhat_final, hinf::h5::read_doubles(g.get(), "xhat_final")));
+        if (filter.has_covariance())
+            CHECK(hinf::test::bitwise_equal(tr.covariance, hinf::h5::read_doubles(g.get(), "P")));
+        // one step at a time: the record's interval is the config's dt here up to its last bit, so to round-off
+        filter.reset();
+        for (std::size_t k = 0; k < t.size(); ++k) {
+            const std::vector<double> xh = filter.estimate();
+            for (int i = 0; i < 6; ++i)
+                CHECK(xh[i] == Approx(tr.xhat[k * 6 + i]).epsilon(1e-9).margin(1e-9));
+            filter.step(&y[k * 6], t[k]);
+        }
+    }
+}
+
+TEST_CASE("library: bad use throws hinf::Error with one line", "[api]") {
+    TempDir d("api-bad");
+    const hinf::Config cfg = hinf::Config::from_text(kTinyMissile, "tiny.toml");
+    CHECK(one_line_error([&] { hinf::Config::load(d / "missing.toml"); }, "missing.toml"));
+    CHECK(one_line_error([&] { hinf::Config::from_text("[filter]\nrho = -1\n", "bad.toml"); }, "rho"));
+    CHECK(one_line_error([&] { hinf::Filter::create(cfg, "kalman"); }, "unknown filter 'kalman'"));
+    CHECK(one_line_error([&] { hinf::Filter::create(cfg, "dnn"); }, "needs a trained network"));
+    CHECK(one_line_error([&] { hinf::Filter::create(cfg, "ekf,ukf"); }, "use create_all"));
+    hinf::Filter ekf = hinf::Filter::create(cfg, "ekf");
+    CHECK(one_line_error([&] { ekf.step(std::vector<double>(3, 0.0), 0.0); }, "has 3 values, expected 6"));
+    CHECK(one_line_error([&] { ekf.run({0.0, 0.01}, std::vector<double>(6, 0.0)); }, "expected times x outputs = 12"));
+    CHECK(one_line_error([&] { ekf.run({0.0, 0.0}, std::vector<double>(12, 0.0)); }, "time must increase strictly"));
+    CHECK(one_line_error([&] { hinf::TrainedNetwork::load(d / "missing.h5"); }, "missing.h5"));
+    CHECK(one_line_error([&] { hinf::train(cfg, hinf::TrainSettings{}); }, "out_dir is required"));
+    // a network trained for another system with the same state count
+    const hinf::Config other = hinf::Config::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"a\", \"b\", \"c\", \"d\", \"e\", \"f\"]\nmeasurements = 6\n"
+        "f = [\"-a\", \"-b\", \"-c\", \"-d\", \"-e\", \"-f\"]\ng = [[\"1\"], [\"0\"], [\"0\"], [\"0\"], [\"0\"], [\"0\"]]\n"
+        "h = [\"a\", \"b\", \"c\", \"d\", \"e\", \"f\"]\n[filter]\nQ = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]\nx0 = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]\n"
+        "xhat0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nt_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
+        "adam_steps = 1\ncheckpoint_every = 1\n",
+        "other.toml");
+    hinf::TrainSettings s;
+    s.out_dir = d / "other";
+    REQUIRE_FALSE(hinf::train(other, s).diverged);
+    hinf::FilterOptions o;
+    o.networks = {hinf::TrainedNetwork::load(d / "other/checkpoint.h5")};
+    CHECK(one_line_error([&] { hinf::Filter::create(cfg, "dnn", o); }, "was trained for the system 'expr'"));
+    CHECK(one_line_error([&] { hinf::train(other, s); }, "already holds a run"));
+}
