@@ -171,145 +171,11 @@ std::string system_c(const System& sys, const std::string& P) {
               "missile_c)");
 }
 
-// ------------------------------------------------------------------------------------------ gain laws
-// One entry per training variant: the C of k = k(p, B, dC, x^) [n x m] with the signature
-//   static void PREFIX_gain(double* k, const double* p, const double* B, const double* dc, const double* xhat)
-// Another variant's gain law is one more function and one more row of kGainLaws.
-
-std::string hinf_gain_c(const RunConfig& ncfg, const std::string& P) {
-    // seed 000 eq. (8) as filters/gain_law.hpp worst_case: k* = 2 rho p dc^T / |p|^2, zero when p = 0
+// `static void PREFIX_error_from_innovation(double* xt, const double* xhat, double t, const double* e)`: x~ from
+// the innovation as filters/dnn.cpp dnn_error_from_innovation computes it (the measured-mode network input)
+std::string innovation_lsq_c(const RunConfig& cfg, const std::string& P) {
     std::ostringstream c;
-    c << "/* seed 000 eq. (8): k* = 2 rho p dC^T / |p|^2 (zero when p = 0), rho of the network's training config */\n"
-      << "static void " << P << "_gain(double* k, const double* p, const double* B, const double* dc, "
-         "const double* xhat) {\n"
-      << "    const double rho = " << lit(ncfg.rho) << ";\n"
-      << "    double pp = 0;\n    int i, j;\n    (void)B;\n    (void)xhat;\n"
-      << "    for (i = 0; i < " << P << "_N; ++i) pp += p[i] * p[i];\n"
-      << "    for (i = 0; i < " << P << "_N * " << P << "_M; ++i) k[i] = 0.0;\n"
-      << "    if (pp > 0)\n"
-      << "        for (i = 0; i < " << P << "_N; ++i)\n"
-      << "            for (j = 0; j < " << P << "_M; ++j) k[i * " << P << "_M + j] = 2.0 * rho * p[i] * dc[j] / pp;\n"
-      << "}\n\n";
-    return c.str();
-}
-
-struct CGainLaw {
-    const char* variant;
-    std::string (*emit)(const RunConfig& ncfg, const std::string& prefix);
-    long long (*flops)(int n, int m);  // per call
-};
-const CGainLaw kGainLaws[] = {
-    {"dissipative", hinf_gain_c, [](int n, int m) { return 2LL * n + 4LL * n * m; }},
-    {"paper", hinf_gain_c, [](int n, int m) { return 2LL * n + 4LL * n * m; }},
-};
-
-// ---------------------------------------------------------------------------------------------- network
-
-template <typename T>
-struct NetworkC {
-    std::string data, code;
-    long long flops = 0, bytes = 0;
-};
-
-template <typename T>
-NetworkC<T> network_c(const Network<T>& net, const std::string& P) {
-    const kern::StepConfig& sc = net.step;
-    const kern::MlpShape& sh = sc.shape;
-    const bool single = sizeof(T) == sizeof(float);
-    const std::string TT = single ? "float" : "double";
-    const int L = sh.layers(), n = sc.head.n;
-    NetworkC<T> out;
-    std::ostringstream d;
-    d << "/* the network's parameters (kernels/mlp.hpp layout): for l = 1..L, W_l [D_l x D_(l-1)] row-major, "
-         "then b_l [D_l] */\n"
-      << "static const " << TT << " " << P << "_theta[" << net.theta.size() << "] = {\n";
-    for (std::size_t i = 0; i < net.theta.size(); ++i) {
-        d << (i % 8 == 0 ? "    " : " ") << (single ? flit(float(net.theta[i])) : lit(double(net.theta[i])))
-          << (i + 1 < net.theta.size() ? "," : "") << (i % 8 == 7 || i + 1 == net.theta.size() ? "\n" : "");
-    }
-    d << "};\n";
-    d << "static const int " << P << "_sizes[" << L + 1 << "] = {";
-    for (int l = 0; l <= L; ++l) d << (l ? ", " : "") << sh.sizes[l];
-    d << "};\nstatic const long " << P << "_offsets[" << L + 1 << "] = {0";
-    for (int l = 1; l <= L; ++l) d << ", " << sh.weight_offset(l);
-    d << "};\n\n";
-    out.data = d.str();
-    out.bytes = (long long)(net.theta.size() * sizeof(T));
-
-    int widest = 0;
-    for (int l = 0; l <= L; ++l) widest = std::max(widest, sh.sizes[l]);
-    std::ostringstream c;
-    const bool quad = sc.head.kind == kern::HEAD_QUADRATIC;
-    c << "/* p = dV/dx~ at x~ [n]: input x~ / s_in, LeakyReLU hidden layers, linear output (mlp_forward_naive), then\n"
-      << "   the " << (quad ? "quadratic head p = c (M M^T + eps I) x~, M = I + tril(o)" : "gradient head p = c o")
-      << " (kernels/head.cpp) */\n"
-      << "void " << P << "_gradient(double* p, const double* xt) {\n"
-      << "    " << TT << " buf[2][" << widest << "];\n"
-      << "    const double inv = 1.0 / " << lit(sc.input_scale) << ";\n"
-      << "    const " << TT << " a1 = (" << TT << ")" << lit(sh.slope_positive) << ", a2 = (" << TT << ")"
-      << lit(sh.slope_negative) << ";\n"
-      << "    const " << TT << "* in = buf[0];\n    " << TT << "* o = buf[1];\n"
-      << "    int l, i, j;\n"
-      << "    for (i = 0; i < " << n << "; ++i) buf[0][i] = (" << TT << ")(xt[i] * inv);\n"
-      << "    for (l = 1; l <= " << L << "; ++l) {\n"
-      << "        const int din = " << P << "_sizes[l - 1], dout = " << P << "_sizes[l];\n"
-      << "        const " << TT << "* W = " << P << "_theta + " << P << "_offsets[l];\n"
-      << "        const " << TT << "* b = W + (long)dout * din;\n"
-      << "        o = buf[l % 2];\n"
-      << "        for (j = 0; j < dout; ++j) {\n"
-      << "            " << TT << " z = b[j];\n"
-      << "            for (i = 0; i < din; ++i) z += W[(long)j * din + i] * in[i];\n"
-      << "            if (l < " << L << ") z = z > (" << TT << ")0 ? a1 * z : a2 * z;\n"
-      << "            o[j] = z;\n"
-      << "        }\n"
-      << "        in = o;\n"
-      << "    }\n";
-    if (quad) {
-        c << "    {\n"
-          << "        double M[" << n * n << "], Pm[" << n * n << "];\n"
-          << "        int a, b, k = 0;\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = (a == b) ? 1.0 : 0.0;\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b <= a; ++b) M[a * " << n << " + b] += (double)in[k++];\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b <= a; ++b) {\n"
-          << "                double s = 0;\n"
-          << "                for (k = 0; k <= b; ++k) s += M[a * " << n << " + k] * M[b * " << n << " + k];\n"
-          << "                s = " << lit(sc.head.scale) << " * (s + (a == b ? " << lit(sc.head.eps) << " : 0.0));\n"
-          << "                Pm[a * " << n << " + b] = s;\n"
-          << "                Pm[b * " << n << " + a] = s;\n"
-          << "            }\n"
-          << "        for (a = 0; a < " << n << "; ++a) {\n"
-          << "            double s = 0;\n"
-          << "            for (b = 0; b < " << n << "; ++b) s += Pm[a * " << n << " + b] * xt[b];\n"
-          << "            p[a] = s;\n"
-          << "        }\n"
-          << "    }\n";
-    } else {
-        c << "    for (i = 0; i < " << n << "; ++i) p[i] = " << lit(sc.head.scale) << " * (double)in[i];\n";
-    }
-    c << "}\n\n";
-    out.code = c.str();
-    // FLOPs: input scaling, per layer a multiply-add per weight, the bias, LeakyReLU's multiply; then the head
-    long long f = n;
-    for (int l = 1; l <= L; ++l) f += 2LL * sh.sizes[l] * sh.sizes[l - 1] + (l < L ? sh.sizes[l] : 0);
-    if (quad) {
-        f += n * (n + 1) / 2;  // M = I + tril(o)
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b <= a; ++b) f += 2LL * (b + 1) + 2;
-        f += 2LL * n * n;  // P x~
-    } else
-        f += n;
-    out.flops = f;
-    return out;
-}
-
-// ------------------------------------------------------------------------------------------- assembly
-
-std::string filter_c(const RunConfig& cfg, const std::string& P) {
-    std::ostringstream c;
-    const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
+    const std::string N = P + "_N", M = P + "_M";
     c << "/* x~ from the innovation e = y - C(x^): the minimum-norm least-squares solution of dC/dx(x^) x~ = e\n"
       << "   (hinf: Eigen's complete orthogonal decomposition; here a one-sided Jacobi SVD, singular values below\n"
       << "   min(m, n) eps sigma_max dropped as Eigen's rank threshold does) */\n"
@@ -381,6 +247,177 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "        }\n"
       << "    }\n"
       << "}\n\n";
+    return c.str();
+}
+
+// ------------------------------------------------------------------------------------------ gain laws
+// One entry per training variant. It writes, after the system and PREFIX_forward (the raw network),
+//   static void PREFIX_gain(double* k, const double* xhat, double t, const double* e, const double* B)
+// k [n x m] from the estimate, the time, the innovation e = y - C(x^) [m] and B(x^) [n x nv], with whatever it
+// needs on the way (its head, the network's input), plus public functions for the header. Another variant's gain
+// (one that reads x^ alone, say) is one more function and one more row of kGainLaws; the step does not change.
+
+struct LawC {
+    std::string code, header;  // definitions; extra prototypes for PREFIX.h
+    long long flops = 0;       // per step, besides PREFIX_forward and the system functions
+};
+
+// dissipative / paper: x~ from the innovation, p = dV/dx~ from the network's head, seed 000 eq. (8) with dC = e
+LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& P) {
+    const int n = sc.head.n, m = cfg.m;
+    const bool quad = sc.head.kind == kern::HEAD_QUADRATIC;
+    LawC law;
+    std::ostringstream c;
+    c << innovation_lsq_c(cfg, P)
+      << "/* p = dV/dx~ at x~ [n]: the network at x~, then the "
+      << (quad ? "quadratic head p = c (M M^T + eps I) x~, M = I + tril(o)" : "gradient head p = c o")
+      << " (kernels/head.cpp) */\n"
+      << "void " << P << "_gradient(double* p, const double* xt) {\n"
+      << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
+      << "    const " << P << "_real* o = " << P << "_forward(buf, xt);\n";
+    if (quad) {
+        c << "    double M[" << n * n << "], Pm[" << n * n << "];\n"
+          << "    int a, b, k = 0;\n"
+          << "    for (a = 0; a < " << n << "; ++a)\n"
+          << "        for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = (a == b) ? 1.0 : 0.0;\n"
+          << "    for (a = 0; a < " << n << "; ++a)\n"
+          << "        for (b = 0; b <= a; ++b) M[a * " << n << " + b] += (double)o[k++];\n"
+          << "    for (a = 0; a < " << n << "; ++a)\n"
+          << "        for (b = 0; b <= a; ++b) {\n"
+          << "            double s = 0;\n"
+          << "            for (k = 0; k <= b; ++k) s += M[a * " << n << " + k] * M[b * " << n << " + k];\n"
+          << "            s = " << lit(sc.head.scale) << " * (s + (a == b ? " << lit(sc.head.eps) << " : 0.0));\n"
+          << "            Pm[a * " << n << " + b] = s;\n"
+          << "            Pm[b * " << n << " + a] = s;\n"
+          << "        }\n"
+          << "    for (a = 0; a < " << n << "; ++a) {\n"
+          << "        double s = 0;\n"
+          << "        for (b = 0; b < " << n << "; ++b) s += Pm[a * " << n << " + b] * xt[b];\n"
+          << "        p[a] = s;\n"
+          << "    }\n";
+    } else {
+        c << "    int i;\n"
+          << "    for (i = 0; i < " << n << "; ++i) p[i] = " << lit(sc.head.scale) << " * (double)o[i];\n";
+    }
+    c << "}\n\n"
+      << "/* seed 000 eq. (8) as filters/gain_law.hpp worst_case: k* = 2 rho p dC^T / |p|^2 (zero when p = 0), with\n"
+      << "   dC = e and p at x~ from the innovation (measured mode); rho of the network's training config */\n"
+      << "static void " << P << "_gain(double* k, const double* xhat, double t, const double* e, const double* B) {\n"
+      << "    const double rho = " << lit(cfg.rho) << ";\n"
+      << "    double xt[" << P << "_N], p[" << P << "_N], pp = 0;\n"
+      << "    int i, j;\n"
+      << "    (void)B;\n"
+      << "    " << P << "_error_from_innovation(xt, xhat, t, e);\n"
+      << "    " << P << "_gradient(p, xt);\n"
+      << "    for (i = 0; i < " << P << "_N; ++i) pp += p[i] * p[i];\n"
+      << "    for (i = 0; i < " << P << "_N * " << P << "_M; ++i) k[i] = 0.0;\n"
+      << "    if (pp > 0)\n"
+      << "        for (i = 0; i < " << P << "_N; ++i)\n"
+      << "            for (j = 0; j < " << P << "_M; ++j) k[i * " << P << "_M + j] = 2.0 * rho * p[i] * e[j] / pp;\n"
+      << "}\n\n";
+    law.code = c.str();
+    law.header = "/* the frozen network: p = dV/dx~ [n] at x~ [n] */\nvoid " + P +
+                 "_gradient(double* p, const double* xtilde);\n\n";
+    // the head, the least squares (about 6 r c per column pair and sweep, one sweep counted), the gain
+    long long f = 0;
+    if (quad) {
+        f += n * (n + 1) / 2;
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b <= a; ++b) f += 2LL * (b + 1) + 2;
+        f += 2LL * n * n;
+    } else
+        f += n;
+    const long long r = std::max(n, m), cc = std::min(n, m);
+    law.flops = f + 6LL * r * cc * cc + 2LL * n + 4LL * n * m;
+    return law;
+}
+
+struct CGainLaw {
+    const char* variant;
+    LawC (*emit)(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& prefix);
+};
+const CGainLaw kGainLaws[] = {
+    {"dissipative", hinf_gain_c},
+    {"paper", hinf_gain_c},
+};
+
+// ---------------------------------------------------------------------------------------------- network
+
+template <typename T>
+struct NetworkC {
+    std::string data, code;  // the weights; PREFIX_forward
+    long long flops = 0, bytes = 0;
+};
+
+// The weights and `static const TT* PREFIX_forward(TT buf[2][W], const double* input)`: input / s_in rounded to
+// the network's precision, LeakyReLU hidden layers, the linear output layer (mlp_forward_naive's sums); returns
+// the raw output o [D_L] (inside buf). What o means is the head's business (the gain law's entry).
+template <typename T>
+NetworkC<T> network_c(const Network<T>& net, const std::string& P) {
+    const kern::StepConfig& sc = net.step;
+    const kern::MlpShape& sh = sc.shape;
+    const bool single = sizeof(T) == sizeof(float);
+    const std::string TT = single ? "float" : "double";
+    const int L = sh.layers();
+    NetworkC<T> out;
+    std::ostringstream d;
+    d << "/* the network's parameters (kernels/mlp.hpp layout): for l = 1..L, W_l [D_l x D_(l-1)] row-major, "
+         "then b_l [D_l] */\n"
+      << "static const " << TT << " " << P << "_theta[" << net.theta.size() << "] = {\n";
+    for (std::size_t i = 0; i < net.theta.size(); ++i) {
+        d << (i % 8 == 0 ? "    " : " ") << (single ? flit(float(net.theta[i])) : lit(double(net.theta[i])))
+          << (i + 1 < net.theta.size() ? "," : "") << (i % 8 == 7 || i + 1 == net.theta.size() ? "\n" : "");
+    }
+    d << "};\n";
+    d << "static const int " << P << "_sizes[" << L + 1 << "] = {";
+    for (int l = 0; l <= L; ++l) d << (l ? ", " : "") << sh.sizes[l];
+    d << "};\nstatic const long " << P << "_offsets[" << L + 1 << "] = {0";
+    for (int l = 1; l <= L; ++l) d << ", " << sh.weight_offset(l);
+    d << "};\n\n";
+    out.data = d.str();
+    out.bytes = (long long)(net.theta.size() * sizeof(T));
+
+    int widest = 0;
+    for (int l = 0; l <= L; ++l) widest = std::max(widest, sh.sizes[l]);
+    std::ostringstream c;
+    c << "typedef " << TT << " " << P << "_real; /* the network's precision */\n"
+      << "#define " << P << "_WIDEST " << widest << "\n\n"
+      << "/* the network: input / s_in, LeakyReLU hidden layers, linear output (kernels/mlp.cpp, naive twin) */\n"
+      << "static const " << TT << "* " << P << "_forward(" << TT << " buf[2][" << widest << "], const double* input) {\n"
+      << "    const double inv = 1.0 / " << lit(sc.input_scale) << ";\n"
+      << "    const " << TT << " a1 = (" << TT << ")" << lit(sh.slope_positive) << ", a2 = (" << TT << ")"
+      << lit(sh.slope_negative) << ";\n"
+      << "    const " << TT << "* in = buf[0];\n    " << TT << "* o = buf[1];\n"
+      << "    int l, i, j;\n"
+      << "    for (i = 0; i < " << sh.sizes[0] << "; ++i) buf[0][i] = (" << TT << ")(input[i] * inv);\n"
+      << "    for (l = 1; l <= " << L << "; ++l) {\n"
+      << "        const int din = " << P << "_sizes[l - 1], dout = " << P << "_sizes[l];\n"
+      << "        const " << TT << "* W = " << P << "_theta + " << P << "_offsets[l];\n"
+      << "        const " << TT << "* b = W + (long)dout * din;\n"
+      << "        o = buf[l % 2];\n"
+      << "        for (j = 0; j < dout; ++j) {\n"
+      << "            " << TT << " z = b[j];\n"
+      << "            for (i = 0; i < din; ++i) z += W[(long)j * din + i] * in[i];\n"
+      << "            if (l < " << L << ") z = z > (" << TT << ")0 ? a1 * z : a2 * z;\n"
+      << "            o[j] = z;\n"
+      << "        }\n"
+      << "        in = o;\n"
+      << "    }\n"
+      << "    return in;\n"
+      << "}\n\n";
+    out.code = c.str();
+    // FLOPs: input scaling, per layer a multiply-add per weight, the bias, LeakyReLU's multiply
+    long long f = sh.sizes[0];
+    for (int l = 1; l <= L; ++l) f += 2LL * sh.sizes[l] * sh.sizes[l - 1] + (l < L ? sh.sizes[l] : 0);
+    out.flops = f;
+    return out;
+}
+
+// ------------------------------------------------------------------------------------------- assembly
+
+std::string filter_c(const RunConfig& cfg, const std::string& P) {
+    std::ostringstream c;
+    const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
     c << "void " << P << "_init(" << P << "_state* s, const double* xhat0) {\n"
       << "    static const double config_xhat0[" << N << "] = {";
     for (int i = 0; i < cfg.n; ++i) c << (i ? ", " : "") << lit(cfg.xhat0[i]);
@@ -389,20 +426,18 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    for (i = 0; i < " << N << "; ++i) s->xhat[i] = xhat0 ? xhat0[i] : config_xhat0[i];\n"
       << "    s->diverged = 0;\n"
       << "}\n\n"
-      << "/* seed 000 eq. (19) in measured mode (filters/dnn.cpp): the network sees x~ from the innovation, the gain\n"
-      << "   uses dC = e = y - C(x^), and x^ <- x^ + dt (A(x^, t) + k e) (luenberger_advance) */\n"
+      << "/* seed 000 eq. (19) in measured mode (filters/dnn.cpp): k from the variant's gain law, then\n"
+      << "   x^ <- x^ + dt (A(x^, t) + k e) with e = y - C(x^) (luenberger_advance) */\n"
       << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt) {\n"
-      << "    double a[" << N << "], B[" << N << " * " << NV << "], ch[" << M << "], e[" << M << "], xt[" << N
-      << "], p[" << N << "], k[" << N << " * " << M << "];\n"
+      << "    double a[" << N << "], B[" << N << " * " << NV << "], ch[" << M << "], e[" << M << "], k[" << N
+      << " * " << M << "];\n"
       << "    int i, j, finite = 1;\n"
       << "    if (s->diverged) return 1;\n"
       << "    " << P << "_drift(a, s->xhat, t);\n"
       << "    " << P << "_measurement(ch, s->xhat, t);\n"
       << "    for (j = 0; j < " << M << "; ++j) e[j] = y[j] - ch[j];\n"
       << "    " << P << "_disturbance_gain(B, s->xhat, t);\n"
-      << "    " << P << "_error_from_innovation(xt, s->xhat, t, e);\n"
-      << "    " << P << "_gradient(p, xt);\n"
-      << "    " << P << "_gain(k, p, B, e, s->xhat);\n"
+      << "    " << P << "_gain(k, s->xhat, t, e, B);\n"
       << "    /* filters/filter.hpp filter_estimate_ok: finite and |x^| < 1e12; the gain finite */\n"
       << "    for (i = 0; i < " << N << "; ++i)\n"
       << "        if (!(s->xhat[i] == s->xhat[i]) || s->xhat[i] >= 1e12 || s->xhat[i] <= -1e12) finite = 0;\n"
@@ -443,6 +478,7 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
                                    "; add one to kGainLaws in src/export/export_c.cpp)");
     Checkpoint<T> ck = ckpt_read<T>(path);
     NetworkC<T> net = network_c(ck.net, P);
+    const LawC lawc = law->emit(cfg, ck.net.step, P);
     const std::string sys = system_c(*cfg.system, P);
     const int n = cfg.n, m = cfg.m, nv = cfg.nv;
 
@@ -454,8 +490,8 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
     res.system = cfg.system->name();
     // per step, system functions aside: the network and head, the gain, e = y - C, the least squares of a
     // diagonal-free H (about 6 r c per Jacobi pair sweep, counted once), the update
-    res.flops_per_step = net.flops + law->flops(n, m) + m + 6LL * std::max(n, m) * std::min(n, m) * std::min(n, m) +
-                         n * (2LL * m + 2);
+    // per step, besides the system's functions: the network, the law (head, least squares, gain), e, the update
+    res.flops_per_step = net.flops + lawc.flops + m + n * (2LL * m + 2);
 
     std::string upper = P;
     for (char& ch : upper) ch = char(std::toupper(static_cast<unsigned char>(ch)));
@@ -482,15 +518,14 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
       << "void " << P << "_init(" << P << "_state* s, const double* xhat0);\n"
       << "/* consumes y(t) [m] (t: the time of the measurement, dt: the step to the next one); 0: ok, 1: diverged */\n"
       << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt);\n"
-      << "/* the frozen network: p = dV/dx~ [n] at x~ [n] */\n"
-      << "void " << P << "_gradient(double* p, const double* xtilde);\n\n"
+      << lawc.header
       << "#ifdef __cplusplus\n}\n#endif\n\n#endif\n";
 
     std::ostringstream c;
     c << "/* " << P << ".c: see " << P << ".h. Generated by `hinf export`; regenerate rather than edit. */\n"
       << "#include \"" << P << ".h\"\n\n#include <float.h>\n#include <math.h>\n\n"
       << "#define " << P << "_PI 3.14159265358979323846\n\n"
-      << net.data << sys << law->emit(cfg, P) << net.code << filter_c(cfg, P);
+      << net.data << sys << net.code << lawc.code << filter_c(cfg, P);
 
     std::filesystem::create_directories(opt.dir);
     const std::string hpath = opt.dir + "/" + P + ".h", cpath = opt.dir + "/" + P + ".c";
