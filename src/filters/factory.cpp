@@ -86,13 +86,13 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
                 std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
-                HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
-                                                " states, the config's system has " + std::to_string(cfg.n));
                 // the same state count is not the same system: the kind, the outputs and the state names must agree
                 const std::string trained = system_signature(*ncfg.system), here = system_signature(*cfg.system);
-                HINF_CHECK(trained == here, "network '" + path + "' was trained for the system " + trained +
-                                                ", the config's system is " + here +
-                                                " (use a network trained on this config's system)");
+                HINF_CHECK(ncfg.n != cfg.n || trained == here,
+                           "network '" + path + "' was trained for the system " + trained + ", the config's system is " +
+                               here + " (use a network trained on this config's system)");
+                HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
+                                                " states, the config's system has " + std::to_string(cfg.n));
                 for (const std::string& mode : split_list(a.modes)) {
                     HINF_CHECK(mode == "oracle" || mode == "measured",
                                "--mode '" + mode + "' is not one of: oracle, measured");
