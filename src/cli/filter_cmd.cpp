@@ -64,7 +64,16 @@ void add_filter_command(CLI::App& app) {
         opt.xhat0 = a->xhat0.empty() ? cfg.xhat0 : a->xhat0;
         HINF_CHECK(int(opt.xhat0.size()) == n, "--initial-estimate has " + std::to_string(opt.xhat0.size()) +
                                                    " values, the system has " + std::to_string(n) + " states");
-        opt.P0 = recorded_initial_covariance(cfg, a->initial_std);
+        HINF_CHECK(a->initial_std.empty() || int(a->initial_std.size()) == n,
+                   "--initial-std has " + std::to_string(a->initial_std.size()) + " values, the system has " +
+                       std::to_string(n) + " states");
+        opt.P0.assign(std::size_t(n) * n, 0.0);
+        for (int i = 0; i < n; ++i) {
+            const double d = cfg.x0[i] - cfg.xhat0[i];  // what `compare` tells the filters
+            const double sd = a->initial_std.empty() ? std::sqrt(std::max(d * d, 1.0)) : a->initial_std[i];
+            HINF_CHECK(sd > 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be > 0");
+            opt.P0[i * n + i] = sd * sd;
+        }
 
         // the filters step on the record's own grid; EKF/UKF/PF are told the config's [online] statistics
         FilterModel model{cfg.system.get(), ms.dt, cfg.disturbance_std, cfg.noise_std};

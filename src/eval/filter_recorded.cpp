@@ -20,8 +20,9 @@ namespace hinf {
 
 namespace {
 
+using Path = RecordedPath;  // filter_recorded.hpp
 
-void write_csv(const std::string& path, const RunConfig& cfg, const Measurements& ms, const RecordedPath& p) {
+void write_csv(const std::string& path, const RunConfig& cfg, const Measurements& ms, const Path& p) {
     const int n = cfg.n, m = cfg.m;
     const auto names = cfg.system->state_names();
     write_text_atomic(path, [&](std::ostream& out) {
@@ -49,6 +50,74 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
 }
 
 }  // namespace
+
+std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
+                                            const Measurements& ms, const RecordedOptions& opt) {
+    const System& sys = *cfg.system;
+    const int n = cfg.n, m = cfg.m;
+    const std::int64_t K = ms.rows;
+    HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
+    HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
+    std::filesystem::create_directories(opt.out_dir);
+    std::vector<RecordedResult> results;
+    std::vector<Path> paths;
+    for (OnlineFilter* f : filters) {
+        HINF_CHECK(!f->uses_true_state(), "filter '" + f->name() +
+                                              "' reads the true state (oracle mode); recorded data have none: use "
+                                              "--mode measured");
+        Path p;  // the one loop of `hinf filter` and the library's Filter::run
+        results.push_back(filter_record_path(*f, sys, ms, opt.xhat0, opt.P0, opt.quiet, &p));
+        paths.push_back(std::move(p));
+    }
+
+    const std::string h5path = opt.out_dir + "/estimates.h5";
+    {
+        AtomicH5 file(h5path);
+        hid_t root = file.get();
+        h5::set_attr(root, "format", "hinf-estimates");
+        h5::set_attr(root, "format_version", std::int64_t(1));
+        h5::set_attr(root, "source", opt.source);
+        h5::set_attr(root, "system", sys.name());
+        h5::set_attr(root, "rows", K);
+        h5::set_attr(root, "dt", ms.dt);
+        h5::set_attr(root, "mode", "measured");
+        h5::set_attr(root, "meaning",
+                     "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "
+                     "estimates x(t_k) from y(t_0..t_{k-1}) (one-step prediction), innovation[k] = y_k - C(xhat[k], t_k)");
+        std::string units;
+        for (const auto& u : sys.state_units()) units += (units.empty() ? "" : ",") + u;
+        std::string names;
+        for (const auto& s : sys.state_names()) names += (names.empty() ? "" : ",") + s;
+        h5::set_attr(root, "state_names", names);
+        h5::set_attr(root, "state_units", units);
+        h5::write_doubles(root, "t", ms.t.data(), {hsize_t(K)}, "s", "time of each measurement (from the record)");
+        h5::write_doubles(root, "y", ms.y.data(), {hsize_t(K), hsize_t(m)}, "output units", "the recorded measurements");
+        h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
+        for (std::size_t i = 0; i < results.size(); ++i) {
+            const RecordedResult& r = results[i];
+            const Path& p = paths[i];
+            h5::Handle g = h5::create_group(root, r.name);
+            h5::set_attr(g.get(), "mode", "measured");
+            h5::set_attr(g.get(), "diverged_at", r.diverged_at);
+            h5::set_attr(g.get(), "us_per_step", r.us_per_step);
+            h5::set_attr(g.get(), "innovation_rms", r.innovation_rms);
+            h5::set_attr(g.get(), "innovation_mean", r.innovation_mean);
+            h5::write_doubles(g.get(), "xhat", p.xhat.data(), {hsize_t(K), hsize_t(n)}, units,
+                              "estimate of x(t_k) from y(t_0..t_{k-1}); frozen after a divergence");
+            h5::write_doubles(g.get(), "xhat_final", p.xhat_final.data(), {hsize_t(n)}, units,
+                              "estimate after the last measurement: x(t_{K-1} + dt)");
+            h5::write_doubles(g.get(), "innovation", p.innov.data(), {hsize_t(K), hsize_t(m)}, "output units",
+                              "y_k - C(xhat[k], t_k)");
+            if (p.has_cov)
+                h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
+                                  "the filter's error covariance of xhat[k]");
+        }
+        file.commit();
+    }
+    for (std::size_t i = 0; i < results.size(); ++i)
+        write_csv(opt.out_dir + "/estimates_" + results[i].name + ".csv", cfg, ms, paths[i]);
+    return results;
+}
 
 std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std) {
     const int n = cfg.n;
@@ -121,75 +190,6 @@ RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Meas
     r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
     progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
     return r;
-}
-
-std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
-                                            const Measurements& ms, const RecordedOptions& opt) {
-    const System& sys = *cfg.system;
-    const int n = cfg.n, m = cfg.m;
-    const std::int64_t K = ms.rows;
-    HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
-    HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
-    for (OnlineFilter* f : filters)
-        HINF_CHECK(!f->uses_true_state(), "filter '" + f->name() +
-                                              "' reads the true state (oracle mode); recorded data have none: use "
-                                              "--mode measured");
-    std::filesystem::create_directories(opt.out_dir);
-    std::vector<RecordedResult> results;
-    std::vector<RecordedPath> paths;
-    for (OnlineFilter* f : filters) {
-        RecordedPath p;
-        results.push_back(filter_record_path(*f, sys, ms, opt.xhat0, opt.P0, opt.quiet, &p));
-        paths.push_back(std::move(p));
-    }
-
-    const std::string h5path = opt.out_dir + "/estimates.h5";
-    {
-        AtomicH5 file(h5path);
-        hid_t root = file.get();
-        h5::set_attr(root, "format", "hinf-estimates");
-        h5::set_attr(root, "format_version", std::int64_t(1));
-        h5::set_attr(root, "source", opt.source);
-        h5::set_attr(root, "system", sys.name());
-        h5::set_attr(root, "rows", K);
-        h5::set_attr(root, "dt", ms.dt);
-        h5::set_attr(root, "mode", "measured");
-        h5::set_attr(root, "meaning",
-                     "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "
-                     "estimates x(t_k) from y(t_0..t_{k-1}) (one-step prediction), innovation[k] = y_k - C(xhat[k], t_k)");
-        std::string units;
-        for (const auto& u : sys.state_units()) units += (units.empty() ? "" : ",") + u;
-        std::string names;
-        for (const auto& s : sys.state_names()) names += (names.empty() ? "" : ",") + s;
-        h5::set_attr(root, "state_names", names);
-        h5::set_attr(root, "state_units", units);
-        h5::write_doubles(root, "t", ms.t.data(), {hsize_t(K)}, "s", "time of each measurement (from the record)");
-        h5::write_doubles(root, "y", ms.y.data(), {hsize_t(K), hsize_t(m)}, "output units", "the recorded measurements");
-        h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
-        for (std::size_t i = 0; i < results.size(); ++i) {
-            const RecordedResult& r = results[i];
-            const RecordedPath& p = paths[i];
-            h5::Handle g = h5::create_group(root, r.name);
-            h5::set_attr(g.get(), "mode", "measured");
-            h5::set_attr(g.get(), "diverged_at", r.diverged_at);
-            h5::set_attr(g.get(), "us_per_step", r.us_per_step);
-            h5::set_attr(g.get(), "innovation_rms", r.innovation_rms);
-            h5::set_attr(g.get(), "innovation_mean", r.innovation_mean);
-            h5::write_doubles(g.get(), "xhat", p.xhat.data(), {hsize_t(K), hsize_t(n)}, units,
-                              "estimate of x(t_k) from y(t_0..t_{k-1}); frozen after a divergence");
-            h5::write_doubles(g.get(), "xhat_final", p.xhat_final.data(), {hsize_t(n)}, units,
-                              "estimate after the last measurement: x(t_{K-1} + dt)");
-            h5::write_doubles(g.get(), "innovation", p.innov.data(), {hsize_t(K), hsize_t(m)}, "output units",
-                              "y_k - C(xhat[k], t_k)");
-            if (p.has_cov)
-                h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
-                                  "the filter's error covariance of xhat[k]");
-        }
-        file.commit();
-    }
-    for (std::size_t i = 0; i < results.size(); ++i)
-        write_csv(opt.out_dir + "/estimates_" + results[i].name + ".csv", cfg, ms, paths[i]);
-    return results;
 }
 
 }  // namespace hinf
