@@ -29,6 +29,12 @@ struct RecordedResult {
     double us_per_step = 0;
 };
 
+/// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;
+/// writes out_dir/estimates.h5 (one group per filter) and out_dir/estimates_<filter>.csv.
+/// Filters that read the true state are refused (there is none).
+std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
+                                            const Measurements& ms, const RecordedOptions& opt);
+
 /// One filter's path over a record (the arrays of estimates.h5).
 struct RecordedPath {
     std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
@@ -45,11 +51,5 @@ std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std:
 RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Measurements& ms,
                                   const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
                                   RecordedPath* out);
-
-/// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;
-/// writes out_dir/estimates.h5 (one group per filter) and out_dir/estimates_<filter>.csv.
-/// Filters that read the true state are refused (there is none).
-std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
-                                            const Measurements& ms, const RecordedOptions& opt);
 
 }  // namespace hinf
