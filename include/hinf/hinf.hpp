@@ -96,7 +96,8 @@ struct FilterTrace {
     std::vector<double> innovation_rms, innovation_mean;  ///< [m] over the steps before a divergence
 };
 
-/// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, glf or open_loop.
+/// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, glf or open_loop. A Filter is a
+/// handle: copies share one filter and its state (make another with create for an independent one).
 class Filter {
 public:
     /// The names create() knows: "ekf, ukf, pf, open_loop, glf, dnn".
