@@ -96,13 +96,16 @@ Compared export_and_compare(const TempDir& d, const std::string& cfg, const std:
 
 }  // namespace
 
-TEST_CASE("exported C filter of a double missile network matches hinf filter to double round-off", "[export]") {
-    for (const char* variant : {"dissipative", "paper"}) {
-        SECTION(variant) {
+TEST_CASE("exported C filter of a double network on a built-in system matches hinf filter to double round-off",
+          "[export]") {
+    const std::pair<const char*, const char*> cases[] = {
+        {"missile", "dissipative"}, {"missile", "paper"}, {"maneuvering_missile", "dissipative"}};
+    for (const auto& [kind, variant] : cases) {
+        SECTION(std::string(kind) + " " + variant) {
             TempDir d("export-missile");
             const std::string cfg = write_file(d, "tiny.toml",
-                                               "[system]\nkind = \"missile\"\n[filter]\nt_final = 3.0\nvariant = \"" +
-                                                   std::string(variant) +
+                                               "[system]\nkind = \"" + std::string(kind) +
+                                                   "\"\n[filter]\nt_final = 3.0\nvariant = \"" + std::string(variant) +
                                                    "\"\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n"
                                                    "[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n"
                                                    "checkpoint_every = 5\n");
