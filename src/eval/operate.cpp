@@ -11,6 +11,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/run_lock.hpp"
 #include "eval/engine.hpp"
 #include "filters/dnn.hpp"
 #include "filters/gain_law.hpp"
@@ -146,7 +147,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     sum.rmse_position_open_loop = std::sqrt(sum.rmse_position_open_loop);
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    std::filesystem::create_directories(opt.out_dir);
+    const RunDirLock lock(opt.out_dir, "hinf operate");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/operate.h5";
     AtomicH5 f(path);
     hid_t root = f.get();

@@ -15,6 +15,7 @@
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
+#include "io/run_lock.hpp"
 #include "io/trajectory.hpp"
 #include "par/par.hpp"
 #include "sampling.hpp"
@@ -458,6 +459,7 @@ private:
 
 template <typename T>
 TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
+    const RunDirLock lock(opt.out_dir, "hinf train");  // before trajectory.h5 is created (truncated)
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
     return tr.run(cfg.steps_until(opt.until), opt.quiet);
@@ -485,6 +487,10 @@ TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
 }
 
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
+    std::string dir = std::filesystem::path(checkpoint).parent_path().string();
+    check_input_file(checkpoint, "checkpoint");  // a missing file is named as such, not as a lock problem
+    // before the checkpoint is read: a run still writing the directory could replace it under us
+    const RunDirLock lock(dir.empty() ? "." : dir, "hinf resume");
     ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
