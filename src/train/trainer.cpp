@@ -9,7 +9,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <optional>
 
 #include "adam.hpp"
 #include "hinf/error.hpp"
@@ -204,7 +206,18 @@ public:
             sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec.gap);
             sum.max_consistency_gap_printed = std::max(sum.max_consistency_gap_printed, rec.gap_printed);
             sum.final_loss = rec.loss_last;
-            if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) checkpoint();
+            if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) {
+                // only a finite state is kept as good (Adam's v can overflow in float while the loss is finite)
+                const std::string bad = ckpt_non_finite(ck_);
+                if (!bad.empty()) {
+                    --ck_.state.step;
+                    const std::size_t eq = bad.find(" = ");
+                    diagnose(ck_.state.step, bad.substr(0, eq).c_str(), std::strtod(bad.c_str() + eq + 3, nullptr));
+                    sum.status = 4;
+                    break;
+                }
+                checkpoint();
+            }
             char detail[160];
             std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |",
                           cfg_.time_of(ck_.state.step), rec.loss_first, rec.loss_last, rec.rel_median, rec.violation);
@@ -426,9 +439,11 @@ private:
         for (int i = 0; i < cfg_.n; ++i) err += std::pow(ck_.state.x[i] - ck_.state.xhat[i], 2);
         const std::string ckpt = dir_ + "/checkpoint.h5";
         const std::string kept = std::filesystem::exists(ckpt)
-                                     ? "The last good checkpoint " + ckpt + " is kept (lower training.learning_rate "
-                                       "or set training.on_divergence = \"rollback\", and resume from it)"
-                                     : "No checkpoint was written yet (lower training.learning_rate and train again)";
+                                     ? "The last good checkpoint " + ckpt + " is kept (for a run that gets past this "
+                                       "step, train again with a lower rate: hinf train CONFIG --force --set "
+                                       "training.learning_rate=... or training.on_divergence=\"rollback\")"
+                                     : "No checkpoint was written yet (train again with a lower rate: --set "
+                                       "training.learning_rate=...)";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         if (!writer_) return;  // every process of the run diverges alike; one says so
@@ -488,9 +503,11 @@ TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
 
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
     std::string dir = std::filesystem::path(checkpoint).parent_path().string();
-    check_input_file(checkpoint, "checkpoint");  // a missing file is named as such, not as a lock problem
-    // before the checkpoint is read: a run still writing the directory could replace it under us
-    const RunDirLock lock(dir.empty() ? "." : dir, "hinf resume");
+    if (dir.empty()) dir = ".";
+    // before the checkpoint is read: a run still writing the directory could replace it under us (a directory
+    // that does not exist is not created: ckpt_verify then says what is missing)
+    std::optional<RunDirLock> lock;
+    if (std::filesystem::is_directory(dir)) lock.emplace(dir, "hinf resume");
     ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
