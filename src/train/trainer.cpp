@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -135,6 +136,9 @@ bool all_finite_t(const std::vector<T>& v) {
     return true;
 }
 
+// Set by train_request_stop (a signal handler): the signal number, read between time steps.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
 template <typename T>
 class Trainer {
 public:
@@ -190,6 +194,18 @@ public:
         std::int64_t rollbacks = 0;
         StepRecord rec;
         while (ck_.state.step < last_step) {
+            if (g_stop_signal != 0 && split_.ranks == 1) {
+                // Ctrl-C or SIGTERM: a safe point (between time steps); keep this step and say how to go on
+                const int sig = g_stop_signal;
+                if (ckpt_non_finite(ck_).empty()) checkpoint();
+                if (writer_)
+                    std::fprintf(stderr, "\nhinf: stopped by signal %d at time step %lld (t = %.2f s); checkpoint %s/checkpoint.h5 "
+                                 "holds it: continue with `hinf resume %s/checkpoint.h5`\n",
+                                 sig, static_cast<long long>(ck_.state.step), cfg_.time_of(ck_.state.step), dir_.c_str(),
+                                 dir_.c_str());
+                sum.status = 128 + sig;
+                break;
+            }
             if (!time_step(&rec)) {
                 if (cfg_.on_divergence == "rollback" && rollbacks < cfg_.max_rollbacks && roll_back(++rollbacks))
                     continue;
@@ -496,6 +512,8 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
 }
 
 }  // namespace
+
+void train_request_stop(int signal) { g_stop_signal = signal; }
 
 TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
     return cfg.precision == "double" ? start_typed<double>(cfg, opt) : start_typed<float>(cfg, opt);
