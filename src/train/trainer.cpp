@@ -163,7 +163,8 @@ public:
 
     void start_from(Checkpoint<T> ck) {
         ck_ = std::move(ck);
-        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
+                                         {{"config", ck_.config_text}});
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -438,7 +439,8 @@ private:
         if (std::filesystem::exists(path)) {
             ck_ = ckpt_read<T>(path);
             if (writer_)
-                traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+                traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
+                                         {{"config", ck_.config_text}});
         } else {
             start_fresh();  // no checkpoint yet: back to the initial network and state
         }

@@ -149,3 +149,18 @@ TEST_CASE("the good-input corpus: each case exits 0", "[cli][corpus][good]") {
     }
     CHECK(cases >= 1);
 }
+
+// scripts/plot on a file that is missing, a directory or not HDF5: one line and exit 2, never a traceback
+TEST_CASE("scripts/plot refuses bad files in one line", "[cli][corpus][plot]") {
+    TempDir d("plot-bad");
+    const std::string not_h5 = d / "config.toml";
+    std::ofstream(not_h5) << "[system]\n";
+    for (const std::string& f : {std::string(d / "missing.h5"), d.path.string(), not_h5}) {
+        auto r = run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " + f);
+        INFO(f << "\n" << r.output);
+        CHECK(r.status == 2);
+        CHECK(r.output.rfind("scripts/plot: error: ", 0) == 0);
+        CHECK(count_lines(r.output) == 1);
+        CHECK(r.output.find("Traceback") == std::string::npos);
+    }
+}

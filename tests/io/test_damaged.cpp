@@ -210,3 +210,23 @@ TEST_CASE("checkpoints edited after writing are refused", "[io][damaged][edited]
     auto ok = test::run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " resume " + ckpt + " --quiet");
     CHECK(ok.status == 0);  // the untouched file still resumes
 }
+
+// A trajectory is bound to its checkpoint by the config both store: another run's trajectory (and snapshot)
+// placed beside a checkpoint is refused, not spliced in and relabelled.
+TEST_CASE("another run's trajectory beside a checkpoint is refused", "[io][damaged][edited]") {
+    test::TempDir d("spliced");
+    make_run(d / "a");
+    TrainOptions opt;
+    opt.out_dir = d / "b";
+    opt.quiet = true;
+    std::string other = kSmall;
+    other += "seed = 2\n";  // [training] is the last section of kSmall
+    REQUIRE(train_start(load_run_config(ConfigDoc::from_text(other, "other.toml")), opt).status == 0);
+    for (const char* f : {"trajectory.h5", "trajectory.ckpt.h5"})
+        fs::copy_file(d / (std::string("b/") + f), d / (std::string("a/") + f), fs::copy_options::overwrite_existing);
+    auto r = test::run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " resume " + (d / "a/checkpoint.h5") +
+                               " --until 0.2 --quiet");
+    INFO(r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.find("belongs to another run") != std::string::npos);
+}
