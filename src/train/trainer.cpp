@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <optional>
 
 #include "adam.hpp"
 #include "hinf/error.hpp"
@@ -524,11 +523,11 @@ TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
     std::string dir = std::filesystem::path(checkpoint).parent_path().string();
     if (dir.empty()) dir = ".";
-    // before the checkpoint is read: a run still writing the directory could replace it under us (a directory
-    // that does not exist is not created: ckpt_verify then says what is missing)
-    std::optional<RunDirLock> lock;
-    if (std::filesystem::is_directory(dir)) lock.emplace(dir, "hinf resume");
-    ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
+    // a checkpoint first (no lock file is left beside a file that is not one), then the directory's lock before
+    // anything is written there; the checkpoint is read again under the lock (a run that still wrote it has
+    // then finished, or the lock is refused)
+    ckpt_verify(checkpoint);
+    const RunDirLock lock(dir, "hinf resume");  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
 }
