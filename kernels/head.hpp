@@ -4,6 +4,7 @@
 //                  for every x~ != 0 and V(x~) = int_0^1 p(s x~)^T x~ ds > 0 with V(0) = 0.
 // Not the loss (hjie.hpp). Shape legend: n = states, O = head_outputs(kind, n).
 #pragma once
+#include <cstdint>
 
 namespace hinf::kern {
 
@@ -19,12 +20,18 @@ struct HeadParams {
 /// Network outputs the head needs: n (gradient) or n(n+1)/2 (quadratic).
 int head_outputs(Head kind, int n);
 
-/// p [n] = dV/dx~ at x~ [n]; P [n x n] (quadratic head only; may be null for the gradient head).
-template <typename T>
-void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp);
+/// Doubles of scratch head_forward and head_backward need (2 n^2 for the quadratic head, 0 for the gradient
+/// head): the caller owns it, one block per thread, so any state count works without allocating per sample.
+std::int64_t head_workspace(Head kind, int n);
 
-/// dL/do [O] from gp = dL/dp [n] and gP = dL/dP [n x n] (null: zero). Overwrites d_o.
+/// p [n] = dV/dx~ at x~ [n]; P [n x n] (quadratic head only; may be null for the gradient head).
+/// work [head_workspace(kind, n)] is scratch.
 template <typename T>
-void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp);
+void head_forward(double* p, double* P, const T* o, const double* xt, const HeadParams& hp, double* work);
+
+/// dL/do [O] from gp = dL/dp [n] and gP = dL/dP [n x n] (null: zero). Overwrites d_o. work as head_forward.
+template <typename T>
+void head_backward(T* d_o, const double* gp, const double* gP, const T* o, const double* xt, const HeadParams& hp,
+                   double* work);
 
 }  // namespace hinf::kern

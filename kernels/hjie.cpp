@@ -7,15 +7,11 @@
 namespace hinf::kern {
 
 namespace {
-constexpr int kMax = 32;
-
-// u = B^T p [nv]
-inline void bt_times(double* u, const double* B, const double* p, int n, int nv) {
-    for (int j = 0; j < nv; ++j) {
-        double s = 0;
-        for (int a = 0; a < n; ++a) s += B[a * nv + j] * p[a];
-        u[j] = s;
-    }
+// u_j = (B^T p)_j, one component at a time (no [nv] array: any disturbance dimension)
+inline double bt_times_j(const double* B, const double* p, int n, int nv, int j) {
+    double s = 0;
+    for (int a = 0; a < n; ++a) s += B[a * nv + j] * p[a];
+    return s;
 }
 }  // namespace
 
@@ -27,11 +23,12 @@ void terms_n(double* t, const double* p, const HjieSystemView& s, std::int64_t i
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
-    double u[kMax];
-    bt_times(u, B, p, n, nv);
     double pa = 0, bb = 0, cc = 0;
     for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
-    for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
+    for (int j = 0; j < nv; ++j) {
+        const double u = bt_times_j(B, p, n, nv, j);
+        bb += u * u;
+    }
     for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
     t[0] = s.q[i];
     t[1] = pa;
@@ -97,24 +94,28 @@ HjieSampleValue sample_forward_n(const double* p, const double* P, const HjieSys
 
 template <int N>
 void sample_backward_n(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
-                       std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
+                       std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2,
+                       double* work) {
     const int n = N > 0 ? N : s.n, nv = s.nv, m = s.m;
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
-    double u[kMax], bbp[kMax];  // u = B^T p, bbp = B B^T p / (2 rho) = d(|B^T p|^2/(4 rho))/dp
-    bt_times(u, B, p, n, nv);
-    for (int a = 0; a < n; ++a) {
-        double sum = 0;
-        for (int j = 0; j < nv; ++j) sum += B[a * nv + j] * u[j];
-        bbp[a] = sum / (2.0 * hp.rho);
+    // bbp [n] = B B^T p / (2 rho) = d(|B^T p|^2/(4 rho))/dp, accumulated over u_j = (B^T p)_j in j order (the
+    // same sums in the same order as with a stored u); bb = |u|^2 alongside
+    double* bbp = work;
+    double bb = 0;
+    for (int a = 0; a < n; ++a) bbp[a] = 0.0;
+    for (int j = 0; j < nv; ++j) {
+        const double u = bt_times_j(B, p, n, nv, j);
+        bb += u * u;
+        for (int a = 0; a < n; ++a) bbp[a] += B[a * nv + j] * u;
     }
-    // the four terms of eq. (16), as hjie_terms computes them, reusing u = B^T p
+    for (int a = 0; a < n; ++a) bbp[a] = bbp[a] / (2.0 * hp.rho);
+    // the four terms of eq. (16), as hjie_terms computes them
     double t[4];
     {
-        double pa = 0, bb = 0, cc = 0;
+        double pa = 0, cc = 0;
         for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
-        for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
         for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
         t[0] = s.q[i];
         t[1] = pa;
@@ -146,7 +147,8 @@ void sample_backward_n(double* gp, double* gP, const double* p, const double* P,
     if (obj == HJIE_OBJECTIVE_PAPER) return;
     if (d_h2 == 0.0) return;
     // h2 = [sv/2 tr(B^T P B) + sn/2 * 4 rho^2 |dC|^2 p^T P p / |p|^4] / w
-    double cc = 0, pp = 0, pPp = 0, Pp[kMax];
+    double cc = 0, pp = 0, pPp = 0;
+    double* Pp = work + n;  // [n] = P p
     for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
     for (int a = 0; a < n; ++a) {
         pp += p[a] * p[a];
@@ -197,10 +199,13 @@ HjieSampleValue hjie_sample_forward(const double* p, const double* P, const Hjie
     return sample_forward_n<0>(p, P, s, i, hp, obj);
 }
 
+std::int64_t hjie_backward_workspace(int n) { return 2 * std::int64_t(n); }
+
 void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
-                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2) {
-    if (s.n == 6) return sample_backward_n<6>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
-    sample_backward_n<0>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2);
+                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2,
+                          double* work) {
+    if (s.n == 6) return sample_backward_n<6>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2, work);
+    sample_backward_n<0>(gp, gP, p, P, s, i, hp, obj, d_hinge, d_h2, work);
 }
 
 }  // namespace hinf::kern

@@ -66,9 +66,12 @@ HjieSampleValue hjie_sample_forward(const double* p, const double* P, const Hjie
                                     const HjieParams& hp, HjieObjective obj);
 
 /// gp [n] = dL/dp, gP [n x n] = dL/dP (dissipative only; may be null for paper) for one sample,
-/// given d_hinge = dL/d(hinge_i) and d_h2 = dL/d(h2_i). Overwrites gp and gP.
+/// given d_hinge = dL/d(hinge_i) and d_h2 = dL/d(h2_i). Overwrites gp and gP. work [hjie_backward_workspace(n)]
+/// is the caller's scratch (any n; nothing allocated here).
+std::int64_t hjie_backward_workspace(int n);
 void hjie_sample_backward(double* gp, double* gP, const double* p, const double* P, const HjieSystemView& s,
-                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2);
+                          std::int64_t i, const HjieParams& hp, HjieObjective obj, double d_hinge, double d_h2,
+                          double* work);
 
 /// H2 rate of the dissipative objective: sigma_v^2/2 tr(B^T P B) + sigma_n^2/2 tr(k^T P k),
 /// k = 2 rho p dC^T / |p|^2 (seed 000 eq. (8)).

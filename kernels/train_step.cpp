@@ -8,7 +8,6 @@
 namespace hinf::kern {
 
 namespace {
-constexpr int kMax = 32;
 
 template <typename T>
 void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t first, int B, int n, double scale) {
@@ -32,6 +31,11 @@ std::int64_t step_acts_stride(const StepConfig& cfg) {
     return (std::int64_t(cfg.chunk) * cfg.shape.act_per_sample() + 15) / 16 * 16;
 }
 std::int64_t step_partial_stride(const MlpShape& shape) { return (shape.param_count() + 15) / 16 * 16; }
+std::int64_t step_work_stride(const StepConfig& cfg) {
+    const std::int64_t n = cfg.head.n;
+    // gp [n], gP or P [n x n], the head's scratch, the HJIE backward's scratch
+    return n + n * n + head_workspace(cfg.head.kind, cfg.head.n) + hjie_backward_workspace(cfg.head.n);
+}
 
 template <typename T>
 void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
@@ -48,6 +52,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     p.assign(padded * n, 0.0);
     P.assign(padded * n * n, 0.0);
     values.assign(padded, HjieSampleValue{});
+    work.assign(chunks * step_work_stride(cfg), 0.0);
 }
 
 template <typename T>
@@ -82,11 +87,12 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         load_inputs(in, sys.xt, idx, b0, B, n, cfg.input_scale);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
+        double* hw = ws.work.data() + std::int64_t(c) * step_work_stride(cfg);
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
             double* p = ws.p.data() + std::int64_t(b0 + s) * n;
             double* Pm = ws.P.data() + std::int64_t(b0 + s) * n * n;
-            head_forward(p, quad ? Pm : nullptr, out + std::int64_t(s) * O, sys.xt + i * n, cfg.head);
+            head_forward(p, quad ? Pm : nullptr, out + std::int64_t(s) * O, sys.xt + i * n, cfg.head, hw);
             ws.values[b0 + s] = hjie_sample_forward(p, Pm, sys, i, cfg.hjie, cfg.objective);
         }
     }
@@ -114,14 +120,18 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
         const T* out = acts + sh.act_offset(sh.layers(), B);
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
-        double gp[kMax], gP[kMax * kMax];
+        // this chunk's scratch: gp [n], gP [n x n], the head's and the HJIE backward's
+        double* gp = ws.work.data() + std::int64_t(c) * step_work_stride(cfg);
+        double* gP = gp + n;
+        double* hw = gP + std::int64_t(n) * n;
+        double* jw = hw + head_workspace(cfg.head.kind, n);
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
             const double* p = ws.p.data() + std::int64_t(b0 + s) * n;
             const double* Pm = ws.P.data() + std::int64_t(b0 + s) * n * n;
-            hjie_sample_backward(gp, quad ? gP : nullptr, p, Pm, sys, i, cfg.hjie, cfg.objective, d_hinge, d_h2);
+            hjie_sample_backward(gp, quad ? gP : nullptr, p, Pm, sys, i, cfg.hjie, cfg.objective, d_hinge, d_h2, jw);
             head_backward(dout + std::int64_t(s) * O, gp, quad ? gP : nullptr, out + std::int64_t(s) * O,
-                          sys.xt + i * n, cfg.head);
+                          sys.xt + i * n, cfg.head, hw);
         }
         T* part = ws.partial.data() + std::int64_t(c) * Ps;
         T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
@@ -164,11 +174,12 @@ void network_eval(double* p, double* P, const T* theta, const double* xt, std::i
         load_inputs<T>(in, xt, nullptr, b0, B, n, cfg.input_scale);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
-        double Ptmp[kMax * kMax];
+        double* Ptmp = ws.work.data() + std::int64_t(c) * step_work_stride(cfg) + n;  // [n x n]
+        double* hw = Ptmp + std::int64_t(n) * n;
         for (int s = 0; s < B; ++s) {
             double* Pm = (quad && P) ? P + (b0 + s) * n * n : Ptmp;
             head_forward(p + (b0 + s) * n, quad ? Pm : nullptr, out + std::int64_t(s) * O, xt + (b0 + s) * n,
-                         cfg.head);
+                         cfg.head, hw);
         }
     }
 }

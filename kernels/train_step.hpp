@@ -51,6 +51,8 @@ using LineVector = std::vector<T, LineAligned<T>>;
 std::int64_t step_acts_stride(const StepConfig& cfg);
 /// Elements per chunk in StepWorkspace::partial (P rounded up to a multiple of 16).
 std::int64_t step_partial_stride(const MlpShape& shape);
+/// Doubles per chunk in StepWorkspace::work.
+std::int64_t step_work_stride(const StepConfig& cfg);
 
 template <typename T>
 struct StepWorkspace {
@@ -59,6 +61,7 @@ struct StepWorkspace {
     LineVector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
     std::vector<double> p, P;
     std::vector<HjieSampleValue> values;
+    std::vector<double> work;  // per chunk: step_work_stride doubles of scratch (sized from n: any state count)
     void reserve(const StepConfig& cfg, int max_batch);
 };
 

@@ -16,6 +16,11 @@ public:
 /// Throws hinf::Error with the message and the source location appended.
 [[noreturn]] void fail_at(const std::string& message, const char* file, int line);
 
+/// The check every user-supplied input passes before it is opened (src/core/input_file.cpp): it exists, is
+/// readable and is a regular file. A FIFO, device, socket or directory gives one line naming it and `what`
+/// ("config file", "checkpoint", "measurements", ...) instead of a read that blocks forever.
+void check_input_file(const std::string& path, const std::string& what);
+
 }  // namespace hinf
 
 /// Always-on check at a module boundary (stays on in Release builds).

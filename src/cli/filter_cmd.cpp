@@ -64,6 +64,11 @@ void add_filter_command(CLI::App& app) {
         opt.xhat0 = a->xhat0.empty() ? cfg.xhat0 : a->xhat0;
         HINF_CHECK(int(opt.xhat0.size()) == n, "--initial-estimate has " + std::to_string(opt.xhat0.size()) +
                                                    " values, the system has " + std::to_string(n) + " states");
+        for (int i = 0; i < n; ++i)
+            HINF_CHECK(std::isfinite(opt.xhat0[i]), "--initial-estimate: value " + std::to_string(i + 1) + " is not a "
+                                                        "finite number (pass one number per state)");
+        for (double v : a->initial_std)
+            HINF_CHECK(std::isfinite(v) && v > 0, "--initial-std: every value must be a finite number > 0");
         HINF_CHECK(a->initial_std.empty() || int(a->initial_std.size()) == n,
                    "--initial-std has " + std::to_string(a->initial_std.size()) + " values, the system has " +
                        std::to_string(n) + " states");

@@ -54,6 +54,13 @@ int main(int argc, char** argv) {
     // a status every rank returns alike (e.g. 4: diverged) ends the job normally; errors abort it in fail()
     const int rc = run(argc, argv);
     hinf::par_finalize();
+    // after an error (its line is printed) end without libhdf5's exit handler: on a full file system it flushes
+    // files a failed write left open and crashed (exit 139 after the error line); every result file is written
+    // atomically, so nothing complete depends on that flush
+    if (rc != 0) {
+        std::fflush(nullptr);
+        std::_Exit(rc);
+    }
     return rc;
 }
 
@@ -64,7 +71,14 @@ int run(int argc, char** argv) {
     // argument errors follow the same one-line contract as every other error
     const std::string sub = argc > 1 && argv[1][0] != '-' ? std::string(" ") + argv[1] : "";
     app.failure_message([sub](const CLI::App*, const CLI::Error& e) {
-        return "hinf: error: " + std::string(e.what()) + " (see `hinf" + sub + " --help`)\n";
+        std::string what = e.what();
+        // CLI11's "--filters: At Most 1 required but received 2": an option given twice
+        const std::string twice = "At Most 1 required but received ";
+        const std::size_t at = what.find(twice);
+        if (at != std::string::npos)
+            what = what.substr(0, at) + "given " + what.substr(at + twice.size()) +
+                   " times, but it takes one value (join several with commas, e.g. --filters ekf,ukf)";
+        return "hinf: error: " + what + " (see `hinf" + sub + " --help`)\n";
     });
     hinf::cli::add_train_commands(app);
     hinf::cli::add_operate_command(app);

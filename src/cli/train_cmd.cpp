@@ -1,5 +1,6 @@
 // `hinf train` and `hinf resume`: argument parsing and the end-of-run summary.
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <sstream>
 
@@ -22,6 +23,17 @@ struct TrainArgs {
     bool quiet = false;
     bool force = false;
 };
+
+// Ctrl-C / SIGTERM: the trainer stops at the next safe point with a checkpoint; a second signal ends at once.
+extern "C" void on_stop_signal(int sig) {
+    train_request_stop(sig);
+    std::signal(sig, SIG_DFL);
+}
+void install_stop_handlers() {
+    if (par_world_size() > 1) return;  // under mpirun every process must stop at the same step: not handled yet
+    std::signal(SIGINT, on_stop_signal);
+    std::signal(SIGTERM, on_stop_signal);
+}
 
 void print_summary(const TrainSummary& s, const std::string& dir) {
     std::printf("trained time steps %lld..%lld in %s (%.2f ms per time step)\n", static_cast<long long>(s.first_step),
@@ -62,6 +74,7 @@ void add_train_commands(CLI::App& app) {
                        "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
+        install_stop_handlers();
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
@@ -115,6 +128,7 @@ void add_train_commands(CLI::App& app) {
         TrainOptions opt;
         opt.until = args->until;
         opt.quiet = args->quiet;
+        install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, std::filesystem::path(args->checkpoint).parent_path().string());

@@ -12,6 +12,7 @@
 #include "eval/worst.hpp"
 #include "filters/factory.hpp"
 #include "io/checkpoint.hpp"
+#include "io/run_lock.hpp"
 
 namespace hinf::cli {
 
@@ -123,7 +124,7 @@ void add_worst_command(CLI::App& app) {
             ro.keep_initial_error = keep;
             const RunConfig rc = worst_config(cfg, ro);
             WorstReplay r = worst_replay(rc, filters, sets, steps, a->quiet);
-            std::filesystem::create_directories(out);
+            const RunDirLock lock(out, "hinf worst");
             worst_write_replay(out + "/replay.h5", rc, a->replay, sets, r, steps, keep);
             std::printf("worst --replay %s: %zu signal set(s), %lld steps of %g s, energy %.6g, initial error %s\n",
                         a->replay.c_str(), sets.size(), static_cast<long long>(steps), cfg.dt, r.signal_energy[0],
@@ -150,7 +151,7 @@ void add_worst_command(CLI::App& app) {
                 if (filters[i]->name().rfind(prefixes[j], 0) == 0) games[i] = WorstGame{nets[j].get(), rhos[j]};
 
         WorstResult r = worst_search(cfg, filters, games, opt);
-        std::filesystem::create_directories(out);
+        const RunDirLock lock(out, "hinf worst");
         worst_write(out + "/worst.h5", worst_config(cfg, opt), opt, r);
         std::printf("worst: %lld steps of %g s, energy budget %.6g, initial error %s, %d parameters per signal pair, "
                     "%s, %d evaluations per restart\n",

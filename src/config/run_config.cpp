@@ -2,15 +2,31 @@
 #include "config/run_config.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 #include <limits>
+
+#include <Eigen/Dense>
 
 #include "hinf/error.hpp"
 
 namespace hinf {
 
+namespace {
+std::string num(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+}  // namespace
+
 std::int64_t ProblemConfig::steps_until(double until) const {
-    return static_cast<std::int64_t>(std::llround(final_time(until) / dt));
+    HINF_CHECK(!std::isnan(until), "--until is not a number (pass a time in seconds, e.g. --until 5)");
+    const std::int64_t steps = static_cast<std::int64_t>(std::llround(final_time(until) / dt));
+    // an explicit --until shorter than one step would run nothing and report made-up numbers (a NaN ratio)
+    HINF_CHECK(until < 0 || steps >= 1, "--until " + num(until) + " s is less than one time step (dt = " +
+                                            num(dt) + " s): nothing would run (pass a later time)");
+    return steps;
 }
 
 double RunConfig::resolved_input_scale() const {
@@ -43,6 +59,23 @@ std::string config_hash(const std::string& text) {
     return buf;
 }
 
+// Defaults for a system of one's own (not the built-in missiles), from its own scales (docs/method.md §
+// "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor is a
+// tenth of the initial error per component (the missile's 20 m is ~0.2 % of its 10 km error), or a thousandth
+// of the state's size where the initial error is zero.
+std::vector<std::int64_t> own_hidden_default(int n) {
+    const std::int64_t outputs = std::int64_t(n) * (n + 1) / 2;
+    return {std::max<std::int64_t>(64, 2 * outputs), std::max<std::int64_t>(32, outputs)};
+}
+std::vector<double> own_error_floor_default(const RunConfig& c) {
+    std::vector<double> floor(std::size_t(c.n));
+    for (int i = 0; i < c.n; ++i) {
+        const double e = std::fabs(c.x0[i] - c.xhat0[i]);
+        floor[i] = e > 0 ? 0.1 * e : 1e-3 * std::max(1.0, std::fabs(c.x0[i]));
+    }
+    return floor;
+}
+
 RunConfig load_run_config(ConfigDoc doc) {
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online"});
     RunConfig c;
@@ -66,6 +99,15 @@ RunConfig load_run_config(ConfigDoc doc) {
         for (int j = 0; j < n; ++j)
             if (c.Q[i * n + j] != c.Q[j * n + i]) f.reject("Q", "must be symmetric");
     }
+    {
+        // positive semidefinite: the smallest eigenvalue, not only the diagonal ([[1,2],[2,1]] has -1)
+        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> Q(c.Q.data(), n, n);
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Q, Eigen::EigenvaluesOnly);
+        const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().cwiseAbs().maxCoeff();
+        if (eig.info() != Eigen::Success || lo < -1e-12 * std::max(hi, 1e-300))
+            f.reject("Q", "must be positive semidefinite (its smallest eigenvalue is " + num(lo) +
+                              "; x~'Q x~ is the error's weight, e.g. Q = [1, 1] for the identity)");
+    }
     // the defaults are seed 000's missile; a system of one's own must say where it starts
     if (c.system->name() == "expr")
         for (const char* key : {"x0", "xhat0"})
@@ -80,10 +122,16 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.t_final = f.get_double("t_final", c.t_final, 0.0, 1e9);
     if (c.t_final <= 0) f.reject("t_final", "must be > 0");
     if (c.t_final / c.dt > 1e9) f.reject("t_final", "gives more than 1e9 time steps (raise dt or lower t_final)");
+    if (std::llround(c.t_final / c.dt) < 1)
+        f.reject("t_final", "= " + num(c.t_final) + " s is less than one time step dt = " +
+                                num(c.dt) + " s: nothing would run (raise t_final or lower dt)");
     f.finish();
 
+    // A system of one's own gets defaults from its own scales, never the missile's (own_system_defaults)
+    const bool own = c.system->name() != "missile" && c.system->name() != "maneuvering_missile";
     ConfigSection net(doc, "network");
-    std::vector<std::int64_t> hidden = net.get_ints("hidden", {256, 128, 32}, 1, 65536);
+    std::vector<std::int64_t> hidden =
+        net.get_ints("hidden", own ? own_hidden_default(n) : std::vector<std::int64_t>{256, 128, 32}, 1, 65536);
     c.hidden.assign(hidden.begin(), hidden.end());
     std::vector<double> slopes = net.get_doubles("slopes", {1.0, 0.01}, 2);
     if (slopes[0] <= 0 || slopes[1] <= 0)
@@ -140,12 +188,13 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.local_fraction = s.get_double("local_fraction", c.local_fraction, 0.0, 1.0);
     c.local_spread = s.get_double("local_spread", c.local_spread, 0.0, 1e6);
     c.radius_decades = s.get_double("radius_decades", c.radius_decades, 0.0, 30.0);
-    c.error_floor = s.get_doubles("error_floor", std::vector<double>(n, 20.0), n);
+    c.error_floor = s.get_doubles("error_floor", own ? own_error_floor_default(c) : std::vector<double>(n, 20.0), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");
     s.finish();
 
     ConfigSection o(doc, "objective");
+    const bool has_dist_intensity = o.has("disturbance_intensity"), has_noise_intensity = o.has("noise_intensity");
     c.margin = o.get_double("margin", c.margin, 0.0, 1.0);
     c.h2_weight = o.get_double("h2_weight", c.h2_weight, 0.0, 1e9);
     c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
@@ -162,6 +211,23 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.runs = on.get_int("runs", c.runs, 1, 1000000);
     c.online_seed = static_cast<std::uint64_t>(on.get_int("seed", 7, 0, std::numeric_limits<std::int64_t>::max()));
     c.settle_time = on.get_double("settle_time", c.settle_time, 0.0, 1e12);
+    if (own) {
+        // intensity = std^2 * dt (white noise of the sampled system): one of each pair is required, the other
+        // follows; hinf's defaults (20 and 4) are the missile's
+        const std::string why = "is required for a system of your own ([system] kind = \"" + c.system->name() + "\") "
+                                "unless [objective] ";
+        const bool has_dist_std = on.has("disturbance_std"), has_noise_std = on.has("noise_std");
+        if (!has_dist_std && !has_dist_intensity)
+            on.reject("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
+                                         "per step (hinf's default 20 is the missile's)");
+        if (!has_noise_std && !has_noise_intensity)
+            on.reject("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
+                                   "output units (hinf's default 20 is the missile's)");
+        if (!has_dist_intensity) c.disturbance_intensity = c.disturbance_std * c.disturbance_std * c.dt;
+        if (!has_noise_intensity) c.noise_intensity = c.noise_std * c.noise_std * c.dt;
+        if (!has_dist_std) c.disturbance_std = std::sqrt(c.disturbance_intensity / c.dt);
+        if (!has_noise_std) c.noise_std = std::sqrt(c.noise_intensity / c.dt);
+    }
     on.finish();
 
     c.doc = std::move(doc);

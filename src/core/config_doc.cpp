@@ -16,6 +16,42 @@ namespace hinf {
 namespace {
 
 constexpr std::size_t kMaxConfigBytes = 1u << 20;
+constexpr int kMaxConfigNesting = 64;  // levels of dotted keys, table headers, arrays and inline tables
+
+// toml++ parses nesting by recursion: tens of thousands of levels (an 80 kB file) overflow the stack. hinf's
+// own configs nest 3 levels; bound it before parsing. Counts, outside strings and comments, the open [ and {
+// and the dots of one key segment (between = , [ ] { } and line ends); a float has one dot, so values pass.
+void check_nesting(const std::string& text, const std::string& source) {
+    int depth = 0, dots = 0, line = 1;
+    char quote = 0;  // inside a "..." or '...' string
+    bool comment = false;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (c == '\n') {
+            ++line;
+            comment = false;
+            dots = 0;
+            if (quote == '\'' && !(i >= 2 && text.compare(i - 2, 3, "'''") == 0)) quote = 0;
+            continue;
+        }
+        if (comment) continue;
+        if (quote) {
+            if (c == '\\' && quote == '"') ++i;
+            else if (c == quote) quote = 0;
+            continue;
+        }
+        if (c == '"' || c == '\'') quote = c;
+        else if (c == '#') comment = true;
+        else if (c == '[' || c == '{') ++depth, dots = 0;
+        else if (c == ']' || c == '}') depth = depth > 0 ? depth - 1 : 0, dots = 0;
+        else if (c == '=' || c == ',') dots = 0;
+        else if (c == '.') ++dots;
+        HINF_CHECK(depth + dots <= kMaxConfigNesting,
+                   source + ":" + std::to_string(line) + ": keys, tables or arrays nested more than " +
+                       std::to_string(kMaxConfigNesting) + " levels deep (hinf's configs nest at most 3: see "
+                       "docs/formats.md)");
+    }
+}
 
 std::string line_of(const toml::node& node) {
     const auto& src = node.source();
@@ -70,9 +106,7 @@ ConfigDoc& ConfigDoc::operator=(const ConfigDoc& o) {
 }
 
 ConfigDoc ConfigDoc::from_file(const std::string& path) {
-    std::error_code ec;
-    HINF_CHECK(!std::filesystem::is_directory(path, ec),
-               "config file '" + path + "' is a directory (pass the .toml file inside it)");
+    check_input_file(path, "config file");
     std::ifstream in(path, std::ios::binary);
     HINF_CHECK(in.good(), "cannot open config file '" + path + "' (check the path and permissions)");
     // at most 1 MiB + 1 bytes: /dev/zero or a multi-GB file must not hang or exhaust memory
@@ -90,6 +124,7 @@ ConfigDoc ConfigDoc::from_file(const std::string& path) {
 ConfigDoc ConfigDoc::from_text(const std::string& text, const std::string& source) {
     ConfigDoc doc;
     doc.source_ = source;
+    check_nesting(text, source);
     try {
         *doc.root_ = toml::parse(text, source);
     } catch (const toml::parse_error& e) {

@@ -24,6 +24,7 @@
 #include "net/network.hpp"
 #include "train/samples.hpp"
 #include "train/trainer.hpp"
+#include "io/run_lock.hpp"
 
 namespace hinf {
 
@@ -243,7 +244,7 @@ std::vector<BenchRow> bench_run(const BenchOptions& opt) {
         paths.push_back(parse_gemm(g));
     }
     HINF_CHECK(!paths.empty(), "--gemm needs at least one of: default, own, openblas, eigen");
-    std::filesystem::create_directories(opt.out_dir);
+    const RunDirLock lock(opt.out_dir, "hinf bench");
     std::printf("hinf bench: %s network 6-256-128-32, batch M = %d, %d repeats after 5 warm-up steps%s\n",
                 opt.variant.c_str(), opt.batch, opt.repeats, paths.size() > 1 ? ", GEMM paths interleaved" : "");
     std::vector<std::string> descriptions;

@@ -12,6 +12,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/run_lock.hpp"
 #include "eval/engine.hpp"
 
 namespace hinf {
@@ -100,7 +101,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     sum.truth_stream_hash = hash_start;
     for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = hash_bytes(sum.truth_stream_hash, &er.truth_hash[r], 8);
 
-    std::filesystem::create_directories(opt.out_dir);
+    const RunDirLock lock(opt.out_dir, "hinf compare");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/compare.h5";
     AtomicH5 file(path);
     hid_t root = file.get();

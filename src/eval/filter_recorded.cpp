@@ -14,6 +14,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/run_lock.hpp"
 #include "io/progress.hpp"
 
 namespace hinf {
@@ -58,7 +59,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
     const std::int64_t K = ms.rows;
     HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
     HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
-    std::filesystem::create_directories(opt.out_dir);
+    const RunDirLock lock(opt.out_dir, "hinf filter");  // before anything there is opened for writing
     std::vector<RecordedResult> results;
     std::vector<Path> paths;
     for (OnlineFilter* f : filters) {

@@ -6,11 +6,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/run_lock.hpp"
+#include "par/par.hpp"
 #include "eval/engine.hpp"
 #include "filters/dnn.hpp"
 #include "filters/gain_law.hpp"
@@ -75,6 +78,10 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
                "--mode '" + sum.mode + "' is not one of: oracle, measured");
     sum.runs = opt.runs > 0 ? opt.runs : cfg.runs;
     const bool measured = sum.mode == "measured";
+    if (measured && par_root()) {
+        const std::string warning = dnn_measured_warning(cfg.variant, cfg.n, cfg.m);
+        if (!warning.empty()) std::fprintf(stderr, "%s\n", warning.c_str());
+    }
     const double tf = cfg.final_time(opt.until);
     const std::int64_t steps = cfg.steps_until(opt.until);
     const int n = cfg.n;
@@ -146,7 +153,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     sum.rmse_position_open_loop = std::sqrt(sum.rmse_position_open_loop);
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    std::filesystem::create_directories(opt.out_dir);
+    const RunDirLock lock(opt.out_dir, "hinf operate");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/operate.h5";
     AtomicH5 f(path);
     hid_t root = f.get();

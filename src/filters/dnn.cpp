@@ -2,6 +2,8 @@
 // The trainer advances x^ through the same luenberger_advance (filters/gain_law.hpp).
 #include "filters/dnn.hpp"
 
+#include <set>
+
 #include <Eigen/Dense>
 
 #include "filters/gain_law.hpp"
@@ -91,6 +93,17 @@ void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat
 std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
                                               const DnnGainLaw& law, bool measured, const std::string& name) {
     return std::make_unique<DnnFilter>(model, network.clone(), law.clone(), measured, name);
+}
+
+std::string dnn_measured_warning(const std::string& variant, int n, int m) {
+    // variants whose measured filter handles m < n itself (none yet: issue 15; a new variant adds its name here)
+    static const std::set<std::string> kMeasuredNative = {};
+    if (m >= n || kMeasuredNative.count(variant) != 0) return "";
+    return "hinf: warning: the '" + variant + "' DNN filter in measured mode sees " + std::to_string(m) +
+           " measurement(s) of " + std::to_string(n) + " states: it rebuilds x~ from the innovation by least squares, "
+           "so the " + std::to_string(n - m) + " unmeasured direction(s) of the error are zero to it and it can do "
+           "worse than the open-loop predictor (compare with --filters ekf,ukf, or use --mode oracle to see the network "
+           "itself)";
 }
 
 }  // namespace hinf

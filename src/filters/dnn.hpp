@@ -39,4 +39,10 @@ void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat
 std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
                                               const DnnGainLaw& law, bool measured, const std::string& name);
 
+/// "" when the DNN filter's `measured` mode sees every component of the error; else one warning line. Today's
+/// variants (`paper`, `dissipative`) rebuild x~ from the innovation by least squares, so with fewer measurements
+/// than states (m < n) every unmeasured component of x~ is zero to the filter. The one place this is decided:
+/// a variant that handles m < n natively is listed in dnn.cpp's kMeasuredNative and gets "".
+std::string dnn_measured_warning(const std::string& variant, int n, int m);
+
 }  // namespace hinf

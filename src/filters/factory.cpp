@@ -101,6 +101,10 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                         HINF_CHECK(o->name() != label,
                                    "two --network files give the filter name '" + label + "' (same variant twice)");
                     // the gain uses rho of the network's own training config
+                    if (mode == "measured") {
+                        const std::string warning = dnn_measured_warning(ncfg.variant, cfg.n, cfg.m);
+                        if (!warning.empty()) set.notes.push_back(warning);
+                    }
                     owned.push_back(make_dnn_filter(exact, *net, *make_hinf_gain_law(ncfg.rho), mode == "measured", label));
                 }
                 set.networks.push_back(std::move(net));

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -55,7 +56,53 @@ std::string read_in_child(const std::string& path) {
     return run_isolated([&path] { read_any(path); });
 }
 
+// FNV-1a over bytes, continued from h.
+std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t bytes) {
+    const unsigned char* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    return h;
+}
+
+// The digest that binds a checkpoint's contents together: weights, Adam moments and counters, the state, the
+// step and the config. A value edited after writing (a step relabelled, a weight replaced with its checksum
+// recomputed) no longer matches; fletcher32 alone only catches damage, not edits.
+template <typename T>
+std::string content_digest(const Checkpoint<T>& ck) {
+    std::uint64_t h = 14695981039346656037ull;
+    auto vec = [&h](const auto& v) { h = fnv1a(h, v.data(), v.size() * sizeof(v[0])); };
+    vec(ck.net.theta);
+    vec(ck.adam_m);
+    vec(ck.adam_v);
+    vec(ck.state.x);
+    vec(ck.state.xhat);
+    h = fnv1a(h, &ck.state.step, sizeof ck.state.step);
+    h = fnv1a(h, &ck.state.adam_step, sizeof ck.state.adam_step);
+    h = fnv1a(h, &ck.state.learning_rate_scale, sizeof ck.state.learning_rate_scale);
+    h = fnv1a(h, ck.config_text.data(), ck.config_text.size());
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+}
+
+// The first non-finite value of v, as "NAME[i] = value", or "".
+template <typename V>
+std::string first_non_finite(const V& v, const std::string& name) {
+    for (std::size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(double(v[i]))) return name + "[" + std::to_string(i) + "] = " + std::to_string(double(v[i]));
+    return "";
+}
+
 }  // namespace
+
+template <typename T>
+std::string ckpt_non_finite(const Checkpoint<T>& ck) {
+    for (const std::string& what :
+         {first_non_finite(ck.net.theta, "network weight"), first_non_finite(ck.adam_m, "Adam moment m"),
+          first_non_finite(ck.adam_v, "Adam moment v"), first_non_finite(ck.state.x, "state x"),
+          first_non_finite(ck.state.xhat, "estimate x^")})
+        if (!what.empty()) return what;
+    return "";
+}
 
 std::string ckpt_prev_name(const std::string& path) {
     std::string base = path;
@@ -66,6 +113,10 @@ std::string ckpt_prev_name(const std::string& path) {
 template <typename T>
 void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfig& cfg) {
     const std::string tmp = path + ".tmp";
+    // a checkpoint is kept as good: it must be usable (the trainer stops as diverged before this)
+    const std::string bad = ckpt_non_finite(ck);
+    HINF_CHECK(bad.empty(), "refusing to write checkpoint '" + path + "': " + bad + " is not finite; '" + path +
+                                "' is kept");
     {
         h5::Handle f = h5::create_file(tmp);
         hid_t root = f.get();
@@ -77,6 +128,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         h5::set_attr(root, "precision", std::is_same_v<T, float> ? "float" : "double");
         h5::set_attr(root, "filter_type", cfg.type);
         h5::set_attr(root, "variant", cfg.variant);
+        h5::set_attr(root, "content_digest", content_digest(ck));
         h5::write_string(root, "config", ck.config_text, "the effective TOML config of the run");
 
         const kern::StepConfig& sc = ck.net.step;
@@ -213,6 +265,20 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     HINF_CHECK(int(ck.state.x.size()) == cfg.n && int(ck.state.xhat.size()) == cfg.n,
                "checkpoint '" + path + "': state has the wrong dimension");
     HINF_CHECK(ck.state.step >= 0, "checkpoint '" + path + "': negative step");
+    // the step is stored three times (root, state, RNG counter): an edited copy disagrees with the others
+    HINF_CHECK(h5::get_attr_int(st.get(), "step") == ck.state.step &&
+                   h5::get_attr_int(h5::open_group(f.get(), "rng").get(), "counter") == ck.state.step,
+               "checkpoint '" + path + "': its step attributes disagree (root " + std::to_string(ck.state.step) +
+                   ", state " + std::to_string(h5::get_attr_int(st.get(), "step")) +
+                   "): the file was edited or damaged (resume from checkpoint.prev.h5 or train again)");
+    const std::string bad = ckpt_non_finite(ck);
+    HINF_CHECK(bad.empty(), "checkpoint '" + path + "': " + bad + " is not finite, so the network is unusable "
+                                                              "(resume from checkpoint.prev.h5 or train again)");
+    // files written before the digest existed have none; every file this hinf writes has one
+    if (h5::has_attr(f.get(), "content_digest"))
+        HINF_CHECK(h5::get_attr_string(f.get(), "content_digest") == content_digest(ck),
+                   "checkpoint '" + path + "': its contents do not match its digest (a weight, moment, state or "
+                   "step was changed after writing; resume from checkpoint.prev.h5 or train again)");
     return ck;
 }
 
@@ -237,6 +303,8 @@ std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunC
 template void ckpt_write<float>(const std::string&, const Checkpoint<float>&, const RunConfig&);
 template void ckpt_write<double>(const std::string&, const Checkpoint<double>&, const RunConfig&);
 template Checkpoint<float> ckpt_read<float>(const std::string&);
+template std::string ckpt_non_finite<float>(const Checkpoint<float>&);
+template std::string ckpt_non_finite<double>(const Checkpoint<double>&);
 template Checkpoint<double> ckpt_read<double>(const std::string&);
 
 }  // namespace hinf

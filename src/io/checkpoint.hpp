@@ -27,6 +27,11 @@ struct Checkpoint {
     std::string config_text;
 };
 
+/// "" when every weight, Adam moment, state and estimate is finite, else the first that is not ("network
+/// weight[12] = nan"). ckpt_write refuses such a checkpoint and ckpt_read rejects one.
+template <typename T>
+std::string ckpt_non_finite(const Checkpoint<T>& ck);
+
 /// Writes path atomically: path.tmp is written, flushed, fsynced, closed and read back; only then
 /// is the old file renamed to `<path minus .h5>.prev.h5` and path.tmp renamed to path.
 template <typename T>

@@ -140,11 +140,7 @@ Handle create_file(const std::string& path) {
 }
 
 Handle open_file(const std::string& path, bool writable) {
-    std::error_code ec;
-    HINF_CHECK(!std::filesystem::is_directory(path, ec), "'" + path + "' is a directory (pass the .h5 file inside it)");
-    FILE* f = std::fopen(path.c_str(), "rb");
-    HINF_CHECK(f != nullptr, "cannot open '" + path + "' (no such file, or not readable)");
-    std::fclose(f);
+    check_input_file(path, "file");
     HINF_CHECK(H5Fis_hdf5(path.c_str()) > 0, "'" + path + "' is not an HDF5 file (truncated, or the wrong file?)");
     hid_t id = H5Fopen(path.c_str(), writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY, H5P_DEFAULT);
     HINF_CHECK(id >= 0, "cannot open HDF5 file '" + path + "' (damaged or truncated?)");

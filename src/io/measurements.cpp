@@ -145,10 +145,9 @@ Measurements read_hdf5_here(const MeasurementSource& src) {
 Measurements read_measurements(const MeasurementSource& src) {
     HINF_CHECK(src.outputs >= 1, "measurements: the system has no outputs");
     const std::string& p = src.path;
+    check_input_file(p, "measurements");
     if (ends_with(p, ".csv") || ends_with(p, ".txt")) return read_csv(src);
     if (ends_with(p, ".h5") || ends_with(p, ".hdf5")) {
-        std::ifstream probe(p);
-        HINF_CHECK(probe.good(), "measurements '" + p + "' cannot be opened (check the path)");
         const std::string problem = run_isolated([&src] { read_hdf5_here(src); });
         HINF_CHECK(problem.empty(), problem.find(p) == std::string::npos ? "measurements '" + p + "': " + problem : problem);
         return read_hdf5_here(src);

@@ -52,12 +52,17 @@ TrajectoryWriter TrajectoryWriter::create(const std::string& path, const std::ve
 }
 
 TrajectoryWriter TrajectoryWriter::reopen(const std::string& path, const std::vector<TrajectoryColumn>& columns,
-                                          hsize_t rows) {
+                                          hsize_t rows, const std::map<std::string, std::string>& expect) {
     const std::string snap = snapshot_name(path);
     if (snapshot_rows(snap) >= static_cast<long long>(rows)) copy_replace(snap, path);
     TrajectoryWriter w;
     w.path_ = path;
     w.file_ = h5::open_file(path, true);
+    // bound to its checkpoint: another run's trajectory beside it must not be spliced and relabelled
+    for (const auto& [k, v] : expect)
+        HINF_CHECK(h5::has_attr(w.file_.get(), k) && h5::get_attr_string(w.file_.get(), k) == v,
+                   "trajectory '" + path + "' belongs to another run (its '" + k + "' differs from the checkpoint's): "
+                   "keep each run's trajectory.h5 beside its own checkpoint.h5, or start afresh with hinf train --force");
     w.columns_ = columns;
     for (const auto& c : columns) {
         w.writers_.push_back(h5::RowWriter::open_truncated(w.file_.get(), c.name, rows));

@@ -22,9 +22,10 @@ public:
                                    const std::map<std::string, std::string>& attrs);
     /// Reopens `path` and cuts every column to `rows` rows (continuing after a checkpoint). When the
     /// snapshot `<path minus .h5>.ckpt.h5` holds at least `rows` rows it replaces `path` first: a
-    /// process killed mid-append can leave the live file's HDF5 metadata half-written.
+    /// process killed mid-append can leave the live file's HDF5 metadata half-written. Every attribute in
+    /// `expect` must hold the given value (the checkpoint's config: a trajectory of another run is refused).
     static TrajectoryWriter reopen(const std::string& path, const std::vector<TrajectoryColumn>& columns,
-                                   hsize_t rows);
+                                   hsize_t rows, const std::map<std::string, std::string>& expect = {});
     /// Appends one row: values[name] must hold `width` numbers for every column.
     void append(const std::map<std::string, std::vector<double>>& values);
     void flush();

@@ -15,6 +15,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/run_lock.hpp"
 
 namespace hinf::lmi {
 
@@ -286,7 +287,7 @@ int delay_lmi_run(const ConfigDoc& doc, const std::string& out_dir, std::ostream
         out << "no gains: the design did not produce a verified solution (status " << status << ")\n";
     }
 
-    std::filesystem::create_directories(out_dir);
+    const RunDirLock lock(out_dir, "hinf operate/lmi");
     const std::string path = (std::filesystem::path(out_dir) / "lmi.h5").string();
     AtomicH5 f(path);
     const hid_t root = f.get();
@@ -394,7 +395,7 @@ int delay_operate(const ConfigDoc& doc, const std::string& out_dir, int runs, in
     const DelayMonteCarlo mc = delay_monte_carlo(c.system, c.filter, c.sim, runs, threads);
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    std::filesystem::create_directories(out_dir);
+    const RunDirLock lock(out_dir, "hinf operate/lmi");
     const std::string path = (std::filesystem::path(out_dir) / "operate.h5").string();
     AtomicH5 f(path);
     const hid_t root = f.get();

@@ -121,6 +121,28 @@ void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, co
     }
 }
 
+// Definitions are substituted, not evaluated by name: a chain where each uses the one before twice doubles the
+// expression per definition (2^40 nodes at 40). Count the tree's nodes up to a bound, iteratively (no recursion,
+// at most `limit` visits), before GiNaC differentiates or prints anything.
+constexpr std::size_t kMaxExpressionNodes = 20000;
+std::size_t expression_nodes(const GiNaC::ex& e, std::size_t limit) {
+    std::vector<GiNaC::ex> stack{e};
+    std::size_t count = 0;
+    while (!stack.empty() && count <= limit) {
+        GiNaC::ex x = stack.back();
+        stack.pop_back();
+        ++count;
+        for (std::size_t i = 0; i < x.nops(); ++i) stack.push_back(x.op(i));
+    }
+    return count;
+}
+void check_expression_size(const GiNaC::ex& e, const std::string& what) {
+    HINF_CHECK(expression_nodes(e, kMaxExpressionNodes) <= kMaxExpressionNodes,
+               what + ": expands to more than " + std::to_string(kMaxExpressionNodes) +
+                   " terms once its definitions are substituted (a definition that uses the one before it twice "
+                   "doubles the size each time: rewrite the chain, or fold it into parameters)");
+}
+
 // GiNaC's message without its "GiNaC: parse error at line 0, column 0: " preamble (it has no positions).
 std::string ginac_reason(const std::exception& err) {
     std::string msg = first_line(err.what());
@@ -236,7 +258,9 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     };
     auto read = [&](const ExprText& e) {
         check_syntax(e, symbols, known_list());
-        return read_symbolic(e, table);
+        GiNaC::ex x = read_symbolic(e, table);
+        check_expression_size(x, quoted(e));
+        return x;
     };
     // definitions: each may use the states, parameters, t and the definitions above it
     for (const auto& d : spec.definitions) {
@@ -264,6 +288,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
             for (const auto& e : exprs) {
                 Compiled c;
+                check_expression_size(e, spec.where + ": a derivative of f or h");
                 GiNaC::ex value = e.evalf();
                 if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
                     c.value = GiNaC::ex_to<GiNaC::numeric>(value).to_double();
@@ -271,6 +296,11 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
                 } else {
                     c.constant = false;
                     c.text = c_text(e);
+                    HINF_CHECK(c.text.size() <= std::size_t(mu::MaxLenExpression),
+                               spec.where + ": an expression (or its derivative) prints to " +
+                                   std::to_string(c.text.size()) + " characters once its definitions are "
+                                   "substituted, more than the " + std::to_string(mu::MaxLenExpression) +
+                                   " muParser evaluates (shorten the expressions or the chain of definitions)");
                     c.program = int(programs_.size());
                     programs_.push_back(c.text);
                 }

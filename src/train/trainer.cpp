@@ -8,13 +8,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 #include "adam.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
+#include "io/run_lock.hpp"
 #include "io/trajectory.hpp"
 #include "par/par.hpp"
 #include "sampling.hpp"
@@ -132,6 +135,9 @@ bool all_finite_t(const std::vector<T>& v) {
     return true;
 }
 
+// Set by train_request_stop (a signal handler): the signal number, read between time steps.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
 template <typename T>
 class Trainer {
 public:
@@ -156,7 +162,8 @@ public:
 
     void start_from(Checkpoint<T> ck) {
         ck_ = std::move(ck);
-        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
+                                         {{"config", ck_.config_text}});
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -187,6 +194,18 @@ public:
         std::int64_t rollbacks = 0;
         StepRecord rec;
         while (ck_.state.step < last_step) {
+            if (g_stop_signal != 0 && split_.ranks == 1) {
+                // Ctrl-C or SIGTERM: a safe point (between time steps); keep this step and say how to go on
+                const int sig = g_stop_signal;
+                if (ckpt_non_finite(ck_).empty()) checkpoint();
+                if (writer_)
+                    std::fprintf(stderr, "\nhinf: stopped by signal %d at time step %lld (t = %.2f s); checkpoint %s/checkpoint.h5 "
+                                 "holds it: continue with `hinf resume %s/checkpoint.h5`\n",
+                                 sig, static_cast<long long>(ck_.state.step), cfg_.time_of(ck_.state.step), dir_.c_str(),
+                                 dir_.c_str());
+                sum.status = 128 + sig;
+                break;
+            }
             if (!time_step(&rec)) {
                 if (cfg_.on_divergence == "rollback" && rollbacks < cfg_.max_rollbacks && roll_back(++rollbacks))
                     continue;
@@ -203,7 +222,18 @@ public:
             sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec.gap);
             sum.max_consistency_gap_printed = std::max(sum.max_consistency_gap_printed, rec.gap_printed);
             sum.final_loss = rec.loss_last;
-            if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) checkpoint();
+            if (ck_.state.step % cfg_.checkpoint_every == 0 || ck_.state.step == last_step) {
+                // only a finite state is kept as good (Adam's v can overflow in float while the loss is finite)
+                const std::string bad = ckpt_non_finite(ck_);
+                if (!bad.empty()) {
+                    --ck_.state.step;
+                    const std::size_t eq = bad.find(" = ");
+                    diagnose(ck_.state.step, bad.substr(0, eq).c_str(), std::strtod(bad.c_str() + eq + 3, nullptr));
+                    sum.status = 4;
+                    break;
+                }
+                checkpoint();
+            }
             char detail[160];
             std::snprintf(detail, sizeof detail, "t=%.2fs loss %.3g->%.3g rel.resid %.2g viol %.3f |",
                           cfg_.time_of(ck_.state.step), rec.loss_first, rec.loss_last, rec.rel_median, rec.violation);
@@ -411,7 +441,8 @@ private:
         if (std::filesystem::exists(path)) {
             ck_ = ckpt_read<T>(path);
             if (writer_)
-                traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step));
+                traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
+                                         {{"config", ck_.config_text}});
         } else {
             start_fresh();  // no checkpoint yet: back to the initial network and state
         }
@@ -428,9 +459,11 @@ private:
         for (int i = 0; i < cfg_.n; ++i) err += std::pow(ck_.state.x[i] - ck_.state.xhat[i], 2);
         const std::string ckpt = dir_ + "/checkpoint.h5";
         const std::string kept = std::filesystem::exists(ckpt)
-                                     ? "The last good checkpoint " + ckpt + " is kept (lower training.learning_rate "
-                                       "or set training.on_divergence = \"rollback\", and resume from it)"
-                                     : "No checkpoint was written yet (lower training.learning_rate and train again)";
+                                     ? "The last good checkpoint " + ckpt + " is kept (for a run that gets past this "
+                                       "step, train again with a lower rate: hinf train CONFIG --force --set "
+                                       "training.learning_rate=... or training.on_divergence=\"rollback\")"
+                                     : "No checkpoint was written yet (train again with a lower rate: --set "
+                                       "training.learning_rate=...)";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         if (!writer_) return;  // every process of the run diverges alike; one says so
@@ -464,6 +497,7 @@ public:
 
 template <typename T>
 TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
+    const RunDirLock lock(opt.out_dir, "hinf train");  // before trajectory.h5 is created (truncated)
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
     tr.on_step_ = opt.on_step;
@@ -488,12 +522,20 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
 
 }  // namespace
 
+void train_request_stop(int signal) { g_stop_signal = signal; }
+
 TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt) {
     return cfg.precision == "double" ? start_typed<double>(cfg, opt) : start_typed<float>(cfg, opt);
 }
 
 TrainSummary train_resume(const std::string& checkpoint, const TrainOptions& opt) {
-    ckpt_verify(checkpoint);  // one line naming the file and the problem, or the previous checkpoint to use
+    std::string dir = std::filesystem::path(checkpoint).parent_path().string();
+    if (dir.empty()) dir = ".";
+    // a checkpoint first (no lock file is left beside a file that is not one), then the directory's lock before
+    // anything is written there; the checkpoint is read again under the lock (a run that still wrote it has
+    // then finished, or the lock is refused)
+    ckpt_verify(checkpoint);
+    const RunDirLock lock(dir, "hinf resume");  // one line naming the file and the problem, or the previous checkpoint to use
     return ckpt_precision(checkpoint) == "double" ? resume_typed<double>(checkpoint, opt)
                                                   : resume_typed<float>(checkpoint, opt);
 }

@@ -27,7 +27,7 @@ struct TrainOptions {
 };
 
 struct TrainSummary {
-    int status = 0;                 // 0 ok, 4 diverged (diagnostic already printed)
+    int status = 0;                 // 0 ok, 4 diverged (diagnostic already printed), 128 + signal: interrupted
     std::int64_t first_step = 0, last_step = 0;
     double wall_seconds = 0;
     double final_loss = 0;
@@ -42,6 +42,11 @@ struct TrainSummary {
     double max_consistency_gap = 0;            // largest consistency_gap over the run [state units]
     double max_consistency_gap_printed = 0;    // the same with eqs. (11) and (23) as printed
 };
+
+/// Asks a running training to stop at the next safe point (between time steps): it writes a checkpoint at the
+/// current step, prints how to resume and returns status 128 + signal. Async-signal-safe (stores one flag): the
+/// CLI calls it from its SIGINT/SIGTERM handler.
+void train_request_stop(int signal);
 
 /// Starts a run from the config (creates out_dir/trajectory.h5, out_dir/checkpoint.h5).
 TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt);

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "helpers.hpp"
 
@@ -87,10 +88,23 @@ TEST_CASE("the bad-input corpus: each file its own message, exit 2, one line", "
     CHECK(cases >= 40);
 
     SECTION("inputs that cannot live in git") {
-        expect_rejected("/dev/zero", "train /dev/zero --out " + (d / "z"), "larger than 1 MiB");
+        expect_rejected("/dev/zero", "train /dev/zero --out " + (d / "z"), "is a character device");
+        // a FIFO in every place a file is read: one line at once, never a read that waits for a writer
+        const std::string fifo = d / "fifo";
+        for (const std::string& f : {fifo, fifo + ".csv", fifo + ".h5"}) REQUIRE(::mkfifo(f.c_str(), 0600) == 0);
+        expect_rejected("FIFO config", "train " + fifo + " --out " + (d / "z"), "is a FIFO");
+        expect_rejected("FIFO checkpoint", "resume " + fifo, "is a FIFO");
+        expect_rejected("FIFO network", "operate " + good + " --network " + fifo, "is a FIFO");
+        expect_rejected("FIFO network (compare)", "compare " + good + " --network " + fifo + " --out " + (d / "c"),
+                        "is a FIFO");
+        expect_rejected("FIFO record", "filter " + good + " --measurements " + fifo + ".csv --filters ekf --out " +
+                                           (d / "f"), "is a FIFO");
+        expect_rejected("FIFO HDF5 record", "filter " + good + " --measurements " + fifo + ".h5 --filters ekf --out " +
+                                                (d / "f"), "is a FIFO");
         expect_rejected("a directory", "train " + corpus + " --out " + (d / "z"), "is a directory");
         expect_rejected("missing config", "train " + (d / "missing.toml"), "cannot open config file");
         expect_rejected("missing checkpoint", "resume " + (d / "missing.h5"), "cannot open");
+        expect_rejected("/dev/null as checkpoint", "resume /dev/null", "is a character device");
         expect_rejected("directory as checkpoint", "resume " + corpus, "is a directory");
         const std::string huge = d / "huge.toml";
         {
@@ -104,5 +118,49 @@ TEST_CASE("the bad-input corpus: each file its own message, exit 2, one line", "
             ::chmod(locked.c_str(), 0);
             expect_rejected("unreadable config", "train " + locked, "cannot open config file");
         }
+    }
+}
+
+// The good-input corpus (tests/corpus/good/cases.txt): inputs hinf once refused or crashed on and must accept.
+// One case per line, `file | shell command`: {hinf} is the binary, {f} the file, {tmp} a fresh directory,
+// {corpus} the good corpus; each must exit 0 within 60 s with no "hinf: error" line.
+TEST_CASE("the good-input corpus: each case exits 0", "[cli][corpus][good]") {
+    const std::string corpus = hinf::test::source_path("tests/corpus/good");
+    std::ifstream list(corpus + "/cases.txt");
+    REQUIRE(list.good());
+    int cases = 0;
+    for (std::string line; std::getline(list, line);) {
+        if (line.empty() || line[0] == '#') continue;
+        const std::size_t bar = line.find('|');
+        REQUIRE(bar != std::string::npos);
+        const std::string file = trim(line.substr(0, bar));
+        std::string cmd = trim(line.substr(bar + 1));
+        REQUIRE(fs::exists(corpus + "/" + file));
+        TempDir tmp("good");
+        replace_all(cmd, "{hinf}", std::string("timeout 60 ") + HINF_CLI_PATH);
+        replace_all(cmd, "{f}", corpus + "/" + file);
+        replace_all(cmd, "{tmp}", tmp.path.string());
+        replace_all(cmd, "{corpus}", corpus);
+        auto r = run_command(cmd);
+        INFO(file << ": " << cmd << "\n" << r.output);
+        CHECK(r.status == 0);
+        CHECK(r.output.find("hinf: error") == std::string::npos);
+        ++cases;
+    }
+    CHECK(cases >= 1);
+}
+
+// scripts/plot on a file that is missing, a directory or not HDF5: one line and exit 2, never a traceback
+TEST_CASE("scripts/plot refuses bad files in one line", "[cli][corpus][plot]") {
+    TempDir d("plot-bad");
+    const std::string not_h5 = d / "config.toml";
+    std::ofstream(not_h5) << "[system]\n";
+    for (const std::string& f : {std::string(d / "missing.h5"), d.path.string(), not_h5}) {
+        auto r = run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " + f);
+        INFO(f << "\n" << r.output);
+        CHECK(r.status == 2);
+        CHECK(r.output.rfind("scripts/plot: error: ", 0) == 0);
+        CHECK(count_lines(r.output) == 1);
+        CHECK(r.output.find("Traceback") == std::string::npos);
     }
 }

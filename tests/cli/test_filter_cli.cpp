@@ -122,7 +122,7 @@ TEST_CASE("hinf filter names the row of a bad measurement record", "[cli][filter
                           "the filters run on a uniform grid");
     expect_one_line_error(base + csv("one.csv", "0" + good_row), "needs at least 2");
     expect_one_line_error(base + csv("rec.dat", "0" + good_row), "unknown file type");
-    expect_one_line_error(base + (d / "missing.csv"), "cannot be opened");
+    expect_one_line_error(base + (d / "missing.csv"), "cannot open measurements");
     {
         hinf::h5::Handle f = hinf::h5::create_file(d / "shape.h5");
         std::vector<double> t = {0, 0.01, 0.02}, y(3 * 5, 1.0);

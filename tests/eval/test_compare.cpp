@@ -2,6 +2,8 @@
 // and hashing it), results do not depend on the thread count, diverged filters are counted not dropped.
 #include <catch2/catch.hpp>
 #include <algorithm>
+#include <map>
+#include <mutex>
 #include <omp.h>
 
 #include "eval/compare.hpp"
@@ -26,7 +28,15 @@ RunConfig missile_config() {
     return load_run_config(std::move(doc));
 }
 
-// Records every y it is given (and can be told to diverge at a step).
+// Records every y it is given, per run (and can be told to diverge at a step). compare steps clones of it on
+// several OpenMP threads at once, so the record the clones share is a map of runs behind a mutex: each run is
+// stepped by one clone, and no two threads ever write one vector (a shared plain vector raced and made
+// AddressSanitizer abort at random).
+struct SpyRecord {
+    std::mutex mutex;
+    std::map<std::uint64_t, std::vector<double>> by_run;
+};
+
 class SpyFilter final : public OnlineFilter {
 public:
     SpyFilter(std::string name, int n, int m, std::int64_t diverge_at = -1)
@@ -34,22 +44,35 @@ public:
     std::string name() const override { return name_; }
     void reset(const FilterStart& s) override {
         xhat_ = s.xhat0;
-        seen->clear();
+        run_ = s.run;
+        std::lock_guard<std::mutex> lock(record_->mutex);
+        record_->by_run[run_].clear();
     }
     FilterStatus step(const FilterInput& in) override {
-        seen->insert(seen->end(), in.y, in.y + m_);
+        {
+            std::lock_guard<std::mutex> lock(record_->mutex);
+            std::vector<double>& seen = record_->by_run[run_];
+            seen.insert(seen.end(), in.y, in.y + m_);
+        }
         if (in.step == diverge_at_) return FILTER_DIVERGED;
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<SpyFilter>(*this); }
-    std::shared_ptr<std::vector<double>> seen = std::make_shared<std::vector<double>>();  // shared by clones
+    // what run r was given (by whichever clone stepped it)
+    std::vector<double> seen(std::uint64_t r) const {
+        std::lock_guard<std::mutex> lock(record_->mutex);
+        auto it = record_->by_run.find(r);
+        return it == record_->by_run.end() ? std::vector<double>() : it->second;
+    }
 
 private:
     std::string name_;
     int n_, m_;
     std::int64_t diverge_at_;
     std::vector<double> xhat_;
+    std::uint64_t run_ = 0;
+    std::shared_ptr<SpyRecord> record_ = std::make_shared<SpyRecord>();  // shared by clones, behind its mutex
 };
 
 }  // namespace
@@ -81,8 +104,8 @@ TEST_CASE("compare feeds every filter the identical measurement stream", "[eval]
     h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
     std::vector<double> y = h5::read_doubles(f.get(), "y");
     REQUIRE(y.size() == 20u * cfg.m);
-    CHECK(hinf::test::bitwise_equal(*a.seen, y));
-    CHECK(hinf::test::bitwise_equal(*b.seen, y));
+    CHECK(hinf::test::bitwise_equal(a.seen(0), y));
+    CHECK(hinf::test::bitwise_equal(b.seen(0), y));
     const std::uint64_t hy = hash_bytes(hash_start, y.data(), y.size() * sizeof(double));
     CHECK(s1.truth_stream_hash == hash_bytes(hash_start, &hy, 8));
     CHECK(s1.filters[0].stream_hash == s1.truth_stream_hash);
@@ -142,6 +165,11 @@ TEST_CASE("compare counts a diverging filter and keeps it in the results", "[eva
     std::vector<double> at = h5::read_doubles(g.get(), "diverged_at");
     REQUIRE(at.size() == 4u);
     for (double t : at) CHECK(t == Approx(3 * cfg.dt));
+    // every run was recorded whole by the clone that stepped it (4 runs on several threads at once)
+    for (std::uint64_t r = 0; r < 4; ++r) {
+        CHECK(ok.seen(r).size() == std::size_t(10 * cfg.m));  // t < 0.1 s at dt = 0.01: 10 steps
+        CHECK(bad.seen(r).size() == std::size_t(4 * cfg.m));  // frozen after its divergence at step 3
+    }
 }
 
 TEST_CASE("compare scenarios: Student-t and biased measurement noise have the stated law", "[eval][compare]") {

@@ -166,3 +166,67 @@ TEST_CASE("resume from each kind of damaged checkpoint gives its message", "[err
     }
     restore();
 }
+
+// Edited, not damaged: every checksum is valid (HDF5 recomputes fletcher32 on write), but the file no longer is
+// what it claims. The step is stored three times and every value is bound by the content digest; a non-finite
+// weight is refused on load by resume and by operate (which would otherwise run the open-loop predictor).
+TEST_CASE("checkpoints edited after writing are refused", "[io][damaged][edited]") {
+    test::TempDir d("edited");
+    make_run(d / "run");
+    const std::string ckpt = d / "run/checkpoint.h5", cfg = d / "small.toml";
+    std::ofstream(cfg) << kSmall;
+    const std::string saved = read_bytes(ckpt);
+    auto replace_weight = [&](float value) {
+        h5::Handle f = h5::open_file(ckpt, true);
+        h5::Handle g = h5::open_group(f.get(), "network/layer_1");
+        std::vector<hsize_t> dims;
+        std::vector<float> w = h5::read_floats(g.get(), "W", &dims);
+        w[3] = value;
+        REQUIRE(H5Ldelete(g.get(), "W", H5P_DEFAULT) >= 0);
+        h5::write_floats(g.get(), "W", w.data(), dims, "", "weights", true);
+    };
+    SECTION("the root step relabelled") {
+        {
+            h5::Handle f = h5::open_file(ckpt, true);
+            REQUIRE(H5Adelete(f.get(), "step") >= 0);
+            h5::set_attr(f.get(), "step", std::int64_t(5));
+        }
+        expect_resume_error(ckpt, "its step attributes disagree (root 5, state 8)", true);
+    }
+    SECTION("a weight replaced by NaN, checksum recomputed") {
+        replace_weight(NAN);
+        expect_resume_error(ckpt, "network weight[3] = nan is not finite", true);
+        auto r = test::run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " operate " + cfg + " --network " +
+                                   ckpt + " --runs 1 --until 0.05 --out " + (d / "op"));
+        INFO(r.output);
+        CHECK(r.status == 2);
+        CHECK(r.output.find("is not finite") != std::string::npos);
+    }
+    SECTION("a weight changed to another finite value") {
+        replace_weight(0.25f);
+        expect_resume_error(ckpt, "do not match its digest", true);
+    }
+    write_bytes(ckpt, saved);
+    auto ok = test::run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " resume " + ckpt + " --quiet");
+    CHECK(ok.status == 0);  // the untouched file still resumes
+}
+
+// A trajectory is bound to its checkpoint by the config both store: another run's trajectory (and snapshot)
+// placed beside a checkpoint is refused, not spliced in and relabelled.
+TEST_CASE("another run's trajectory beside a checkpoint is refused", "[io][damaged][edited]") {
+    test::TempDir d("spliced");
+    make_run(d / "a");
+    TrainOptions opt;
+    opt.out_dir = d / "b";
+    opt.quiet = true;
+    std::string other = kSmall;
+    other += "seed = 2\n";  // [training] is the last section of kSmall
+    REQUIRE(train_start(load_run_config(ConfigDoc::from_text(other, "other.toml")), opt).status == 0);
+    for (const char* f : {"trajectory.h5", "trajectory.ckpt.h5"})
+        fs::copy_file(d / (std::string("b/") + f), d / (std::string("a/") + f), fs::copy_options::overwrite_existing);
+    auto r = test::run_command("timeout 60 " + std::string(HINF_CLI_PATH) + " resume " + (d / "a/checkpoint.h5") +
+                               " --until 0.2 --quiet");
+    INFO(r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.find("belongs to another run") != std::string::npos);
+}

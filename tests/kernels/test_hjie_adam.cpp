@@ -28,7 +28,8 @@ TEST_CASE("HJIE terms of eq. (16) on a hand-computed case", "[kernel][hjie]") {
     CHECK(v.hinge == 2.25);
     // d(eps^2)/dp = 2 eps (dA + B B^T p / (2 rho)) = -3 * ((-1, 0.5) + (0, -1)) = (3, 1.5)
     double gp[2];
-    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0);
+    double work[64];  // >= hjie_backward_workspace(n)
+    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0, work);
     CHECK(gp[0] == Approx(3.0));
     CHECK(gp[1] == Approx(1.5));
 }
@@ -51,7 +52,8 @@ TEST_CASE("two coupled residuals of seed 001 eqs. (19)-(20) on a hand-computed c
     // d/dp (eps1^2 + eps2^2) = 2 eps1 (dA + B B^T p/(2 r^2)) + 2 eps2 (dA + B B^T p/r^2)
     //   = -3 ((-1, 0.5) + (0, -1)) - 11 ((-1, 0.5) + (0, -2)) = (3, 1.5) + (11, 16.5) = (14, 18)
     double gp[2];
-    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0);
+    double work[64];  // >= hjie_backward_workspace(n)
+    hjie_sample_backward(gp, nullptr, p, nullptr, s, 0, hp, HJIE_OBJECTIVE_PAPER, 1.0, 0.0, work);
     CHECK(gp[0] == Approx(14.0));
     CHECK(gp[1] == Approx(18.0));
     // the one-residual game is unchanged by the second residual's machinery
@@ -77,8 +79,9 @@ TEST_CASE("an inactive second hinge leaves the dissipative loss and gradient bit
     CHECK(a.hinge == b.hinge);
     CHECK(a.h2 == b.h2);
     double ga[2], gb[2], gPa[4], gPb[4];
-    hjie_sample_backward(ga, gPa, p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
-    hjie_sample_backward(gb, gPb, p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    double work[64];  // >= hjie_backward_workspace(n)
+    hjie_sample_backward(ga, gPa, p, P, s, 0, hinf_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9, work);
+    hjie_sample_backward(gb, gPb, p, P, s, 0, mixed_p, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9, work);
     for (int k = 0; k < 2; ++k) CHECK(ga[k] == gb[k]);
     for (int k = 0; k < 4; ++k) CHECK(gPa[k] == gPb[k]);
 }
@@ -105,7 +108,8 @@ TEST_CASE("mixed dissipative per-sample gradient matches central differences in 
     REQUIRE(v0.residual / v0.abs_sum + hp.margin > 0);
     REQUIRE(v0.residual2 / v0.abs_sum2 + hp.margin > 0);
     double gp[3], gP[9];
-    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    double work[64];  // >= hjie_backward_workspace(n)
+    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9, work);
     const double h = 1e-6;
     for (int a = 0; a < 3; ++a) {
         double pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
@@ -139,7 +143,8 @@ TEST_CASE("dissipative per-sample gradient matches central differences in p and 
     };
     REQUIRE(hjie_sample_forward(p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE).hinge > 0);
     double gp[3], gP[9];
-    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9);
+    double work[64];  // >= hjie_backward_workspace(n)
+    hjie_sample_backward(gp, gP, p, P, s, 0, hp, HJIE_OBJECTIVE_DISSIPATIVE, 0.7, 1.9, work);
     const double h = 1e-6;
     for (int a = 0; a < 3; ++a) {
         double pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
@@ -197,10 +202,44 @@ TEST_CASE("quadratic head gives p^T x~ > 0 and P symmetric positive definite", "
     hp.eps = 0.01;
     double o[6] = {-1.0, 2.0, -3.0, 0.5, 0.0, -1.0};  // M = I + tril(o) is singular-ish, P stays >= c eps I
     double xt[3] = {1.0, -2.0, 0.5}, p[3], P[9];
-    head_forward(p, P, o, xt, hp);
+    double hw[2 * 4 * 4];
+    head_forward(p, P, o, xt, hp, hw);
     double px = p[0] * xt[0] + p[1] * xt[1] + p[2] * xt[2];
     CHECK(px > 0);
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) CHECK(P[a * 3 + b] == P[b * 3 + a]);
     CHECK(px >= hp.scale * hp.eps * (1 + 4 + 0.25) * (1 - 1e-12));
+}
+
+// 33+ states (a 40-state Lorenz-96): the head's n x n temporaries live in the caller's workspace, so any n works;
+// dL/do from head_backward matches central differences of L = w^T p + <G, P> through head_forward
+TEST_CASE("quadratic head for 40 states: backward matches central differences", "[kernel][head]") {
+    const int n = 40, O = head_outputs(HEAD_QUADRATIC, n);
+    HeadParams hp;
+    hp.kind = HEAD_QUADRATIC;
+    hp.n = n;
+    hp.scale = 0.1;
+    std::vector<double> o(O), xt(n), w(n), G(n * n), p(n), P(n * n), d_o(O);
+    std::vector<double> work(head_workspace(HEAD_QUADRATIC, n));
+    for (int k = 0; k < O; ++k) o[k] = 0.05 * std::sin(1.3 * k);
+    for (int a = 0; a < n; ++a) {
+        xt[a] = std::cos(0.7 * a);
+        w[a] = 0.3 * std::sin(0.4 * a + 1);
+    }
+    for (int k = 0; k < n * n; ++k) G[k] = 0.01 * std::cos(0.11 * k);
+    auto loss = [&](const std::vector<double>& oo) {
+        head_forward(p.data(), P.data(), oo.data(), xt.data(), hp, work.data());
+        double L = 0;
+        for (int a = 0; a < n; ++a) L += w[a] * p[a];
+        for (int k = 0; k < n * n; ++k) L += G[k] * P[k];
+        return L;
+    };
+    loss(o);
+    head_backward(d_o.data(), w.data(), G.data(), o.data(), xt.data(), hp, work.data());
+    for (int k = 0; k < O; k += 37) {
+        std::vector<double> op = o, om = o;
+        op[k] += 1e-6;
+        om[k] -= 1e-6;
+        CHECK(d_o[k] == Approx((loss(op) - loss(om)) / 2e-6).epsilon(1e-5).margin(1e-8));
+    }
 }

@@ -7,9 +7,11 @@
 #include <unistd.h>
 
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <thread>
 
@@ -56,6 +58,7 @@ pid_t spawn_hinf(const std::vector<std::string>& args, const std::string& log, i
     argv_store.insert(argv_store.end(), args.begin(), args.end());
     for (auto& s : argv_store) argv.push_back(s.data());
     argv.push_back(nullptr);
+    std::fflush(nullptr);  // else the child's freopen writes the test runner's buffered output a second time
     pid_t pid = fork();
     if (pid == 0) {
         FILE* out = std::freopen(log.c_str(), "a", stdout);
@@ -209,4 +212,140 @@ TEST_CASE("kill -9 inside a checkpoint write keeps the last good checkpoint and 
     REQUIRE(wait_for(pid, 120) == 0);
     require_same_checkpoint<float>(d / "ref/checkpoint.h5", dir + "/checkpoint.h5");
     require_same_trajectory(d / "ref/trajectory.h5", dir + "/trajectory.h5");
+}
+
+namespace {
+const char* kLongerConfig = R"([system]
+kind = "missile"
+[filter]
+t_final = 1.0
+[network]
+hidden = [16, 8]
+chunk = 30
+[training]
+samples = 200
+batch = 80
+adam_steps = 3
+checkpoint_every = 25
+)";
+
+void wait_until_exists(const std::string& path, double timeout_s) {
+    auto t0 = Clock::now();
+    while (!fs::exists(path) && std::chrono::duration<double>(Clock::now() - t0).count() < timeout_s)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+}
+}  // namespace
+
+TEST_CASE("SIGINT or SIGTERM during training: a checkpoint at the current step, how to resume, exact resume",
+          "[crash][resume][signal]") {
+    test::TempDir d("signal");
+    const std::string cfg = d / "long.toml";
+    std::ofstream(cfg) << kLongerConfig;
+    pid_t ref = spawn_hinf({"train", cfg, "--out", d / "ref", "--quiet"}, d / "ref.log", 0);
+    REQUIRE(wait_for(ref, 120) == 0);
+    for (int sig : {SIGINT, SIGTERM}) {
+        INFO("signal " << sig);
+        const std::string dir = d / ("run" + std::to_string(sig)), log = dir + ".log";
+        pid_t pid = spawn_hinf({"train", cfg, "--out", dir, "--quiet"}, log, 0);
+        wait_until_exists(dir + "/trajectory.h5", 60);  // past start-up: the handlers are installed
+        std::this_thread::sleep_for(std::chrono::milliseconds(30));
+        kill(pid, sig);
+        const int status = wait_for(pid, 120);
+        const std::string out = read_text(log);
+        INFO(out);
+        if (status == 0) continue;  // the run ended before the signal came: nothing to check
+        CHECK(status == 128 + sig);
+        const std::string key = "at time step ";
+        REQUIRE(out.find(key) != std::string::npos);
+        const long long step = std::atoll(out.c_str() + out.find(key) + key.size());
+        CHECK(out.find("continue with `hinf resume " + dir + "/checkpoint.h5`") != std::string::npos);
+        // the checkpoint holds the step the line names, even between two periodic checkpoints
+        CHECK(ckpt_read<float>(dir + "/checkpoint.h5").state.step == step);
+        pid_t res = spawn_hinf({"resume", dir + "/checkpoint.h5", "--quiet"}, log, 0);
+        REQUIRE(wait_for(res, 120) == 0);
+        require_same_checkpoint<float>(d / "ref/checkpoint.h5", dir + "/checkpoint.h5");
+        require_same_trajectory(d / "ref/trajectory.h5", dir + "/trajectory.h5");
+    }
+}
+
+// Stress: two processes against one run directory. The second train or resume started while a train writes the
+// directory is refused with one line before it opens anything there for writing, and the first run ends exactly
+// as if it had been alone.
+TEST_CASE("stress: a second train or resume against a run directory in use is refused, the first run is intact",
+          "[crash][stress]") {
+    test::TempDir d("stress-lock");
+    const std::string cfg = d / "long.toml";
+    std::ofstream(cfg) << kLongerConfig;
+    pid_t ref = spawn_hinf({"train", cfg, "--out", d / "ref", "--quiet"}, d / "ref.log", 0);
+    REQUIRE(wait_for(ref, 120) == 0);
+    const std::string dir = d / "run";
+    pid_t first = spawn_hinf({"train", cfg, "--out", dir, "--quiet"}, d / "first.log", 0);
+    wait_until_exists(dir + "/checkpoint.h5", 60);
+    auto second = test::run_command(std::string(HINF_CLI_PATH) + " train " + cfg + " --out " + dir + " --force --quiet");
+    auto third = test::run_command(std::string(HINF_CLI_PATH) + " resume " + dir + "/checkpoint.h5 --quiet");
+    const int first_status = wait_for(first, 120);
+    INFO(second.output << third.output << read_text(d / "first.log"));
+    REQUIRE(first_status == 0);
+    if (second.status == 2) CHECK(second.output.find("is in use by another hinf process (pid") != std::string::npos);
+    if (third.status == 2) CHECK(third.output.find("is in use by another hinf process (pid") != std::string::npos);
+    // the second and third ran while the first still wrote (unless the machine let the first finish first)
+    if (second.status == 2 && third.status == 2) {
+        require_same_checkpoint<float>(d / "ref/checkpoint.h5", dir + "/checkpoint.h5");
+        require_same_trajectory(d / "ref/trajectory.h5", dir + "/trajectory.h5");
+    }
+}
+
+// Stress: kill -9 at random moments while `compare` and `filter` write over an earlier run's outputs. Every
+// result file is written whole or not at all (temporary + rename), so what is there after a kill reads back
+// completely: the earlier run's files, or the new ones.
+TEST_CASE("stress: kill -9 inside compare and filter output writes loses nothing completed", "[crash][stress]") {
+    test::TempDir d("stress-out");
+    const std::string cfg = d / "tiny.toml";
+    std::ofstream(cfg) << hinf::test::tiny_missile_config();
+    REQUIRE(test::run_hinf("train " + cfg + " --out " + (d / "net") + " --quiet").status == 0);
+    const std::string net = d / "net/checkpoint.h5";
+    REQUIRE(test::run_hinf("operate " + cfg + " --network " + net + " --mode measured --quiet --runs 1 --until 2 --out " +
+                           (d / "op")).status == 0);
+    const std::vector<std::vector<std::string>> commands = {
+        {"compare", cfg, "--network", net, "--filters", "dnn,ekf,ukf", "--runs", "3", "--until", "2", "--out",
+         d / "cmp", "--quiet"},
+        {"filter", cfg, "--network", net, "--measurements", d / "op/operate.h5", "--filters", "dnn,ekf,ukf,open_loop",
+         "--out", d / "flt", "--quiet"}};
+    const std::vector<std::vector<std::string>> outputs = {{"compare.h5", "compare.csv"},
+                                                           {"estimates.h5", "estimates_ekf.csv", "estimates_ukf.csv"}};
+    std::mt19937 rng(5);
+    for (std::size_t c = 0; c < commands.size(); ++c) {
+        const std::string dir = commands[c][commands[c].size() - 2];
+        auto t0 = Clock::now();
+        REQUIRE(wait_for(spawn_hinf(commands[c], d / "first.log", 0), 120) == 0);  // the completed earlier run
+        const double run_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        std::map<std::string, std::ptrdiff_t> lines;
+        for (const auto& f : outputs[c]) {
+            REQUIRE(fs::exists(dir + "/" + f));
+            const std::string text = read_text(dir + "/" + f);
+            lines[f] = std::count(text.begin(), text.end(), '\n');
+        }
+        for (int attempt = 0; attempt < 4; ++attempt) {
+            pid_t pid = spawn_hinf(commands[c], d / "kill.log", 0);
+            std::this_thread::sleep_for(std::chrono::microseconds(
+                std::uniform_int_distribution<long>(0, long(run_ms * 1000))(rng)));
+            kill(pid, SIGKILL);
+            wait_for(pid, 60);
+            for (const auto& f : outputs[c]) {
+                INFO(commands[c][0] << " attempt " << attempt << ": " << f);
+                REQUIRE(fs::exists(dir + "/" + f));  // never removed before its replacement is complete
+                if (f.size() > 4 && f.compare(f.size() - 4, 4, ".csv") == 0) {
+                    // whole: every line of a complete file (timings may change a few characters between runs)
+                    const std::string text = read_text(dir + "/" + f);
+                    CHECK(std::count(text.begin(), text.end(), '\n') == lines[f]);
+                    CHECK((!text.empty() && text.back() == '\n'));
+                } else {
+                    h5::Handle h = h5::open_file(dir + "/" + f, false);  // reads back
+                    CHECK(h.valid());
+                }
+            }
+        }
+        // and the next complete run is not blocked by anything a killed one left
+        REQUIRE(wait_for(spawn_hinf(commands[c], d / "last.log", 0), 120) == 0);
+    }
 }

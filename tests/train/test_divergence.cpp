@@ -3,6 +3,7 @@
 // training.on_divergence = "rollback" the run goes back to it with a smaller learning rate and ends.
 #include <catch2/catch.hpp>
 #include <fstream>
+#include <map>
 
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
@@ -167,4 +168,57 @@ TEST_CASE("rollback on an h2hinf run keeps every trajectory column growing, and 
                                  " --until 0.4 --quiet");
     INFO(res.output);
     CHECK(res.status == 0);
+}
+
+namespace {
+// Rows of every dataset of a trajectory file's root (each column is one dataset, rows first).
+std::map<std::string, hsize_t> column_rows(const std::string& path) {
+    h5::Handle f = h5::open_file(path, false);
+    std::map<std::string, hsize_t> rows;
+    H5Literate(
+        f.get(), H5_INDEX_NAME, H5_ITER_NATIVE, nullptr,
+        [](hid_t loc, const char* name, const H5L_info_t*, void* out) -> herr_t {
+            H5O_info_t info;
+            if (H5Oget_info_by_name(loc, name, &info, H5P_DEFAULT) < 0 || info.type != H5O_TYPE_DATASET) return 0;
+            hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), s = H5Dget_space(d);
+            hsize_t dims[4] = {0, 0, 0, 0};
+            H5Sget_simple_extent_dims(s, dims, nullptr);
+            (*static_cast<std::map<std::string, hsize_t>*>(out))[name] = dims[0];
+            H5Sclose(s);
+            H5Dclose(d);
+            return 0;
+        },
+        &rows);
+    return rows;
+}
+}  // namespace
+
+// The roll-back reopens the trajectory with the same column list as a resume (trajectory_columns): with the
+// mixed filter's six extra columns a roll-back once dropped them, and the run could no longer be resumed
+TEST_CASE("an h2hinf run rolled back keeps every column growing and resumes", "[train][divergence][mixed]") {
+    test::TempDir d("rollback_mixed");
+    const std::string cfg = d / "div.toml";
+    std::string text = kDiverging;
+    text.replace(text.find("[filter]\n"), 9, "[filter]\ntype = \"h2hinf\"\n");
+    std::ofstream(cfg) << text << "on_divergence = \"rollback\"\nrollback_factor = 0.1\n";
+    auto r = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + cfg + " --out " + (d / "run") +
+                               " --quiet");
+    INFO(r.output);
+    REQUIRE(r.output.find("hinf: rolled back to time step") != std::string::npos);
+    const std::int64_t step = ckpt_read<float>(d / "run/checkpoint.h5").state.step;
+    REQUIRE(step > 0);
+    auto rows = column_rows(d / "run/trajectory.h5");
+    REQUIRE(rows.count("hjie2_residual") == 1);
+    for (const auto& c : rows) {
+        INFO(c.first);
+        CHECK(c.second == rows.at("t"));  // no column stopped growing
+        CHECK(c.second >= hsize_t(step));
+    }
+    // the run resumes from its checkpoint: it may diverge again (exit 4), but never refuse the trajectory (exit 2)
+    auto res = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " resume " + (d / "run/checkpoint.h5") +
+                                 " --quiet");
+    INFO(res.output);
+    CHECK(res.status != 2);
+    CHECK(res.output.find("rows but the checkpoint needs") == std::string::npos);
+    for (const auto& c : column_rows(d / "run/trajectory.h5")) CHECK(c.second == column_rows(d / "run/trajectory.h5").at("t"));
 }
