@@ -56,6 +56,7 @@ void add_filter_command(CLI::App& app) {
         RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset});
+        recorded_check_sampling(cfg, ms, a->measurements);
 
         RecordedOptions opt;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "filter") : a->out;

@@ -209,6 +209,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "filters", names);
     h5::set_attr(root, "runs", R);
     h5::set_attr(root, "t_final", tf);
+    h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "truth_stream_hash", hex(sum.truth_stream_hash));
     std::string sn;

@@ -55,12 +55,21 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
 
 }  // namespace
 
+void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source) {
+    // a discrete system's step k is t / dt with the config's dt: a record sampled otherwise would be another model
+    HINF_CHECK(!cfg.system->discrete_time() || std::fabs(ms.dt - cfg.dt) <= 1e-6 * cfg.dt,
+               source + ": the record is sampled every " + std::to_string(ms.dt) + " s, the discrete-time system of " +
+                   cfg.doc.source() + " steps every [filter] dt = " + std::to_string(cfg.dt) +
+                   " s (set dt to the record's period)");
+}
+
 std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
                                             const Measurements& ms, const RecordedOptions& opt) {
     const System& sys = *cfg.system;
     const int n = cfg.n, m = cfg.m;
     const std::int64_t K = ms.rows;
     HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
+    recorded_check_sampling(cfg, ms, opt.source);
     HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
     std::filesystem::create_directories(opt.out_dir);
     std::vector<RecordedResult> results;
@@ -124,6 +133,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "system", sys.name());
         h5::set_attr(root, "rows", K);
         h5::set_attr(root, "dt", ms.dt);
+        h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
         h5::set_attr(root, "mode", "measured");
         h5::set_attr(root, "meaning",
                      "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "

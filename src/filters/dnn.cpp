@@ -1,6 +1,7 @@
 // DNN filter adapter (seed 000 eq. (19), Fig. 3 on-line phase) over any frozen network and gain law.
 // The trainer advances x^ through the same luenberger_advance (filters/gain_law.hpp).
 #include "filters/dnn.hpp"
+#include "hinf/error.hpp"
 
 #include <Eigen/Dense>
 
@@ -90,6 +91,10 @@ void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat
 
 std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
                                               const DnnGainLaw& law, bool measured, const std::string& name) {
+    // the filter steps x^ by the sampled-data law x^ + dt (A(x^) + k e) (seed 000 eq. (19)): continuous time only
+    HINF_CHECK(!model.system->discrete_time(),
+               "the DNN filter '" + name + "' is a continuous-time (Euler-sampled) filter and the config's system has "
+               "[system] time = \"discrete\" (drop dnn from --filters, or use a continuous-time system)");
     return std::make_unique<DnnFilter>(model, network.clone(), law.clone(), measured, name);
 }
 

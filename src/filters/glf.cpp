@@ -93,6 +93,9 @@ GlfDesign glf_design(const System& sys, const std::vector<double>& x0, const std
                      double t_final, int vertices, double rho_max) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
     HINF_CHECK(vertices >= 1, "glf: the vertex count must be >= 1");
+    // seed 001's design linearizes the vector field A(x) and discretizes by Euler: continuous time only
+    HINF_CHECK(!sys.discrete_time(), "--filters glf: the GLF design is for continuous-time systems (an Euler-sampled "
+                                     "LMI on dA/dx) and the config's system has [system] time = \"discrete\" (drop glf)");
     HINF_CHECK(static_cast<int>(x0.size()) == n && static_cast<int>(Q.size()) == n * n, "glf: x0 / Q have the wrong size");
     GlfDesign d;
     d.vertices = vertices;

@@ -1,5 +1,5 @@
-// Bootstrap particle filter (Gordon, Salmond & Smith 1993) on the discrete model of filter.hpp: the
-// transition prior as proposal, log-weights, systematic resampling when the effective sample size
+// Bootstrap particle filter (Gordon, Salmond & Smith 1993) on the discrete model of filter.hpp (the system's
+// own step, system_advance): the transition prior as proposal, log-weights, systematic resampling when the effective sample size
 // drops below a fraction of the particle count. Draws keyed by (seed, run, step): thread-count independent.
 #include <Eigen/Dense>
 #include <algorithm>
@@ -99,17 +99,11 @@ public:
                     for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
             }
         }
-        // propagate through the transition: x + dt (A(x) + B(x) v), v ~ sv N(0, I)
-        std::vector<double> a(X_.size()), B(static_cast<std::size_t>(np_) * n * nv), v(static_cast<std::size_t>(np_) * nv);
-        sys.drift(a.data(), X_.data(), in.t, np_);
-        sys.disturbance_gain(B.data(), X_.data(), in.t, np_);
+        // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
+        std::vector<double> v(static_cast<std::size_t>(np_) * nv);
         kern::rng_normal(v.data(), np_ * nv, seed_, kern::RNG_STREAM_PARTICLES, run_, std::uint64_t(in.step) + 1);
-        for (std::int64_t p = 0; p < np_; ++p)
-            for (int i = 0; i < n; ++i) {
-                double bv = 0;
-                for (int j = 0; j < nv; ++j) bv += B[(p * n + i) * nv + j] * model_.disturbance_std * v[p * nv + j];
-                X_[p * n + i] += model_.dt * (a[p * n + i] + bv);
-            }
+        for (double& vi : v) vi *= model_.disturbance_std;
+        system_advance(sys, X_.data(), X_.data(), v.data(), in.t, model_.dt, np_);
         std::vector<double> xn(n);
         mean(xn);
         if (!filter_estimate_ok(xn.data(), n)) return FILTER_DIVERGED;
