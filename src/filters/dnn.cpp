@@ -56,10 +56,13 @@ public:
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;  // the estimate stays frozen at its last value
+        xf_.resize(n);
+        luenberger_correct(xf_.data(), xhat_.data(), k.data(), e.data(), n, m, model_.dt);
         luenberger_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt);
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override {
         return std::make_unique<DnnFilter>(model_, net_->clone(), law_->clone(), measured_, name_);
     }
@@ -70,7 +73,7 @@ private:
     std::unique_ptr<DnnGainLaw> law_;
     bool measured_;
     std::string name_;
-    std::vector<double> xhat_;
+    std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
 };
 
 }  // namespace

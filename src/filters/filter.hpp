@@ -3,7 +3,9 @@
 //
 // Time convention (the sampled-data filter of seed 000 eq. (19)): before step k, estimate() is the
 // estimate of x(t_k) from y(t_0) ... y(t_{k-1}); step(y(t_k)) moves it to the estimate of x(t_{k+1}).
-// Every filter is scored on this one-step prediction, i.e. on the same information.
+// Every filter is scored on this one-step prediction, i.e. on the same information. Filters with a measurement
+// update also give the filtered estimate x^_{k|k} of x(t_k) from y(t_0) ... y(t_k) after step(y(t_k)): the score
+// published tables use (docs/compare.md, "Predicted and filtered scores").
 // Shape legend: n = states, nv = disturbance inputs, m = outputs.
 #pragma once
 #include <cstdint>
@@ -59,6 +61,9 @@ public:
     virtual FilterStatus step(const FilterInput& in) = 0;
     /// [n] estimate of x(t_k) before step k.
     virtual const double* estimate() const = 0;
+    /// [n] after step(y(t_k)): the filtered estimate x^_{k|k} of x(t_k) (the measurement at t_k used), or nullptr
+    /// for filters without one. Unspecified before the first step and after FILTER_DIVERGED.
+    virtual const double* filtered() const { return nullptr; }
     /// [n x n] error covariance of estimate(), or nullptr for filters without one.
     virtual const double* covariance() const { return nullptr; }
     /// Whether step() reads x_true (the comparison says so next to every figure).

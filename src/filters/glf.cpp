@@ -76,15 +76,18 @@ public:
         for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[j];
         luenberger_advance(next.data(), xhat_.data(), a.data(), gain_.data(), e.data(), n, m, model_.dt);
         if (!filter_estimate_ok(next.data(), n)) return FILTER_DIVERGED;
+        xf_.resize(n);
+        luenberger_correct(xf_.data(), xhat_.data(), gain_.data(), e.data(), n, m, model_.dt);
         xhat_ = next;
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<GlobalLinearizationFilter>(*this); }
 
 private:
     FilterModel model_;
-    std::vector<double> gain_, xhat_;
+    std::vector<double> gain_, xhat_, xf_;
 };
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "hinf/error.hpp"
 #include "models/system.hpp"
 #include "sim/truth.hpp"
+#include "eval/engine.hpp"
 
 using namespace hinf;
 
@@ -134,7 +135,7 @@ TEST_CASE("discrete system: EKF and UKF equal the Kalman filter's closed form on
     Eigen::Vector2d G(0.5, 1.0), x(0, 0);
     Eigen::RowVector2d H(1.0, 0.5);
     const double q = 0.7 * 0.7, r = 0.4 * 0.4;
-    double worst = 0;
+    double worst = 0, worst_filtered = 0;
     for (std::int64_t k = 0; k < K; ++k) {
         FilterInput in{&tr.y[k], cfg.time_of(k), k, nullptr};
         REQUIRE(ekf->step(in) == FILTER_OK);
@@ -143,6 +144,10 @@ TEST_CASE("discrete system: EKF and UKF equal the Kalman filter's closed form on
         const Eigen::Vector2d Kg = P * H.transpose() / S;
         x = x + Kg * (tr.y[k] - H * x);
         P = P - Kg * S * Kg.transpose();
+        // the filtered estimate x^_{k|k}: after the measurement at k, before the prediction
+        for (int i = 0; i < 2; ++i)
+            for (const double* xf : {ekf->filtered(), ukf->filtered()})
+                worst_filtered = std::max(worst_filtered, std::fabs(xf[i] - x[i]) / std::max(std::fabs(x[i]), 1e-3));
         x = F * x;
         P = F * P * F.transpose() + q * G * G.transpose();
         for (int i = 0; i < 2; ++i) {
@@ -152,8 +157,92 @@ TEST_CASE("discrete system: EKF and UKF equal the Kalman filter's closed form on
                 worst = std::max(worst, std::fabs(ekf->covariance()[i * 2 + j] - P(i, j)) / std::max(std::fabs(P(i, j)), 1e-6));
         }
     }
-    INFO("worst relative difference " << worst);
+    INFO("worst relative difference " << worst << ", filtered " << worst_filtered);
     CHECK(worst < 1e-10);
+    CHECK(worst_filtered < 1e-10);
+}
+
+TEST_CASE("discrete system: a known initial state (P0 = 0) and the PF's stratified resampling", "[models][discrete][pf]") {
+    RunConfig cfg = config_of(kLinear);
+    const std::int64_t K = 60;
+    TruthRun tr = truth_simulate(cfg, scenario_named("nominal"), 1, K);
+    FilterStart start;
+    start.xhat0 = cfg.x0;  // the true start, known exactly
+    start.P0 = {0.0, 0.0, 0.0, 0.0};
+    start.seed = 3;
+    auto ekf = make_ekf(filter_model(cfg)), ukf = make_ukf(filter_model(cfg));
+    auto pf = make_particle_filter(filter_model(cfg), 20000, 1.0, 0.0, true);
+    for (auto* f : {ekf.get(), ukf.get(), pf.get()}) f->reset(start);
+    // every particle starts at x0; the UKF's sigma points collapse onto it (a PSD square root of P0 = 0)
+    CHECK(pf->estimate()[0] == Approx(cfg.x0[0]).epsilon(1e-12));
+    CHECK(pf->estimate()[1] == Approx(cfg.x0[1]).epsilon(1e-12));
+    double worst_ukf = 0, worst_pf = 0;
+    for (std::int64_t k = 0; k < K; ++k) {
+        FilterInput in{&tr.y[k], cfg.time_of(k), k, nullptr};
+        REQUIRE(ekf->step(in) == FILTER_OK);
+        REQUIRE(ukf->step(in) == FILTER_OK);
+        REQUIRE(pf->step(in) == FILTER_OK);
+        for (int i = 0; i < 2; ++i) {
+            worst_ukf = std::max(worst_ukf, std::fabs(ukf->filtered()[i] - ekf->filtered()[i]));
+            worst_pf = std::max(worst_pf, std::fabs(pf->filtered()[i] - ekf->filtered()[i]));
+        }
+    }
+    INFO("UKF " << worst_ukf << ", stratified PF (20000 particles, resampled every step) " << worst_pf);
+    CHECK(worst_ukf < 1e-9);  // a linear system: the UKF is the Kalman filter
+    CHECK(worst_pf < 0.05);   // Monte Carlo error of the posterior mean (its std is about 0.5)
+    // stratified and systematic resampling differ in their draws, not in what they estimate
+    auto sys_pf = make_particle_filter(filter_model(cfg), 20000, 1.0, 0.0, false);
+    sys_pf->reset(start);
+    bool differ = false;
+    for (std::int64_t k = 0; k < 5; ++k) {
+        FilterInput in{&tr.y[k], cfg.time_of(k), k, nullptr};
+        REQUIRE(sys_pf->step(in) == FILTER_OK);
+    }
+    pf->reset(start);
+    for (std::int64_t k = 0; k < 5; ++k) {
+        FilterInput in{&tr.y[k], cfg.time_of(k), k, nullptr};
+        REQUIRE(pf->step(in) == FILTER_OK);
+    }
+    differ = pf->filtered()[0] != sys_pf->filtered()[0];
+    CHECK(differ);
+}
+
+TEST_CASE("discrete system: [baseline] changes what the filters are told, not the truth", "[models][discrete][baseline]") {
+    const std::string with_param = std::string(kLinear).replace(std::string(kLinear).find("f = ["), 5,
+                                                                "parameters = { c = 0.2 }\nf = [") ;
+    std::string text = with_param;
+    text.replace(text.find("0.9*a + 0.2*b"), 13, "0.9*a + c*b");
+    RunConfig same = config_of(text);
+    CHECK(same.told_system == same.system);
+    CHECK(same.told_noise_std == same.noise_std);
+    RunConfig cfg = config_of(text, {"baseline.parameters.c=0.5", "baseline.noise_std=2", "baseline.initial_std=[0, 3]"});
+    REQUIRE(cfg.told_system != cfg.system);
+    const double x[2] = {1.0, 1.0};
+    double truth[2], told[2];
+    system_advance(*cfg.system, truth, x, nullptr, 0.0, cfg.dt);
+    system_advance(*cfg.told_system, told, x, nullptr, 0.0, cfg.dt);
+    CHECK(truth[0] == Approx(1.1));
+    CHECK(told[0] == Approx(1.4));
+    FilterModel m = scenario_told_model(cfg, scenario_named("nominal"));
+    CHECK(m.system == cfg.told_system.get());
+    CHECK(m.noise_std == 2.0);
+    CHECK(m.disturbance_std == cfg.disturbance_std);
+    CHECK(engine_filter_start(cfg, 0).P0 == std::vector<double>{0.0, 0.0, 0.0, 9.0});
+    auto message = [&](const std::vector<std::string>& sets) {
+        try {
+            config_of(text, sets);
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    CHECK(message({"baseline.parameters.zeta=1"}).find("'zeta' is not a [system] parameter") != std::string::npos);
+    CHECK(message({"baseline.noise_std=0"}).find("must be > 0") != std::string::npos);
+    CHECK(message({"baseline.initial_std=[1, -1]"}).find("entries must be >= 0") != std::string::npos);
+    CHECK(message({"baseline.ukf_kappa=-2"}).find("use kappa > -n") != std::string::npos);
+    CHECK(message({"baseline.pf_resampling=\"multinomial\""}).find("is not one of: systematic, stratified") !=
+          std::string::npos);
+    CHECK(message({"baseline.pf_ess_fraction=2"}).find("out of range") != std::string::npos);
 }
 
 TEST_CASE("discrete system: bad keys and continuous-time-only parts give one line", "[models][discrete][errors]") {
