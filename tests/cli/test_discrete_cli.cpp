@@ -103,3 +103,25 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
                               " --runs 1 --quiet --out " + (d / "dn"),
                           "is a continuous-time (Euler-sampled) filter");
 }
+
+TEST_CASE("the benchmark configs run: runs/ungm.toml and scripts/benchmark-lorenz on one cell", "[cli][discrete][benchmarks]") {
+    TempDir d("cli-bench");
+    auto u = run_hinf("compare " + hinf::test::source_path("runs/ungm.toml") +
+                      " --filters ekf,ukf,pf --particles 100 --runs 2 --until 50 --quiet --out " + (d / "ungm"));
+    INFO(u.output);
+    REQUIRE(u.status == 0);
+    // one cell of the Lorenz process-mismatch table: EKF told J = 2, q tuned over a two-value grid
+    auto l = hinf::test::run_command("cd " + hinf::test::source_path("") + " && /usr/bin/python3 scripts/benchmark-lorenz"
+                                     " --hinf " + std::string(HINF_CLI_PATH) + " --table process --rows ekf_J2 --columns 0"
+                                     " --runs 1 --tune-runs 1 --grid 1,10 --out " + (d / "lorenz"));
+    INFO(l.output);
+    REQUIRE(l.status == 0);
+    CHECK(l.output.find("baseline.parameters.c3=0") != std::string::npos);
+    CHECK(l.output.find("| EKF (told J = 2) | -10.36 / ") != std::string::npos);
+    std::ifstream csv(d / "lorenz/lorenz_process.csv");
+    std::string header, row;
+    std::getline(csv, header);
+    std::getline(csv, row);
+    CHECK(header.rfind("table,row,column_db,published_db,hinf_db", 0) == 0);
+    CHECK(row.rfind("process,ekf_J2,0,-10.36,", 0) == 0);
+}
