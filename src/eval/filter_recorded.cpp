@@ -23,6 +23,7 @@ namespace {
 struct Path {
     std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
     std::vector<double> xhat_final;      // [n]
+    std::vector<double> xhat_filtered;   // [K x n] x^_{k|k} (filters that have one; docs/compare.md)
     bool has_cov = false;
 };
 
@@ -109,7 +110,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             }
             ++used;
             if (k % 1000 == 999) progress.update(k + 1, "");
-        });
+        }, [&](std::int64_t, const double* xf) { p.xhat_filtered.insert(p.xhat_filtered.end(), xf, xf + n); });
         r.diverged_at = sr.diverged_at;
         const double seconds = sr.seconds;
         p.xhat_final.assign(f->estimate(), f->estimate() + n);
@@ -162,6 +163,9 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
                               "estimate after the last measurement: x(t_{K-1} + dt)");
             h5::write_doubles(g.get(), "innovation", p.innov.data(), {hsize_t(K), hsize_t(m)}, "output units",
                               "y_k - C(xhat[k], t_k)");
+            if (!p.xhat_filtered.empty())
+                h5::write_doubles(g.get(), "xhat_filtered", p.xhat_filtered.data(), {hsize_t(K), hsize_t(n)}, units,
+                                  "filtered estimate x^_{k|k} of x(t_k) from y(t_0..t_k); frozen after a divergence");
             if (p.has_cov)
                 h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
                                   "the filter's error covariance of xhat[k]");

@@ -97,7 +97,7 @@ std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const Fr
     // the filter steps x^ by the sampled-data law x^ + dt (A(x^) + k e) (seed 000 eq. (19)): continuous time only
     HINF_CHECK(!model.system->discrete_time(),
                "the DNN filter '" + name + "' is a continuous-time (Euler-sampled) filter and the config's system has "
-               "[system] time = \"discrete\" (drop dnn from --filters, or use a continuous-time system)");
+               "[system] time = \"discrete\" (filter it with ekf, ukf, pf or open_loop, or write the system in continuous time)");
     return std::make_unique<DnnFilter>(model, network.clone(), law.clone(), measured, name);
 }
 

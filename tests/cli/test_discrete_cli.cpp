@@ -76,6 +76,12 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
     INFO(f.output);
     REQUIRE(f.status == 0);
     CHECK(f.output.find("20 measurements") != std::string::npos);
+    {
+        hinf::h5::Handle e = hinf::h5::open_file(d / "flt/estimates.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(e.get(), "ekf");
+        CHECK(hinf::h5::read_doubles(g.get(), "xhat_filtered").size() == 20u);
+        CHECK(hinf::h5::get_attr_string(e.get(), "system_time") == "discrete");
+    }
 
     auto w = run_hinf("worst " + cfg + " --filters ekf,open_loop --evals 8 --random-starts 1 --scenario-starts nominal "
                       "--quiet --out " + (d / "w"));
@@ -101,6 +107,9 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
     REQUIRE(t.status == 0);
     expect_one_line_error("compare " + cfg + " --filters dnn --network " + (d / "net/checkpoint.h5") +
                               " --runs 1 --quiet --out " + (d / "dn"),
+                          "is a continuous-time (Euler-sampled) filter");
+    expect_one_line_error("operate " + cfg + " --network " + (d / "net/checkpoint.h5") + " --runs 1 --quiet --out " +
+                              (d / "op"),
                           "is a continuous-time (Euler-sampled) filter");
 }
 
