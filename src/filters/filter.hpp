@@ -18,9 +18,10 @@
 
 namespace hinf {
 
-/// The discrete model x_{k+1} = x_k + dt (A(x_k) + B(x_k) v_k), y_k = C(x_k) + n_k with v_k ~ N(0, sv^2 I),
-/// n_k ~ N(0, sn^2 I): the Euler step the truth is simulated with (sim/truth.cpp, models/system_advance). The statistics are
-/// what the filter is *told*; robustness scenarios tell it wrong ones.
+/// The discrete model x_{k+1} = x_k + dt (A(x_k) + B(x_k) v_k) (continuous-time systems: the Euler step) or
+/// x_{k+1} = A(x_k) + B(x_k) v_k (discrete-time systems), y_k = C(x_k) + n_k with v_k ~ N(0, sv^2 I), n_k ~ N(0, sn^2 I):
+/// the step the truth is simulated with (sim/truth.cpp, models/system_advance). The system and statistics are what
+/// the filter is *told*; robustness scenarios and [baseline] tell it other ones.
 struct FilterModel {
     const System* system = nullptr;
     double dt = 0.01;
