@@ -73,7 +73,7 @@ void add_compare_command(CLI::App& app) {
                     cfg.settle_time);
         std::printf("%-26s %-8s %5s", "filter", "mode", "div");
         for (int i = 0; i < std::min(cfg.n, 3); ++i) std::printf("  %-27s", (names[i] + " (mean, std)").c_str());
-        std::printf("  %10s %10s %10s %9s\n", "RMSEpos", "RMSEpos5", "ratio", "us/step");
+        std::printf("  %10s %10s %10s %9s %9s %9s\n", "RMSEpos", "RMSEpos5", "ratio", "MSEp[dB]", "MSEf[dB]", "us/step");
         for (const auto& fr : s.filters) {
             std::printf("%-26s %-8s %5lld", fr.name.c_str(), fr.mode.c_str(), static_cast<long long>(fr.diverged_runs));
             for (int i = 0; i < std::min(cfg.n, 3); ++i) {
@@ -82,9 +82,11 @@ void add_compare_command(CLI::App& app) {
                               fr.std_settled[i], fr.std_settled_ci[i]);
                 std::printf("  %-27s", cell);
             }
-            std::printf("  %10.4g %10.4g %10.4g %9.2f\n", fr.rmse_position, fr.rmse_position_settled,
-                        fr.attenuation_ratio, fr.us_per_step);
+            std::printf("  %10.4g %10.4g %10.4g %9.2f %9.2f %9.2f\n", fr.rmse_position, fr.rmse_position_settled,
+                        fr.attenuation_ratio, fr.mse_db, fr.mse_filtered_db, fr.us_per_step);
         }
+        std::printf("MSEp / MSEf: 10 log10 of the mean over runs of each run's MSE over all states and steps, of the "
+                    "one-step prediction x^(k|k-1) / of the filtered estimate x^(k|k) (nan: none)\n");
         bool same = true;
         for (const auto& fr : s.filters) same = same && fr.stream_hash == s.truth_stream_hash;
         std::printf("measurement streams identical for all filters: %s; wall %.1f s; files: %s/compare.h5, compare.csv\n",

@@ -8,6 +8,7 @@
 #include "filters/factory.hpp"
 #include "eval/filter_recorded.hpp"
 #include "io/measurements.hpp"
+#include "sim/truth.hpp"
 
 namespace hinf::cli {
 
@@ -56,6 +57,7 @@ void add_filter_command(CLI::App& app) {
         RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset});
+        recorded_check_sampling(cfg, ms, a->measurements);
 
         RecordedOptions opt;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "filter") : a->out;
@@ -75,17 +77,21 @@ void add_filter_command(CLI::App& app) {
         opt.P0.assign(std::size_t(n) * n, 0.0);
         for (int i = 0; i < n; ++i) {
             const double d = cfg.x0[i] - cfg.xhat0[i];  // what `compare` tells the filters
-            const double sd = a->initial_std.empty() ? std::sqrt(std::max(d * d, 1.0)) : a->initial_std[i];
-            HINF_CHECK(sd > 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be > 0");
+            const double sd = !a->initial_std.empty() ? a->initial_std[i]
+                              : !cfg.initial_std.empty() ? cfg.initial_std[i]
+                                                         : std::sqrt(std::max(d * d, 1.0));
+            HINF_CHECK(sd >= 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be >= 0");
             opt.P0[i * n + i] = sd * sd;
         }
 
-        // the filters step on the record's own grid; EKF/UKF/PF are told the config's [online] statistics
-        FilterModel model{cfg.system.get(), ms.dt, cfg.disturbance_std, cfg.noise_std};
+        // the filters step on the record's own grid; EKF/UKF/PF are told the config's [baseline] model and statistics
+        // (default: [system] and [online])
+        FilterModel told = scenario_told_model(cfg, scenario_named("nominal")), model = filter_model(cfg);
+        told.dt = model.dt = ms.dt;
         std::string names = a->filters.empty() ? (a->networks.empty() ? "ekf" : "dnn") : a->filters;
         FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->particles, a->roughening,
                                                             a->glf_vertices},
-                                         model, model);
+                                         told, model);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<OnlineFilter*> filters;
         for (auto& f : set.filters) filters.push_back(f.get());

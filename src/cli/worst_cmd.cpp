@@ -109,9 +109,9 @@ void add_worst_command(CLI::App& app) {
         const std::string out = a->out.empty() ? default_out_dir(a->config, "worst") : a->out;
 
         // the worst signals were found for a budget, not a scenario: the Bayesian filters are told the nominal statistics
-        const FilterModel exact = filter_model(cfg);
+        const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices}, exact, exact);
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

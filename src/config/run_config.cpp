@@ -10,6 +10,8 @@
 
 #include "hinf/error.hpp"
 
+#include <toml++/toml.h>
+
 namespace hinf {
 
 namespace {
@@ -77,7 +79,7 @@ std::vector<double> own_error_floor_default(const RunConfig& c) {
 }
 
 RunConfig load_run_config(ConfigDoc doc) {
-    config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online"});
+    config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
     RunConfig c;
     c.system = make_system(doc);
     c.n = c.system->state_dim();
@@ -229,6 +231,40 @@ RunConfig load_run_config(ConfigDoc doc) {
         if (!has_noise_std) c.noise_std = std::sqrt(c.noise_intensity / c.dt);
     }
     on.finish();
+
+    ConfigSection b(doc, "baseline");
+    c.told_disturbance_std = b.get_double("disturbance_std", c.disturbance_std, 0.0, 1e12);
+    c.told_noise_std = b.get_double("noise_std", c.noise_std, 0.0, 1e12);
+    if (c.told_noise_std <= 0) b.reject("noise_std", "must be > 0 (the EKF/UKF/PF measurement noise they are told)");
+    c.initial_std = b.get_doubles("initial_std", {}, n);
+    for (double v : c.initial_std)
+        if (!(v >= 0)) b.reject("initial_std", "entries must be >= 0 (standard deviations of the initial estimate)");
+    c.ukf_alpha = b.get_double("ukf_alpha", c.ukf_alpha, 1e-6, 1e3);
+    c.ukf_beta = b.get_double("ukf_beta", c.ukf_beta, -1e3, 1e3);
+    c.ukf_kappa = b.get_double("ukf_kappa", c.ukf_kappa, -1e6, 1e6);
+    if (c.ukf_alpha * c.ukf_alpha * (n + c.ukf_kappa) <= 0)
+        b.reject("ukf_kappa", "gives alpha^2 (n + kappa) <= 0: no sigma-point spread (use kappa > -n)");
+    c.pf_resampling = b.get_string("pf_resampling", c.pf_resampling, {"systematic", "stratified"});
+    c.pf_ess_fraction = b.get_double("pf_ess_fraction", c.pf_ess_fraction, 0.0, 1.0);
+    c.told_system = c.system;
+    const std::vector<std::pair<std::string, double>> told = b.get_number_table("parameters");
+    if (!told.empty()) {
+        // the filters' model: the same [system] with some parameters changed (a model mismatch)
+        if (c.system->name() != "expr")
+            b.reject("parameters", "needs [system] kind = \"expr\" (the parameters it changes are [system] parameters)");
+        ConfigDoc told_doc = doc;
+        const auto have = doc.root()["system"]["parameters"];
+        for (const auto& p : told) {
+            if (!have[p.first])
+                b.reject("parameters", "'" + p.first + "' is not a [system] parameter (the filters' model changes only "
+                                                     "parameters the true system has)");
+            char value[64];
+            std::snprintf(value, sizeof value, "%.17g", p.second);
+            told_doc.set("system.parameters." + p.first + "=" + value);
+        }
+        c.told_system = make_system(told_doc);
+    }
+    b.finish();
 
     c.doc = std::move(doc);
     return c;

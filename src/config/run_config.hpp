@@ -73,6 +73,14 @@ struct OnlineConfig {
     std::int64_t runs = 1;
     std::uint64_t online_seed = 7;
     double settle_time = 5.0;  // error statistics are also reported over t >= settle_time [s]
+
+    // [baseline]: what EKF, UKF and PF are told (their model) and how they are tuned; defaults: the truth
+    std::shared_ptr<System> told_system;        // the filters' system ([baseline] parameters), else the true one
+    double told_disturbance_std = -1, told_noise_std = -1;  // resolved to [online]'s when not given
+    std::vector<double> initial_std;            // [n] P0 = diag(initial_std^2); empty: diag(max((x0 - x^0)^2, 1))
+    double ukf_alpha = 1.0, ukf_beta = 2.0, ukf_kappa = 0.0;
+    std::string pf_resampling = "systematic";   // "systematic" or "stratified"
+    double pf_ess_fraction = 0.5;               // resample when ESS < fraction x particles (1: every step)
 };
 
 /// One config file, checked once: the three parts above plus the effective text. A function that needs only

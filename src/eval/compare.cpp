@@ -26,6 +26,7 @@ struct FilterRun {
     std::vector<double> mean, sd, mean_settled, sd_settled;  // [n] within the run
     double sq_pos = 0, sq_vel = 0, sq_pos_settled = 0, sq_vel_settled = 0;  // mean over steps of |e|^2
     double ratio = 0;
+    double mse = 0, mse_filtered = NAN;  // mean over states and steps of e^2 (prediction, filtered estimate)
 };
 
 FilterRun reduce_run(const FilterRunStats& s, std::int64_t steps, int n) {
@@ -37,6 +38,13 @@ FilterRun reduce_run(const FilterRunStats& s, std::int64_t steps, int n) {
     r.sq_vel = s.sq_vel / cnt;
     r.sq_pos_settled = settled > 0 ? s.sq_pos_settled / settled : NAN;
     r.sq_vel_settled = settled > 0 ? s.sq_vel_settled / settled : NAN;
+    double sq = 0, sqf = 0;
+    for (int i = 0; i < n; ++i) sq += s.err_sq[i];
+    r.mse = sq / (cnt * n);
+    if (!s.err_sq_filtered.empty()) {
+        for (int i = 0; i < n; ++i) sqf += s.err_sq_filtered[i];
+        r.mse_filtered = sqf / (cnt * n);
+    }
     r.mean.resize(n);
     r.sd.resize(n);
     r.mean_settled.resize(n);
@@ -154,6 +162,17 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         mean_ci(&fr.rmse_velocity_settled, &ci, over_kept([](const FilterRun& q) { return q.sq_vel_settled; }));
         fr.rmse_velocity_settled = std::sqrt(fr.rmse_velocity_settled);
         mean_ci(&fr.attenuation_ratio, &fr.attenuation_ratio_ci, over_kept([](const FilterRun& q) { return q.ratio; }));
+        std::vector<double> mse_runs(R), msef_runs(R);
+        for (std::int64_t r = 0; r < R; ++r) {
+            mse_runs[r] = runs[r].mse;
+            msef_runs[r] = runs[r].mse_filtered;
+        }
+        mean_ci(&fr.mse, &ci, over_kept([](const FilterRun& q) { return q.mse; }));
+        fr.mse_db = 10.0 * std::log10(fr.mse);
+        if (filters[k]->filtered() != nullptr || !er.runs[k][0].err_sq_filtered.empty()) {
+            mean_ci(&fr.mse_filtered, &ci, over_kept([](const FilterRun& q) { return q.mse_filtered; }));
+            fr.mse_filtered_db = 10.0 * std::log10(fr.mse_filtered);
+        }
 
         // error over time across the kept runs (every `stride` steps), for the +-sigma band plots
         std::vector<double> emt(nsub * n, 0.0), est(nsub * n, 0.0);
@@ -182,6 +201,14 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         h5::set_attr(gid, "attenuation_ratio", fr.attenuation_ratio);
         h5::set_attr(gid, "attenuation_ratio_ci95", fr.attenuation_ratio_ci);
         h5::set_attr(gid, "us_per_step", fr.us_per_step);
+        h5::set_attr(gid, "mse", fr.mse);
+        h5::set_attr(gid, "mse_db", fr.mse_db);
+        h5::set_attr(gid, "mse_filtered", fr.mse_filtered);
+        h5::set_attr(gid, "mse_filtered_db", fr.mse_filtered_db);
+        h5::write_doubles(gid, "mse_per_run", mse_runs.data(), {hsize_t(R)}, "state units^2",
+                          "mean over states and steps of (x - x^_{k|k-1})^2 per run (the prediction)");
+        h5::write_doubles(gid, "mse_filtered_per_run", msef_runs.data(), {hsize_t(R)}, "state units^2",
+                          "mean over states and steps of (x - x^_{k|k})^2 per run (NaN: no filtered estimate)");
         const hsize_t hn = hsize_t(n);
         h5::write_doubles(gid, "error_mean", fr.mean.data(), {hn}, "state units",
                           "per state: mean over time of x - x^ within a run, averaged over the kept runs");
@@ -210,6 +237,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "filters", names);
     h5::set_attr(root, "runs", R);
     h5::set_attr(root, "t_final", tf);
+    h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "truth_stream_hash", hex(sum.truth_stream_hash));
     std::string sn;
@@ -217,7 +245,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "state_names", sn);
     h5::set_attr(root, "meaning",
                  "one group per filter; every filter saw the same truth and measurements (measurement_stream_hash "
-                 "== truth_stream_hash); errors are x - x^ of the one-step prediction; statistics over the runs that "
+                 "== truth_stream_hash); errors are x - x^ of the one-step prediction (mse_filtered*: of the filtered estimate x^_{k|k}); statistics over the runs that "
                  "did not diverge (diverged_runs says how many did); mode: oracle = the filter read the true state");
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
     h5::write_doubles(root, "t", tt.data(), {hsize_t(steps)}, "s", "time");
@@ -235,7 +263,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             << st[i] << "_mean_settled," << st[i] << "_mean_settled_ci95," << st[i] << "_std_settled," << st[i]
             << "_std_settled_ci95";
     csv << ",rmse_position,rmse_velocity,rmse_position_settled,rmse_velocity_settled,attenuation_ratio,"
-           "attenuation_ratio_ci95,us_per_step\n";
+           "attenuation_ratio_ci95,us_per_step,mse,mse_db,mse_filtered,mse_filtered_db\n";
     csv.precision(10);
     for (const auto& fr : sum.filters) {
         csv << sum.scenario << ',' << fr.name << ',' << fr.mode << ',' << R << ',' << fr.diverged_runs;
@@ -245,7 +273,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
                 << fr.std_settled_ci[i];
         csv << ',' << fr.rmse_position << ',' << fr.rmse_velocity << ',' << fr.rmse_position_settled << ','
             << fr.rmse_velocity_settled << ',' << fr.attenuation_ratio << ',' << fr.attenuation_ratio_ci << ','
-            << fr.us_per_step << '\n';
+            << fr.us_per_step << ',' << fr.mse << ',' << fr.mse_db << ',' << fr.mse_filtered << ','
+            << fr.mse_filtered_db << '\n';
     }
     });
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -2,6 +2,7 @@
 // realisations and the same initial estimate, R Monte Carlo runs, confidence intervals. Not the filters
 // (src/filters) and not the argument parsing (cli/compare_cmd.cpp).
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -29,6 +30,10 @@ struct CompareFilterResult {
     std::vector<double> mean_settled, mean_settled_ci, std_settled, std_settled_ci;
     double rmse_position = 0, rmse_velocity = 0, rmse_position_settled = 0, rmse_velocity_settled = 0;
     double attenuation_ratio = 0, attenuation_ratio_ci = 0;  // int x~'Qx~ / int (v'v + n'n), over non-diverged runs
+    // MSE over all states and steps of a run, averaged over the kept runs, and 10 log10 of it [dB] (the metric of
+    // published tables, e.g. KalmanNet's); of the one-step prediction x^_{k|k-1} and of the filtered estimate
+    // x^_{k|k} (NaN: the filter has none)
+    double mse = 0, mse_db = 0, mse_filtered = NAN, mse_filtered_db = NAN;
     double us_per_step = 0;                                    // filter time only, per step
     std::uint64_t stream_hash = 0;                             // FNV-1a of every y this filter was fed
 };

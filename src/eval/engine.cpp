@@ -29,9 +29,10 @@ FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run) {
     start.xhat0 = cfg.xhat0;
     start.P0.assign(std::size_t(n) * n, 0.0);
     for (int i = 0; i < n; ++i) {
-        // the initial estimate's error variance: the actual squared initial error (floor 1), the same for all
+        // the initial estimate's error variance: [baseline] initial_std^2, else the actual squared initial error
+        // (floor 1), the same for all
         const double d = cfg.x0[i] - cfg.xhat0[i];
-        start.P0[i * n + i] = std::max(d * d, 1.0);
+        start.P0[i * n + i] = cfg.initial_std.empty() ? std::max(d * d, 1.0) : cfg.initial_std[i] * cfg.initial_std[i];
     }
     start.seed = cfg.online_seed;
     start.run = run;
@@ -83,6 +84,10 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
             }
         }
         r.stream_hash = hash_bytes(r.stream_hash, tr.y.data() + k * m, sizeof(double) * m);
+    }, [&](std::int64_t k, const double* xf) {
+        const double* x = tr.x.data() + k * n;
+        if (r.err_sq_filtered.empty()) r.err_sq_filtered.assign(n, 0.0);
+        for (int i = 0; i < n; ++i) r.err_sq_filtered[i] += (x[i] - xf[i]) * (x[i] - xf[i]);
     });
     r.diverged_at = sr.diverged_at;
     r.seconds = sr.seconds;
@@ -124,7 +129,8 @@ void put_stats(RunWriter& w, const FilterRunStats& s) {
                      s.error_energy, s.signal_energy, s.seconds})
         w.put(v);
     w.put(s.stream_hash);
-    for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed})
+    for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
+                          &s.err_sq_filtered})
         w.put(*v);
 }
 
@@ -134,7 +140,8 @@ FilterRunStats get_stats(RunReader& rd) {
                       &s.error_energy, &s.signal_energy, &s.seconds})
         *v = rd.get_double();
     s.stream_hash = rd.get_u64();
-    for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed})
+    for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
+                    &s.err_sq_filtered})
         *v = rd.get_vector();
     return s;
 }

@@ -26,20 +26,30 @@ struct StreamResult {
 /// Steps f over K measurements y [K x m] at times t [K]: before step k calls visit(k, xhat, frozen) with the
 /// estimate of x(t_k); a diverged filter stays frozen at its last finite estimate (visit is still called, with
 /// frozen = true). x_true [K x n] is handed to oracle filters (nullptr for recorded data).
-template <class Visit>
+/// After step k calls visit_filtered(k, xhat_filtered) with the filtered estimate x^_{k|k} (f.filtered(); a frozen
+/// filter's last finite estimate); not called for filters without a filtered estimate.
+template <class Visit, class VisitFiltered>
 StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
-                           const double* x_true, int n, Visit&& visit) {
+                           const double* x_true, int n, Visit&& visit, VisitFiltered&& visit_filtered) {
     StreamResult r;
     for (std::int64_t k = 0; k < K; ++k) {
         visit(k, f.estimate(), r.diverged_at >= 0);
-        if (r.diverged_at >= 0) continue;
-        auto c0 = std::chrono::steady_clock::now();
-        FilterStatus st = f.step(FilterInput{y + k * m, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
-        r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-        ++r.stepped;
-        if (st != FILTER_OK) r.diverged_at = t[k];
+        if (r.diverged_at < 0) {
+            auto c0 = std::chrono::steady_clock::now();
+            FilterStatus st = f.step(FilterInput{y + k * m, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
+            r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+            ++r.stepped;
+            if (st != FILTER_OK) r.diverged_at = t[k];
+        }
+        if (f.filtered() != nullptr) visit_filtered(k, r.diverged_at >= 0 ? f.estimate() : f.filtered());
     }
     return r;
+}
+
+template <class Visit>
+StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
+                           const double* x_true, int n, Visit&& visit) {
+    return filter_stream(f, y, m, t, K, x_true, n, visit, [](std::int64_t, const double*) {});
 }
 
 /// Watches one filter's run step by step (one instance per thread: clone()). begin/end bracket each (filter,
@@ -58,6 +68,7 @@ public:
 struct FilterRunStats {
     double diverged_at = -1;
     std::vector<double> err_sum, err_sq;                  // [n] sums of e = x - x^ and e^2 over all steps
+    std::vector<double> err_sq_filtered;                  // [n] sums of (x - x^_{k|k})^2; empty: no filtered estimate
     std::vector<double> err_sum_settled, err_sq_settled;  // [n] the same over t >= settle_time
     double settled_steps = 0;
     double sq_pos = 0, sq_vel = 0, sq_pos_settled = 0, sq_vel_settled = 0;  // sums of |e|^2 over unit groups 0, 1
@@ -97,7 +108,8 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
 /// The process that computes run `run` of a Monte Carlo among `ranks`.
 std::int64_t engine_rank_of(std::int64_t run, int ranks);
 
-/// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0 with P0 = diag(max(e0^2, 1)).
+/// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0 with P0 = diag([baseline]
+/// initial_std^2), else diag(max(e0^2, 1)).
 FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);
 
 /// FNV-1a 64 over bytes, continuing from h (start with hash_start).

@@ -52,12 +52,21 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
 
 }  // namespace
 
+void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source) {
+    // a discrete system's step k is t / dt with the config's dt: a record sampled otherwise would be another model
+    HINF_CHECK(!cfg.system->discrete_time() || std::fabs(ms.dt - cfg.dt) <= 1e-6 * cfg.dt,
+               source + ": the record is sampled every " + std::to_string(ms.dt) + " s, the discrete-time system of " +
+                   cfg.doc.source() + " steps every [filter] dt = " + std::to_string(cfg.dt) +
+                   " s (set dt to the record's period)");
+}
+
 std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,
                                             const Measurements& ms, const RecordedOptions& opt) {
     const System& sys = *cfg.system;
     const int n = cfg.n, m = cfg.m;
     const std::int64_t K = ms.rows;
     HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
+    recorded_check_sampling(cfg, ms, opt.source);
     HINF_CHECK(int(opt.xhat0.size()) == n && opt.P0.size() == std::size_t(n) * n, "filter: initial estimate size");
     const RunDirLock lock(opt.out_dir, "hinf filter");  // before anything there is opened for writing
     std::vector<RecordedResult> results;
@@ -81,6 +90,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "system", sys.name());
         h5::set_attr(root, "rows", K);
         h5::set_attr(root, "dt", ms.dt);
+        h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
         h5::set_attr(root, "mode", "measured");
         h5::set_attr(root, "meaning",
                      "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "
@@ -109,6 +119,9 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
                               "estimate after the last measurement: x(t_{K-1} + dt)");
             h5::write_doubles(g.get(), "innovation", p.innov.data(), {hsize_t(K), hsize_t(m)}, "output units",
                               "y_k - C(xhat[k], t_k)");
+            if (!p.xhat_filtered.empty())
+                h5::write_doubles(g.get(), "xhat_filtered", p.xhat_filtered.data(), {hsize_t(K), hsize_t(n)}, units,
+                                  "filtered estimate x^_{k|k} of x(t_k) from y(t_0..t_k); frozen after a divergence");
             if (p.has_cov)
                 h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
                                   "the filter's error covariance of xhat[k]");
@@ -180,7 +193,7 @@ RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Meas
         }
         ++used;
         if (k % 1000 == 999) progress.update(k + 1, "");
-    });
+    }, [&](std::int64_t, const double* xf) { p.xhat_filtered.insert(p.xhat_filtered.end(), xf, xf + n); });
     r.diverged_at = sr.diverged_at;
     const double seconds = sr.seconds;
     p.xhat_final.assign(f.estimate(), f.estimate() + n);

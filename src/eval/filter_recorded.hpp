@@ -29,6 +29,9 @@ struct RecordedResult {
     double us_per_step = 0;
 };
 
+/// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt.
+void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source);
+
 /// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;
 /// writes out_dir/estimates.h5 (one group per filter) and out_dir/estimates_<filter>.csv.
 /// Filters that read the true state are refused (there is none).
@@ -39,6 +42,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
 struct RecordedPath {
     std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
     std::vector<double> xhat_final;      // [n]
+    std::vector<double> xhat_filtered;   // [K x n] x^_{k|k} (filters that have one; docs/compare.md)
     bool has_cov = false;
 };
 

@@ -435,6 +435,7 @@ void write_identity(hid_t root, const RunConfig& cfg, std::int64_t steps) {
     h5::set_attr(root, "nv", std::int64_t(cfg.nv));
     h5::set_attr(root, "m", std::int64_t(cfg.m));
     h5::set_attr(root, "dt", cfg.dt);
+    h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
     h5::set_attr(root, "steps", steps);
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
 }

@@ -1,6 +1,7 @@
 // DNN filter adapter (seed 000 eq. (19), Fig. 3 on-line phase) over any frozen network and gain law.
 // The trainer advances x^ through the same luenberger_advance (filters/gain_law.hpp).
 #include "filters/dnn.hpp"
+#include "hinf/error.hpp"
 
 #include <set>
 
@@ -57,10 +58,13 @@ public:
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;  // the estimate stays frozen at its last value
+        xf_.resize(n);
+        luenberger_correct(xf_.data(), xhat_.data(), k.data(), e.data(), n, m, model_.dt);
         luenberger_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt);
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override {
         return std::make_unique<DnnFilter>(model_, net_->clone(), law_->clone(), measured_, name_);
     }
@@ -71,7 +75,7 @@ private:
     std::unique_ptr<DnnGainLaw> law_;
     bool measured_;
     std::string name_;
-    std::vector<double> xhat_;
+    std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
 };
 
 }  // namespace
@@ -92,6 +96,10 @@ void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat
 
 std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
                                               const DnnGainLaw& law, bool measured, const std::string& name) {
+    // the filter steps x^ by the sampled-data law x^ + dt (A(x^) + k e) (seed 000 eq. (19)): continuous time only
+    HINF_CHECK(!model.system->discrete_time(),
+               "the DNN filter '" + name + "' is a continuous-time (Euler-sampled) filter and the config's system has "
+               "[system] time = \"discrete\" (filter it with ekf, ukf, pf or open_loop, or write the system in continuous time)");
     return std::make_unique<DnnFilter>(model, network.clone(), law.clone(), measured, name);
 }
 

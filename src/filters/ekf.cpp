@@ -51,15 +51,17 @@ public:
         if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
         x_ = xn;
         P_ = Pn;
+        xf_ = xu;
         return FILTER_OK;
     }
     const double* estimate() const override { return x_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     const double* covariance() const override { return P_.data(); }  // symmetric: layout does not matter
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ExtendedKalmanFilter>(*this); }
 
 private:
     FilterModel model_;
-    Vec x_;
+    Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
 };
 

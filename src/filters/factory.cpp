@@ -29,17 +29,25 @@ namespace {
 // Filters built from the told model alone: name -> maker. dnn and glf need more (networks, an LMI design).
 struct SimpleFilter {
     const char* name;
-    std::unique_ptr<OnlineFilter> (*make)(const FilterSetArgs& a, const FilterModel& told, const FilterModel& exact);
+    std::unique_ptr<OnlineFilter> (*make)(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,
+                                          const FilterModel& exact);
 };
+// the tuning of UKF and PF: the config's [baseline] keys
 const SimpleFilter kSimpleFilters[] = {
-    {"ekf", [](const FilterSetArgs&, const FilterModel& told, const FilterModel&) { return make_ekf(told); }},
-    {"ukf", [](const FilterSetArgs&, const FilterModel& told, const FilterModel&) { return make_ukf(told); }},
+    {"ekf", [](const RunConfig&, const FilterSetArgs&, const FilterModel& told, const FilterModel&) { return make_ekf(told); }},
+    {"ukf",
+     [](const RunConfig& cfg, const FilterSetArgs&, const FilterModel& told, const FilterModel&) {
+         return make_ukf(told, cfg.ukf_alpha, cfg.ukf_beta, cfg.ukf_kappa);
+     }},
     {"pf",
-     [](const FilterSetArgs& a, const FilterModel& told, const FilterModel&) {
-         return make_particle_filter(told, a.particles, 0.5, a.roughening);
+     [](const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told, const FilterModel&) {
+         return make_particle_filter(told, a.particles, cfg.pf_ess_fraction, a.roughening,
+                                     cfg.pf_resampling == "stratified");
      }},
     {"open_loop",
-     [](const FilterSetArgs&, const FilterModel&, const FilterModel& exact) { return make_open_loop_filter(exact); }},
+     [](const RunConfig&, const FilterSetArgs&, const FilterModel&, const FilterModel& exact) {
+         return make_open_loop_filter(exact);
+     }},
 };
 
 // "missile (states x, y, z, vx, vy, vz; 1 disturbance, 6 outputs)": what a network is tied to
@@ -66,7 +74,7 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
         const SimpleFilter* simple = nullptr;
         for (const SimpleFilter& f : kSimpleFilters)
             if (name == f.name) simple = &f;
-        if (simple != nullptr) owned.push_back(simple->make(a, told, exact));
+        if (simple != nullptr) owned.push_back(simple->make(cfg, a, told, exact));
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
             GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, cfg.rho);

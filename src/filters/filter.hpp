@@ -3,7 +3,9 @@
 //
 // Time convention (the sampled-data filter of seed 000 eq. (19)): before step k, estimate() is the
 // estimate of x(t_k) from y(t_0) ... y(t_{k-1}); step(y(t_k)) moves it to the estimate of x(t_{k+1}).
-// Every filter is scored on this one-step prediction, i.e. on the same information.
+// Every filter is scored on this one-step prediction, i.e. on the same information. Filters with a measurement
+// update also give the filtered estimate x^_{k|k} of x(t_k) from y(t_0) ... y(t_k) after step(y(t_k)): the score
+// published tables use (docs/compare.md, "Predicted and filtered scores").
 // Shape legend: n = states, nv = disturbance inputs, m = outputs.
 #pragma once
 #include <cstdint>
@@ -16,9 +18,10 @@
 
 namespace hinf {
 
-/// The discrete model x_{k+1} = x_k + dt (A(x_k) + B(x_k) v_k), y_k = C(x_k) + n_k with v_k ~ N(0, sv^2 I),
-/// n_k ~ N(0, sn^2 I): the Euler step the truth is simulated with (sim/truth.cpp, models/system_advance). The statistics are
-/// what the filter is *told*; robustness scenarios tell it wrong ones.
+/// The discrete model x_{k+1} = x_k + dt (A(x_k) + B(x_k) v_k) (continuous-time systems: the Euler step) or
+/// x_{k+1} = A(x_k) + B(x_k) v_k (discrete-time systems), y_k = C(x_k) + n_k with v_k ~ N(0, sv^2 I), n_k ~ N(0, sn^2 I):
+/// the step the truth is simulated with (sim/truth.cpp, models/system_advance). The system and statistics are what
+/// the filter is *told*; robustness scenarios and [baseline] tell it other ones.
 struct FilterModel {
     const System* system = nullptr;
     double dt = 0.01;
@@ -59,6 +62,9 @@ public:
     virtual FilterStatus step(const FilterInput& in) = 0;
     /// [n] estimate of x(t_k) before step k.
     virtual const double* estimate() const = 0;
+    /// [n] after step(y(t_k)): the filtered estimate x^_{k|k} of x(t_k) (the measurement at t_k used), or nullptr
+    /// for filters without one. Unspecified before the first step and after FILTER_DIVERGED.
+    virtual const double* filtered() const { return nullptr; }
     /// [n x n] error covariance of estimate(), or nullptr for filters without one.
     virtual const double* covariance() const { return nullptr; }
     /// Whether step() reads x_true (the comparison says so next to every figure).

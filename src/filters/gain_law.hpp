@@ -70,6 +70,17 @@ inline void luenberger_advance(double* xhat_next, const double* xhat, const doub
     }
 }
 
+/// The filtered-estimate equivalent of a sampled-data filter (docs/compare.md): the step above split into its
+/// measurement correction x^_{k|k} = x^ + dt k e, then the prediction x^_next = x^_{k|k} + dt A(x^).
+inline void luenberger_correct(double* xhat_filtered, const double* xhat, const double* k, const double* e, int n,
+                               int m, double dt) {
+    for (int i = 0; i < n; ++i) {
+        double ke = 0;
+        for (int j = 0; j < m; ++j) ke += k[i * m + j] * e[j];
+        xhat_filtered[i] = xhat[i] + dt * ke;
+    }
+}
+
 /// The four terms of the HJIE (seed 000 eq. (16)) at one point: p = dV/dx~ at x~ = x - x^, with dA = A(x) - A(x^),
 /// B(x), dC = C(x) - C(x^), x~'Q x~ (kern::hjie_terms). Their sum is the residual; the sum of their absolute
 /// values is its scale S. Used by the trainer's record and the on-line HJI check.

@@ -76,15 +76,18 @@ public:
         for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[j];
         luenberger_advance(next.data(), xhat_.data(), a.data(), gain_.data(), e.data(), n, m, model_.dt);
         if (!filter_estimate_ok(next.data(), n)) return FILTER_DIVERGED;
+        xf_.resize(n);
+        luenberger_correct(xf_.data(), xhat_.data(), gain_.data(), e.data(), n, m, model_.dt);
         xhat_ = next;
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<GlobalLinearizationFilter>(*this); }
 
 private:
     FilterModel model_;
-    std::vector<double> gain_, xhat_;
+    std::vector<double> gain_, xhat_, xf_;
 };
 
 }  // namespace
@@ -93,6 +96,9 @@ GlfDesign glf_design(const System& sys, const std::vector<double>& x0, const std
                      double t_final, int vertices, double rho_max) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
     HINF_CHECK(vertices >= 1, "glf: the vertex count must be >= 1");
+    // seed 001's design linearizes the vector field A(x) and discretizes by Euler: continuous time only
+    HINF_CHECK(!sys.discrete_time(), "--filters glf: the GLF design is for continuous-time systems (an Euler-sampled "
+                                     "LMI on dA/dx) and the config's system has [system] time = \"discrete\" (drop glf)");
     HINF_CHECK(static_cast<int>(x0.size()) == n && static_cast<int>(Q.size()) == n * n, "glf: x0 / Q have the wrong size");
     GlfDesign d;
     d.vertices = vertices;

@@ -14,15 +14,17 @@ public:
         const int n = model_.system->state_dim();
         system_advance(*model_.system, next_.data(), xhat_.data(), nullptr, in.t, model_.dt);
         if (!filter_estimate_ok(next_.data(), n)) return FILTER_DIVERGED;
+        xf_ = xhat_;  // no measurement update: x^_{k|k} = x^_{k|k-1}
         xhat_ = next_;
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<OpenLoopFilter>(*this); }
 
 private:
     FilterModel model_;
-    std::vector<double> xhat_, next_;
+    std::vector<double> xhat_, next_, xf_;
 };
 
 }  // namespace

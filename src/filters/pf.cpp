@@ -1,11 +1,12 @@
-// Bootstrap particle filter (Gordon, Salmond & Smith 1993) on the discrete model of filter.hpp: the
-// transition prior as proposal, log-weights, systematic resampling when the effective sample size
+// Bootstrap particle filter (Gordon, Salmond & Smith 1993) on the discrete model of filter.hpp (the system's
+// own step, system_advance): the transition prior as proposal, log-weights, systematic resampling when the effective sample size
 // drops below a fraction of the particle count. Draws keyed by (seed, run, step): thread-count independent.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
 #include "filters/pf.hpp"
+#include "filters/psd_sqrt.hpp"
 #include "hinf/error.hpp"
 #include "random.hpp"
 
@@ -15,8 +16,9 @@ namespace {
 
 class ParticleFilter final : public OnlineFilter {
 public:
-    ParticleFilter(const FilterModel& model, std::int64_t particles, double ess_fraction, double roughening)
-        : model_(model), np_(particles), ess_fraction_(ess_fraction), roughening_(roughening) {
+    ParticleFilter(const FilterModel& model, std::int64_t particles, double ess_fraction, double roughening,
+                   bool stratified)
+        : model_(model), np_(particles), ess_fraction_(ess_fraction), roughening_(roughening), stratified_(stratified) {
         HINF_CHECK(roughening >= 0, "particle filter: roughening must be >= 0");
         HINF_CHECK(particles >= 1, "particle filter: the particle count must be >= 1 (got " +
                                        std::to_string(particles) + ")");
@@ -30,16 +32,15 @@ public:
         // initial cloud ~ N(x^0, P0)
         Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> P0(start.P0.data(), n, n);
         const Eigen::MatrixXd P0d = P0;
-        Eigen::LLT<Eigen::MatrixXd> llt(P0d);
-        HINF_CHECK(llt.info() == Eigen::Success, "particle filter: the initial covariance is not positive definite");
-        Eigen::MatrixXd L = llt.matrixL();
+        Eigen::MatrixXd L;  // lower triangular when P0 is positive definite; P0 = 0 (a known start) gives L = 0
+        HINF_CHECK(psd_sqrt(P0d, &L), "particle filter: the initial covariance is not positive semidefinite");
         X_.assign(static_cast<std::size_t>(np_) * n, 0.0);
         std::vector<double> z(static_cast<std::size_t>(np_) * n);
         kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_PARTICLES, run_, 0);
         for (std::int64_t p = 0; p < np_; ++p)
             for (int i = 0; i < n; ++i) {
                 double s = start.xhat0[i];
-                for (int j = 0; j <= i; ++j) s += L(i, j) * z[p * n + j];
+                for (int j = 0; j < n; ++j) s += L(i, j) * z[p * n + j];
                 X_[p * n + i] = s;
             }
         w_.assign(np_, 1.0 / double(np_));
@@ -70,15 +71,19 @@ public:
             w_[p] /= total;
             sq += w_[p] * w_[p];
         }
-        // systematic resampling when ESS = 1 / sum w^2 < fraction * N
+        // the filtered estimate x^_{k|k}: the weighted mean before resampling (resampling adds only noise)
+        mean(xf_);
+        // systematic (or stratified) resampling when ESS = 1 / sum w^2 < fraction * N
         if (1.0 / sq < ess_fraction_ * double(np_)) {
-            double u0;
-            kern::rng_uniform(&u0, 1, seed_, kern::RNG_STREAM_RESAMPLE, run_, std::uint64_t(in.step));
+            std::vector<double> u0(stratified_ ? std::size_t(np_) : 1u);
+            kern::rng_uniform(u0.data(), std::int64_t(u0.size()), seed_, kern::RNG_STREAM_RESAMPLE, run_,
+                              std::uint64_t(in.step));
             std::vector<double> Xr(X_.size());
             double cum = w_[0];
             std::int64_t src = 0;
             for (std::int64_t p = 0; p < np_; ++p) {
-                const double u = (double(p) + (1.0 - u0)) / double(np_);  // u0 in (0, 1]: offset in [0, 1)
+                // u0 in (0, 1]: offset in [0, 1); one offset for all (systematic) or one per stratum (stratified)
+                const double u = (double(p) + (1.0 - u0[stratified_ ? std::size_t(p) : 0u])) / double(np_);
                 while (cum < u && src < np_ - 1) cum += w_[++src];
                 std::copy(X_.begin() + src * n, X_.begin() + (src + 1) * n, Xr.begin() + p * n);
             }
@@ -99,17 +104,11 @@ public:
                     for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
             }
         }
-        // propagate through the transition: x + dt (A(x) + B(x) v), v ~ sv N(0, I)
-        std::vector<double> a(X_.size()), B(static_cast<std::size_t>(np_) * n * nv), v(static_cast<std::size_t>(np_) * nv);
-        sys.drift(a.data(), X_.data(), in.t, np_);
-        sys.disturbance_gain(B.data(), X_.data(), in.t, np_);
+        // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
+        std::vector<double> v(static_cast<std::size_t>(np_) * nv);
         kern::rng_normal(v.data(), np_ * nv, seed_, kern::RNG_STREAM_PARTICLES, run_, std::uint64_t(in.step) + 1);
-        for (std::int64_t p = 0; p < np_; ++p)
-            for (int i = 0; i < n; ++i) {
-                double bv = 0;
-                for (int j = 0; j < nv; ++j) bv += B[(p * n + i) * nv + j] * model_.disturbance_std * v[p * nv + j];
-                X_[p * n + i] += model_.dt * (a[p * n + i] + bv);
-            }
+        for (double& vi : v) vi *= model_.disturbance_std;
+        system_advance(sys, X_.data(), X_.data(), v.data(), in.t, model_.dt, np_);
         std::vector<double> xn(n);
         mean(xn);
         if (!filter_estimate_ok(xn.data(), n)) return FILTER_DIVERGED;
@@ -117,6 +116,7 @@ public:
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ParticleFilter>(*this); }
     std::int64_t resamples() const { return resamples_; }
 
@@ -131,16 +131,17 @@ private:
     FilterModel model_;
     std::int64_t np_;
     double ess_fraction_, roughening_;
+    bool stratified_;
     std::uint64_t seed_ = 0, run_ = 0;
     std::int64_t resamples_ = 0;
-    std::vector<double> X_, w_, xhat_;  // X_ [np x n], w_ [np] normalised
+    std::vector<double> X_, w_, xhat_, xf_;  // X_ [np x n], w_ [np] normalised; x^_{k+1|k}, x^_{k|k}
 };
 
 }  // namespace
 
 std::unique_ptr<OnlineFilter> make_particle_filter(const FilterModel& model, std::int64_t particles,
-                                                   double ess_fraction, double roughening) {
-    return std::make_unique<ParticleFilter>(model, particles, ess_fraction, roughening);
+                                                   double ess_fraction, double roughening, bool stratified) {
+    return std::make_unique<ParticleFilter>(model, particles, ess_fraction, roughening, stratified);
 }
 
 }  // namespace hinf

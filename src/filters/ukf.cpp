@@ -1,5 +1,6 @@
 // See ukf.hpp.
 #include "filters/ukf.hpp"
+#include "filters/psd_sqrt.hpp"
 
 #include <Eigen/Dense>
 #include <cmath>
@@ -13,12 +14,11 @@ using Vec = Eigen::VectorXd;
 using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // Unscented Kalman filter, additive noise (Julier & Uhlmann 1997; Wan & van der Merwe 2000), scaled
-// sigma points with alpha = 1, beta = 2, kappa = 0 (lambda = 0: no negative weights).
+// sigma points (alpha, beta, kappa); default 1, 2, 0 (lambda = 0: no negative weights).
 class UnscentedKalmanFilter final : public OnlineFilter {
 public:
-    explicit UnscentedKalmanFilter(const FilterModel& model) : model_(model) {
+    UnscentedKalmanFilter(const FilterModel& model, double alpha, double beta, double kappa) : model_(model) {
         const int n = model.system->state_dim();
-        const double alpha = 1.0, beta = 2.0, kappa = 0.0;
         lambda_ = alpha * alpha * (n + kappa) - n;
         wm_.assign(2 * n + 1, 1.0 / (2.0 * (n + lambda_)));
         wc_ = wm_;
@@ -70,9 +70,11 @@ public:
         if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
         x_ = xn;
         P_ = Pn;
+        xf_ = xu;
         return FILTER_OK;
     }
     const double* estimate() const override { return x_.data(); }
+    const double* filtered() const override { return xf_.data(); }
     const double* covariance() const override { return P_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<UnscentedKalmanFilter>(*this); }
 
@@ -80,9 +82,9 @@ private:
     // rows of X: x, x + sqrt(n + lambda) L_j, x - sqrt(n + lambda) L_j with L L^T = P
     bool sigma_points(RowMat* X, const Vec& x, const Mat& P) const {
         const int n = static_cast<int>(x.size());
-        Eigen::LLT<Mat> llt(P);
-        if (llt.info() != Eigen::Success) return false;
-        Mat L = std::sqrt(n + lambda_) * Mat(llt.matrixL());
+        Mat L;
+        if (!psd_sqrt(P, &L)) return false;
+        L *= std::sqrt(n + lambda_);
         X->row(0) = x.transpose();
         for (int j = 0; j < n; ++j) {
             X->row(1 + j) = (x + L.col(j)).transpose();
@@ -94,12 +96,14 @@ private:
     FilterModel model_;
     double lambda_ = 0;
     std::vector<double> wm_, wc_;
-    Vec x_;
+    Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
 };
 
 }  // namespace
 
-std::unique_ptr<OnlineFilter> make_ukf(const FilterModel& model) { return std::make_unique<UnscentedKalmanFilter>(model); }
+std::unique_ptr<OnlineFilter> make_ukf(const FilterModel& model, double alpha, double beta, double kappa) {
+    return std::make_unique<UnscentedKalmanFilter>(model, alpha, beta, kappa);
+}
 
 }  // namespace hinf

@@ -25,7 +25,7 @@ struct ExprSystem::Compiled {
 
 struct ExprSystem::Workspace {
     std::vector<std::unique_ptr<mu::Parser>> parsers;  // one per program
-    std::vector<double> point;                         // [n + 1]: the state being evaluated, then t
+    std::vector<double> point;                         // [n + 2]: the state being evaluated, then t, then k
 };
 
 namespace {
@@ -210,6 +210,8 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     : n_(int(spec.states.size())),
       nv_(spec.disturbance_dim),
       m_(spec.output_dim),
+      discrete_(spec.discrete),
+      period_(spec.period),
       states_(spec.states),
       units_(spec.units),
       parameters_(spec.parameters) {
@@ -221,14 +223,20 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     auto add_name = [&](const std::string& name, const std::string& what) {
         HINF_CHECK(is_identifier(name), spec.where + " " + what + " '" + name +
                                             "' is not a name (letters, digits and _, not starting with a digit, at most 64 characters)");
-        HINF_CHECK(!reserved_names().count(name),
-                   spec.where + " " + what + " '" + name + "' is reserved (t, pi or a function name): rename it");
+        HINF_CHECK(!reserved_names().count(name) && !(discrete_ && name == "k"),
+                   spec.where + " " + what + " '" + name + "' is reserved (t, pi, a function name" +
+                       (discrete_ ? ", or k, the step index of a discrete system" : "") + "): rename it");
         HINF_CHECK(seen.insert(name).second, spec.where + " " + what + " '" + name + "' is defined twice: rename one");
         symbols.push_back(name);
     };
     for (const auto& s : states_) add_name(s, "state");
     for (const auto& p : parameters_) add_name(p.first, "parameter");
     symbols.push_back("t");
+    if (discrete_) {
+        HINF_CHECK(period_ > 0 && std::isfinite(period_),
+                   spec.where + " time = \"discrete\" needs [filter] dt > 0 (the sampling period that stamps the steps)");
+        symbols.push_back("k");
+    }
 
     // shapes, before any expression is read
     auto shape = [&](std::size_t got, std::size_t want, const std::string& key, const std::string& why) {
@@ -249,6 +257,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     }
     for (const auto& p : parameters_) table[p.first] = GiNaC::realsymbol(p.first);
     table["t"] = GiNaC::realsymbol("t");
+    if (discrete_) table["k"] = GiNaC::realsymbol("k");
     table["pi"] = GiNaC::Pi;
 
     auto known_list = [&]() {
@@ -341,13 +350,14 @@ std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
         }
     }
     auto ws = std::make_unique<Workspace>();
-    ws->point.assign(std::size_t(n_ + 1), 0.0);
+    ws->point.assign(std::size_t(n_ + 2), 0.0);
     for (const auto& text : programs_) {
         auto p = std::make_unique<mu::Parser>();
         define_functions(*p);
         for (const auto& par : parameters_) p->DefineConst(par.first, par.second);
         for (int j = 0; j < n_; ++j) p->DefineVar(states_[j], &ws->point[std::size_t(j)]);
         p->DefineVar("t", &ws->point[std::size_t(n_)]);
+        if (discrete_) p->DefineVar("k", &ws->point[std::size_t(n_ + 1)]);
         p->SetExpr(text);
         ws->parsers.push_back(std::move(p));
     }
@@ -379,6 +389,7 @@ void ExprSystem::evaluate(double* out, const std::vector<Compiled>& exprs, const
         std::unique_ptr<Workspace> ws = workspace_acquire();
         double* point = ws->point.data();
         point[n_] = t;
+        point[n_ + 1] = discrete_ ? std::nearbyint(t / period_) : 0.0;  // t = k dt, so k is exact after rounding
 #pragma omp for schedule(static)
         for (std::int64_t s = 0; s < count; ++s) {
             for (int j = 0; j < n_; ++j) point[j] = x[s * n_ + j];
@@ -429,7 +440,7 @@ std::string expr_library_versions() {
            std::string(mu::ParserVersion.substr(0, mu::ParserVersion.find(' '))) + " (evaluate)";
 }
 
-std::unique_ptr<System> make_expr_system(ConfigSection& s) {
+std::unique_ptr<System> make_expr_system(ConfigSection& s, double period) {
     ExprSpec spec;
     spec.where = s.where("kind");
     spec.where = spec.where.substr(0, spec.where.rfind(" kind"));  // "file.toml:3: [system]"
@@ -473,6 +484,8 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s) {
         spec.g.push_back(row);
     }
     spec.h = texts("h", s.get_strings("h", {}));
+    spec.discrete = s.get_string("time", "continuous", {"continuous", "discrete"}) == "discrete";
+    spec.period = period;
     return std::make_unique<ExprSystem>(spec);
 }
 

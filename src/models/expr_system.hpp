@@ -30,9 +30,12 @@ struct ExprSpec {
     std::vector<std::vector<ExprText>> g;                       // n rows of nv entries: B(x, t)
     std::vector<ExprText> h;                                    // m entries: C(x, t)
     std::string where;                                          // "file.toml: [system]" for shape errors
+    bool discrete = false;  // [system] time = "discrete": f is the map x_{k+1} = f + g v, and k may be used
+    double period = 0.0;    // discrete only: the sampling period dt ([filter] dt), k = round(t / period)
 };
 
-/// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h). Every expression is checked
+/// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h; in discrete time
+/// x_{k+1} = f(x_k, k) + g(x_k, k) w_k, y_k = h(x_k, k) + v_k, the step index k beside t = k dt). Every expression is checked
 /// (syntax, unknown symbols, shapes) in the constructor, which throws hinf::Error naming the key, the
 /// expression and the position. Safe to call from several threads at once (compare and operate split
 /// their runs over OpenMP threads): each concurrent call takes its own workspace from a pool.
@@ -51,6 +54,7 @@ class ExprSystem : public System {
     void measurement_jacobian(double* H, const double* x, double t) const override;
     std::vector<std::string> state_names() const override { return states_; }
     std::vector<std::string> state_units() const override { return units_; }
+    bool discrete_time() const override { return discrete_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
     std::vector<std::string> compiled(const std::string& which) const;
     /// The named constants of [system] parameters, in order (the C export declares them).
@@ -65,6 +69,8 @@ class ExprSystem : public System {
     void workspace_release(std::unique_ptr<Workspace> ws) const;
 
     int n_ = 0, nv_ = 0, m_ = 0;
+    bool discrete_ = false;
+    double period_ = 0.0;
     std::vector<std::string> states_, units_;
     std::vector<std::pair<std::string, double>> parameters_;
     std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
@@ -76,7 +82,8 @@ class ExprSystem : public System {
 /// "GiNaC 1.8.6 (parse, differentiate), muParser 2.3.3 (evaluate)": the libraries doing the work.
 std::string expr_library_versions();
 
-/// Reads [system] kind = "expr" (every key but kind) into a checked ExprSystem.
-std::unique_ptr<System> make_expr_system(ConfigSection& s);
+/// Reads [system] kind = "expr" (every key but kind) into a checked ExprSystem; `period` is [filter] dt, the
+/// sampling period a discrete system's steps are stamped with (t_k = k period).
+std::unique_ptr<System> make_expr_system(ConfigSection& s, double period);
 
 }  // namespace hinf

@@ -1,6 +1,8 @@
 // make_system: builds the system named by [system] kind, reading and checking every key of [system].
 #include <algorithm>
 
+#include <toml++/toml.h>
+
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
 #include "models/expr_system.hpp"
@@ -26,7 +28,9 @@ std::unique_ptr<System> make_system(const ConfigDoc& doc) {
     ConfigSection s(doc, "system");
     std::string kind = s.get_string("kind", "missile", {"missile", "maneuvering_missile", "expr"});
     if (kind == "expr") {
-        std::unique_ptr<System> sys = make_expr_system(s);
+        // a discrete system's k = t / dt needs the period; [filter] dt itself is read and checked by load_run_config
+        const double period = doc.root()["filter"]["dt"].value<double>().value_or(0.01);
+        std::unique_ptr<System> sys = make_expr_system(s, period);
         s.finish();
         return sys;
     }

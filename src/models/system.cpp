@@ -1,5 +1,6 @@
-// The step every part of hinf advances a system with (truth, filters, training): one definition, so a change of
-// the time discretisation (e.g. discrete-time systems) is made here once. Not the systems themselves.
+// The step every part of hinf advances a system with (truth, filters, training): one definition, and the one
+// place where continuous time (forward Euler) and discrete time (the map itself) differ. Not the systems themselves.
+#include <algorithm>
 #include <vector>
 
 #include "models/system.hpp"
@@ -9,10 +10,13 @@ namespace hinf {
 void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,
                     std::int64_t count) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim();
+    const bool discrete = sys.discrete_time();
     std::vector<double> a(static_cast<std::size_t>(count) * n);
     sys.drift(a.data(), x, t, count);
     if (v == nullptr) {
-        for (std::int64_t i = 0; i < count * n; ++i) x_next[i] = x[i] + dt * a[i];
+        if (discrete) std::copy(a.begin(), a.end(), x_next);
+        else
+            for (std::int64_t i = 0; i < count * n; ++i) x_next[i] = x[i] + dt * a[i];
         return;
     }
     std::vector<double> B(static_cast<std::size_t>(count) * n * nv);
@@ -21,12 +25,17 @@ void system_advance(const System& sys, double* x_next, const double* x, const do
         for (int i = 0; i < n; ++i) {
             double bv = 0;
             for (int j = 0; j < nv; ++j) bv += B[(p * n + i) * nv + j] * v[p * nv + j];
-            x_next[p * n + i] = x[p * n + i] + dt * (a[p * n + i] + bv);
+            x_next[p * n + i] = discrete ? a[p * n + i] + bv : x[p * n + i] + dt * (a[p * n + i] + bv);
         }
 }
 
 void system_advance_jacobian(const System& sys, double* F, double* G, const double* x, double t, double dt) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim();
+    if (sys.discrete_time()) {
+        if (F != nullptr) sys.drift_jacobian(F, x, t);
+        if (G != nullptr) sys.disturbance_gain(G, x, t, 1);
+        return;
+    }
     if (F != nullptr) {
         sys.drift_jacobian(F, x, t);
         for (int i = 0; i < n * n; ++i) F[i] *= dt;

@@ -1,5 +1,6 @@
-// The system interface: x' = A(x,t) + B(x,t) v,  y = C(x,t) + n  (seed 000 eq. (1)), evaluated on a
-// batch of states at once, with Jacobians. Not the filters or the training: they only call this.
+// The system interface: x' = A(x,t) + B(x,t) v,  y = C(x,t) + n  (seed 000 eq. (1)), or in discrete time
+// x_{k+1} = A(x_k, t_k) + B(x_k, t_k) v_k, y_k = C(x_k, t_k) + n_k, evaluated on a batch of states at once, with
+// Jacobians. Not the filters or the training: they only call this (through system_advance for the dynamics).
 //
 // Shape legend: count = states in the batch, n = states, nv = disturbance inputs, m = outputs.
 #pragma once
@@ -33,20 +34,29 @@ public:
     virtual std::vector<std::string> state_names() const = 0;
     /// Units of each state ("m", "m/s", ...).
     virtual std::vector<std::string> state_units() const = 0;
+    /// true: A is the map x_{k+1} = A(x_k, t_k) + B v_k itself (a discrete-time system, t_k = k dt only stamps
+    /// the steps); false: A is the vector field of x' = A + B v, stepped by forward Euler. system_advance is the
+    /// one place that reads it.
+    virtual bool discrete_time() const { return false; }
 };
+
+/// "discrete" or "continuous": for messages and result files.
+inline const char* system_time_name(const System& sys) { return sys.discrete_time() ? "discrete" : "continuous"; }
 
 /// The states of one unit, for error summaries in state units: group 0 holds the states with the first state's
 /// unit (the missile's positions, "position" in tables), group 1 those with the next unit met (its velocities).
 /// Empty when there is no such unit.
 std::vector<int> state_unit_group(const System& sys, int group);
 
-/// The one step the truth, every filter and the trainer share (seed 000 eq. (18)):
-/// x_next = x + dt (A(x, t) + B(x, t) v), forward Euler, for a batch x [count x n], v [count x nv] (nullptr: v = 0).
+/// The one step the truth, every filter and the trainer share, for a batch x [count x n], v [count x nv]
+/// (nullptr: v = 0):
+///   continuous time: x_next = x + dt (A(x, t) + B(x, t) v)   (forward Euler, seed 000 eq. (18));
+///   discrete time:   x_next = A(x, t) + B(x, t) v             (the model itself; dt is not used).
 /// x_next may alias x.
 void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,
                     std::int64_t count = 1);
-/// Its Jacobians at (x, v = 0): F [n x n] = d x_next / dx = I + dt dA/dx, G [n x nv] = d x_next / dv = dt B(x, t).
-/// Either pointer may be nullptr.
+/// Its Jacobians at (x, v = 0): F [n x n] = d x_next / dx, G [n x nv] = d x_next / dv; continuous time
+/// F = I + dt dA/dx, G = dt B(x, t); discrete time F = dA/dx, G = B(x, t). Either pointer may be nullptr.
 void system_advance_jacobian(const System& sys, double* F, double* G, const double* x, double t, double dt);
 
 /// Builds the system named by [system] kind in the config (checks every key of [system]).

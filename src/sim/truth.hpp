@@ -48,7 +48,8 @@ struct TruthRun {
 TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
                         const Signals* given = nullptr);
 
-/// What EKF/UKF/PF are told under a scenario: the nominal statistics with variances scaled by the told factors.
+/// What EKF/UKF/PF are told under a scenario: the [baseline] model and statistics (default: the truth's) with
+/// variances scaled by the scenario's told factors.
 FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc);
 
 }  // namespace hinf

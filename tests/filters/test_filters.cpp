@@ -203,5 +203,8 @@ TEST_CASE("DNN adapter: one step of eq. (19) with gain (8), oracle and measured"
         Eigen::Vector3d expect = xh + su.model.dt * (su.sys.F * xh + k * e);
         INFO("measured = " << measured);
         CHECK(max_rel(expect, f->estimate(), 1e-12) < 1e-13);
+        // its filtered-estimate equivalent (docs/compare.md): the correction of the step alone, x^ + dt k e
+        Eigen::Vector3d corrected = xh + su.model.dt * k * e;
+        CHECK(max_rel(corrected, f->filtered(), 1e-12) < 1e-13);
     }
 }

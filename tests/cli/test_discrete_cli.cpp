@@ -1,0 +1,136 @@
+// Discrete-time systems end to end: compare, filter (recorded data) and worst run a small discrete config;
+// train, the DNN filter and the GLF refuse it in one line (they are continuous-time only).
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+
+using hinf::test::expect_one_line_error;
+using hinf::test::run_hinf;
+using hinf::test::TempDir;
+using hinf::test::write_file;
+
+namespace {
+
+const char* kSmallUngm = R"toml([system]
+kind = "expr"
+time = "discrete"
+states = ["x"]
+measurements = 1
+f = ["0.5*x + 25*x/(1 + x^2) + 8*cos(1.2*k)"]
+g = [["1"]]
+h = ["x^2/20"]
+[filter]
+x0 = [0.1]
+xhat0 = [0.1]
+dt = 1
+t_final = 40
+[online]
+disturbance_std = 1
+noise_std = 1
+)toml";
+
+}  // namespace
+
+TEST_CASE("discrete systems through compare, filter and worst; refusals in one line", "[cli][discrete]") {
+    TempDir d("cli-discrete");
+    const std::string cfg = write_file(d, "ungm.toml", kSmallUngm);
+
+    auto c = run_hinf("compare " + cfg + " --filters ekf,ukf,pf,open_loop --runs 3 --particles 200 --quiet --out " +
+                      (d / "cmp"));
+    INFO(c.output);
+    REQUIRE(c.status == 0);
+    CHECK(c.output.find("40 steps") != std::string::npos);
+    {
+        hinf::h5::Handle f = hinf::h5::open_file(d / "cmp/compare.h5", false);
+        CHECK(hinf::h5::get_attr_string(f.get(), "system_time") == "discrete");
+        // the published tables' metric: 10 log10 of the mean over runs of each run's MSE (states and steps)
+        for (const char* name : {"ekf", "ukf", "pf", "open_loop"}) {
+            INFO(name);
+            hinf::h5::Handle g = hinf::h5::open_group(f.get(), name);
+            for (const char* which : {"mse", "mse_filtered"}) {
+                const std::vector<double> per_run = hinf::h5::read_doubles(g.get(), std::string(which) + "_per_run");
+                REQUIRE(per_run.size() == 3u);
+                const double mean = (per_run[0] + per_run[1] + per_run[2]) / 3.0;
+                CHECK(hinf::h5::get_attr_double(g.get(), which) == Approx(mean).epsilon(1e-12));
+                CHECK(hinf::h5::get_attr_double(g.get(), std::string(which) + "_db") ==
+                      Approx(10.0 * std::log10(mean)).epsilon(1e-12));
+            }
+        }
+        // the open-loop predictor has no measurement update: its filtered estimate is its prediction
+        hinf::h5::Handle ol = hinf::h5::open_group(f.get(), "open_loop");
+        CHECK(hinf::h5::get_attr_double(ol.get(), "mse_filtered") == hinf::h5::get_attr_double(ol.get(), "mse"));
+    }
+    CHECK(c.output.find("MSEf[dB]") != std::string::npos);
+
+    // recorded data: y_k = k / 10 stamped every dt = 1 s
+    std::ostringstream rec;
+    rec << "t,y\n";
+    for (int k = 0; k < 20; ++k) rec << k << ',' << 0.1 * k << '\n';
+    const std::string csv = write_file(d, "rec.csv", rec.str());
+    auto f = run_hinf("filter " + cfg + " --measurements " + csv + " --filters ekf,ukf,pf --particles 100 --quiet --out " +
+                      (d / "flt"));
+    INFO(f.output);
+    REQUIRE(f.status == 0);
+    CHECK(f.output.find("20 measurements") != std::string::npos);
+    {
+        hinf::h5::Handle e = hinf::h5::open_file(d / "flt/estimates.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(e.get(), "ekf");
+        CHECK(hinf::h5::read_doubles(g.get(), "xhat_filtered").size() == 20u);
+        CHECK(hinf::h5::get_attr_string(e.get(), "system_time") == "discrete");
+    }
+
+    auto w = run_hinf("worst " + cfg + " --filters ekf,open_loop --evals 8 --random-starts 1 --scenario-starts nominal "
+                      "--quiet --out " + (d / "w"));
+    INFO(w.output);
+    REQUIRE(w.status == 0);
+
+    // refusals: training, a record sampled at another rate, the GLF, the DNN filter
+    expect_one_line_error("train " + cfg + " --out " + (d / "t") + " --quiet", "no variant for discrete-time systems");
+    std::ostringstream fast;
+    fast << "t,y\n";
+    for (int k = 0; k < 5; ++k) fast << 0.5 * k << ",1\n";
+    expect_one_line_error("filter " + cfg + " --measurements " + write_file(d, "fast.csv", fast.str()) +
+                              " --filters ekf --quiet --out " + (d / "f2"),
+                          "set dt to the record's period");
+    expect_one_line_error("compare " + cfg + " --filters ekf,glf --runs 1 --quiet --out " + (d / "g"),
+                          "the GLF design is for continuous-time systems");
+    const std::string cont = write_file(d, "cont.toml",
+                                        "[system]\nkind = \"expr\"\nstates = [\"x\"]\nmeasurements = 1\nf = [\"-x\"]\n"
+                                        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nx0 = [1]\nxhat0 = [0]\nt_final = 0.03\n"
+                                        "[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n");
+    auto t = run_hinf("train " + cont + " --out " + (d / "net") + " --quiet");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    expect_one_line_error("compare " + cfg + " --filters dnn --network " + (d / "net/checkpoint.h5") +
+                              " --runs 1 --quiet --out " + (d / "dn"),
+                          "is a continuous-time (Euler-sampled) filter");
+    expect_one_line_error("operate " + cfg + " --network " + (d / "net/checkpoint.h5") + " --runs 1 --quiet --out " +
+                              (d / "op"),
+                          "is a continuous-time (Euler-sampled) filter");
+}
+
+TEST_CASE("the benchmark configs run: runs/ungm.toml and scripts/benchmark-lorenz on one cell", "[cli][discrete][benchmarks]") {
+    TempDir d("cli-bench");
+    auto u = run_hinf("compare " + hinf::test::source_path("runs/ungm.toml") +
+                      " --filters ekf,ukf,pf --particles 100 --runs 2 --until 50 --quiet --out " + (d / "ungm"));
+    INFO(u.output);
+    REQUIRE(u.status == 0);
+    // one cell of the Lorenz process-mismatch table: EKF told J = 2, q tuned over a two-value grid
+    auto l = hinf::test::run_command("cd " + hinf::test::source_path("") + " && /usr/bin/python3 scripts/benchmark-lorenz"
+                                     " --hinf " + std::string(HINF_CLI_PATH) + " --table process --rows ekf_J2 --columns 0"
+                                     " --runs 1 --tune-runs 1 --grid 1,10 --out " + (d / "lorenz"));
+    INFO(l.output);
+    REQUIRE(l.status == 0);
+    CHECK(l.output.find("baseline.parameters.c3=0") != std::string::npos);
+    CHECK(l.output.find("| EKF (told J = 2) | -10.36 / ") != std::string::npos);
+    std::ifstream csv(d / "lorenz/lorenz_process.csv");
+    std::string header, row;
+    std::getline(csv, header);
+    std::getline(csv, row);
+    CHECK(header.rfind("table,row,column_db,published_db,hinf_db", 0) == 0);
+    CHECK(row.rfind("process,ekf_J2,0,-10.36,", 0) == 0);
+}
