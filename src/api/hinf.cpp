@@ -286,6 +286,7 @@ FilterTrace Filter::run(const double* t, const double* y, std::int64_t K) const 
     const Impl& im = filter_impl(*this);
     const RunConfig& c = im.cfg();
     Measurements ms = measurements_from_arrays(t, y, K, c.m, "the record");
+    recorded_check_sampling(c, ms, "the record");  // a discrete-time system needs the record at its dt
     // `hinf filter` builds its filters on the record's interval: the same here, so the numbers are the same bits
     FilterSet fresh;
     std::unique_ptr<OnlineFilter> copy;

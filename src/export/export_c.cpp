@@ -476,6 +476,10 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
     HINF_CHECK(law != nullptr, "export: checkpoint '" + path + "' is a '" + cfg.variant +
                                    "' network, which has no C gain law (exportable: " + variants +
                                    "; add one to kGainLaws in src/export/export_c.cpp)");
+    // the exported step is the continuous-time Euler-sampled Luenberger law (system_c writes A, not a map)
+    HINF_CHECK(!cfg.system->discrete_time(), "export: checkpoint '" + path +
+                                                 "' is for a discrete-time system; hinf export writes the "
+                                                 "continuous-time filter step only (docs/export.md)");
     Checkpoint<T> ck = ckpt_read<T>(path);
     NetworkC<T> net = network_c(ck.net, P);
     const LawC lawc = law->emit(cfg, ck.net.step, P);
