@@ -17,6 +17,20 @@ inline void bt_times(double* u, const double* B, const double* p, int n, int nv)
         u[j] = s;
     }
 }
+
+// The four terms of seed 000 eq. (16) at one sample, given u = B^T p [nv]: x~'Qx~, p'dA, |u|^2/(4 rho),
+// -rho |dC|^2. The one definition for hjie_terms and the per-sample backward.
+inline void terms_from_u(double* t, const double* p, const double* dA, const double* u, const double* dC, double q,
+                         double rho, int n, int nv, int m) {
+    double pa = 0, bb = 0, cc = 0;
+    for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+    for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
+    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+    t[0] = q;
+    t[1] = pa;
+    t[2] = bb / (4.0 * rho);
+    t[3] = -rho * cc;
+}
 }  // namespace
 
 namespace {
@@ -29,14 +43,7 @@ void terms_n(double* t, const double* p, const HjieSystemView& s, std::int64_t i
     const double* dC = s.dC + i * m;
     double u[kMax];
     bt_times(u, B, p, n, nv);
-    double pa = 0, bb = 0, cc = 0;
-    for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
-    for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
-    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
-    t[0] = s.q[i];
-    t[1] = pa;
-    t[2] = bb / (4.0 * rho);
-    t[3] = -rho * cc;
+    terms_from_u(t, p, dA, u, dC, s.q[i], rho, n, nv, m);
 }
 
 template <int N>
@@ -111,16 +118,7 @@ void sample_backward_n(double* gp, double* gP, const double* p, const double* P,
     }
     // the four terms of eq. (16), as hjie_terms computes them, reusing u = B^T p
     double t[4];
-    {
-        double pa = 0, bb = 0, cc = 0;
-        for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
-        for (int j = 0; j < nv; ++j) bb += u[j] * u[j];
-        for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
-        t[0] = s.q[i];
-        t[1] = pa;
-        t[2] = bb / (4.0 * hp.rho);
-        t[3] = -hp.rho * cc;
-    }
+    terms_from_u(t, p, dA, u, dC, s.q[i], hp.rho, n, nv, m);
     if (gP)
         for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
     for (int a = 0; a < n; ++a) gp[a] = 0.0;
