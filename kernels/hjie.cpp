@@ -13,6 +13,19 @@ inline double bt_times_j(const double* B, const double* p, int n, int nv, int j)
     for (int a = 0; a < n; ++a) s += B[a * nv + j] * p[a];
     return s;
 }
+
+// The four terms of seed 000 eq. (16) at one sample, given bb = |B^T p|^2: x~'Qx~, p'dA, |B^T p|^2/(4 rho),
+// -rho |dC|^2. The one definition for hjie_terms and the per-sample backward.
+inline void terms_from_bb(double* t, const double* p, const double* dA, double bb, const double* dC, double q,
+                          double rho, int n, int m) {
+    double pa = 0, cc = 0;
+    for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
+    t[0] = q;
+    t[1] = pa;
+    t[2] = bb / (4.0 * rho);
+    t[3] = -rho * cc;
+}
 }  // namespace
 
 namespace {
@@ -23,17 +36,12 @@ void terms_n(double* t, const double* p, const HjieSystemView& s, std::int64_t i
     const double* dA = s.dA + i * n;
     const double* B = s.Bm + i * n * nv;
     const double* dC = s.dC + i * m;
-    double pa = 0, bb = 0, cc = 0;
-    for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
+    double bb = 0;
     for (int j = 0; j < nv; ++j) {
         const double u = bt_times_j(B, p, n, nv, j);
         bb += u * u;
     }
-    for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
-    t[0] = s.q[i];
-    t[1] = pa;
-    t[2] = bb / (4.0 * rho);
-    t[3] = -rho * cc;
+    terms_from_bb(t, p, dA, bb, dC, s.q[i], rho, n, m);
 }
 
 template <int N>
@@ -113,15 +121,7 @@ void sample_backward_n(double* gp, double* gP, const double* p, const double* P,
     for (int a = 0; a < n; ++a) bbp[a] = bbp[a] / (2.0 * hp.rho);
     // the four terms of eq. (16), as hjie_terms computes them
     double t[4];
-    {
-        double pa = 0, cc = 0;
-        for (int a = 0; a < n; ++a) pa += p[a] * dA[a];
-        for (int k = 0; k < m; ++k) cc += dC[k] * dC[k];
-        t[0] = s.q[i];
-        t[1] = pa;
-        t[2] = bb / (4.0 * hp.rho);
-        t[3] = -hp.rho * cc;
-    }
+    terms_from_bb(t, p, dA, bb, dC, s.q[i], hp.rho, n, m);
     if (gP)
         for (int a = 0; a < n * n; ++a) gP[a] = 0.0;
     for (int a = 0; a < n; ++a) gp[a] = 0.0;

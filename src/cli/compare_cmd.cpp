@@ -11,6 +11,12 @@
 namespace hinf::cli {
 
 namespace {
+std::string join_names(const std::vector<std::string>& names) {
+    std::string all;
+    for (const auto& n : names) all += (all.empty() ? "" : ", ") + n;
+    return all;
+}
+
 struct CompareArgs {
     std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", scenario = "nominal";
     std::vector<std::string> networks, sets;
@@ -30,7 +36,7 @@ void add_compare_command(CLI::App& app) {
     c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, x^0, Q")->required();
     c->add_option("--network", a->networks,
                   "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable: one dnn filter per network and mode)");
-    c->add_option("--filters", a->filters, "Comma list of: dnn, ekf, ukf, pf, open_loop, glf (default dnn,ekf,ukf,pf,open_loop)");
+    c->add_option("--filters", a->filters, "Comma list of: " + filter_names() + " (default dnn,ekf,ukf,pf,open_loop)");
     c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
     c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
     c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
@@ -39,8 +45,9 @@ void add_compare_command(CLI::App& app) {
                   "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
     c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
     c->add_option("--scenario", a->scenario,
-                  "nominal, cov_small / cov_large (EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
-                  "only the disturbance's / the noise's), student_t, bias, energy_pulse (docs/compare.md)");
+                  "One of: " + join_names(scenario_names()) +
+                      " (cov_small / cov_large: EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
+                      "only the disturbance's / the noise's; docs/compare.md)");
     c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/compare-<scenario>)");
     c->add_option("--threads", a->threads, "OpenMP threads (runs are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");

@@ -35,7 +35,7 @@ void add_filter_command(CLI::App& app) {
         ->required();
     c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
     c->add_option("--filters", a->filters,
-                  "Comma list of: dnn, ekf, ukf, pf, open_loop, glf (default: dnn with --network, else ekf)");
+                  "Comma list of: " + filter_names() + " (default: dnn with --network, else ekf)");
     c->add_option("--dataset", a->dataset, "HDF5: dataset of the measurements [K x m] (default y)");
     c->add_option("--time-dataset", a->time_dataset, "HDF5: dataset of the times [K] in s (default t)");
     c->add_option("--initial-estimate", a->xhat0, "x^(t_0), one value per state (default: the config's [filter] xhat0)")

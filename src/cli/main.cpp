@@ -28,6 +28,9 @@ int fail(const std::string& line, int code) {
         std::cerr << line << " (rank " << hinf::par_world_rank() << ")\n";
     } else {
         std::cerr << line << "\n";
+        std::cerr.flush();
+        // let mpirun forward the line before MPI_Abort makes it print its own banner (seen in CI: the banner first)
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
     std::cerr.flush();
     hinf::par_abort(code);

@@ -61,7 +61,7 @@ void add_worst_command(CLI::App& app) {
         "worst", "Search each filter's worst-case disturbance and noise under one energy budget (or --replay saved ones)");
     c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, Q")->required();
     c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
-    c->add_option("--filters", a->filters, "Comma list of: dnn, ekf, ukf, pf, open_loop, glf (default dnn,ekf,ukf,pf,open_loop)");
+    c->add_option("--filters", a->filters, "Comma list of: " + filter_names() + " (default dnn,ekf,ukf,pf,open_loop)");
     c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
     c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
     c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");

@@ -95,36 +95,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     return r;
 }
 
-// One run's results as bytes, for the all-gather between ranks: the truth hash, then each filter's stats.
-struct RunWriter {
-    std::vector<char> bytes;
-    void put(const void* p, std::size_t n) { bytes.insert(bytes.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n); }
-    void put(double v) { put(&v, sizeof v); }
-    void put(std::uint64_t v) { put(&v, sizeof v); }
-    void put(const std::vector<double>& v) {
-        put(std::uint64_t(v.size()));
-        put(v.data(), sizeof(double) * v.size());
-    }
-};
-
-struct RunReader {
-    const char* p;
-    const char* end;
-    void get(void* dst, std::size_t n) {
-        HINF_CHECK(p + n <= end, "engine: a rank sent a truncated result (bug)");
-        std::memcpy(dst, p, n);
-        p += n;
-    }
-    double get_double() { double v; get(&v, sizeof v); return v; }
-    std::uint64_t get_u64() { std::uint64_t v; get(&v, sizeof v); return v; }
-    std::vector<double> get_vector() {
-        std::vector<double> v(get_u64());
-        get(v.data(), sizeof(double) * v.size());
-        return v;
-    }
-};
-
-void put_stats(RunWriter& w, const FilterRunStats& s) {
+void put_stats(ParBytesOut& w, const FilterRunStats& s) {
     for (double v : {s.diverged_at, s.settled_steps, s.sq_pos, s.sq_vel, s.sq_pos_settled, s.sq_vel_settled,
                      s.error_energy, s.signal_energy, s.seconds})
         w.put(v);
@@ -134,7 +105,7 @@ void put_stats(RunWriter& w, const FilterRunStats& s) {
         w.put(*v);
 }
 
-FilterRunStats get_stats(RunReader& rd) {
+FilterRunStats get_stats(ParBytesIn& rd) {
     FilterRunStats s;
     for (double* v : {&s.diverged_at, &s.settled_steps, &s.sq_pos, &s.sq_vel, &s.sq_pos_settled, &s.sq_vel_settled,
                       &s.error_energy, &s.signal_energy, &s.seconds})
@@ -169,7 +140,7 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
     // under mpirun: run r is computed by rank r mod size (runs cost alike, and a filter's divergence makes
     // later runs cheaper at random, so dealing them out evens the load better than blocks); each run draws
     // from its own counter-based streams, so who computes it does not change a bit of it
-    const int rank = par_rank(), ranks = par_size();
+    const int rank = opt.split ? par_rank() : 0, ranks = opt.split ? par_size() : 1;
     HINF_CHECK(ranks <= R, std::to_string(ranks) + " MPI processes for " + std::to_string(R) +
                                " run(s): start at most as many processes as runs (mpirun -np)");
     std::vector<std::int64_t> mine;
@@ -197,7 +168,8 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
             progress.update(++done, ranks > 1 ? "runs of rank 0 |" : "runs |");
         }
     }
-    res.rank_seconds = par_allgather_double(std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count());
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+    res.rank_seconds = opt.split ? par_allgather_double(seconds) : std::vector<double>{seconds};
     if (ranks == 1) return res;
     // run 0's truth for the files, on the ranks that did not compute run 0: one more simulation, the same bits
     if (engine_rank_of(0, ranks) != rank)
@@ -205,20 +177,20 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
 
     // every rank's runs to every rank, then placed in run order: the reductions that follow see the same
     // [F][R] table whatever the number of processes
-    RunWriter w;
+    ParBytesOut w;
     for (std::int64_t r : mine) {
         w.put(res.truth_hash[r]);
         for (int k = 0; k < F; ++k) put_stats(w, res.runs[k][r]);
     }
     const std::vector<std::vector<char>> all = par_allgather(w.bytes);
     for (int q = 0; q < ranks; ++q) {
-        RunReader rd{all[q].data(), all[q].data() + all[q].size()};
+        ParBytesIn rd(all[q]);
         for (std::int64_t r = 0; r < R; ++r) {
             if (engine_rank_of(r, ranks) != q) continue;
             res.truth_hash[r] = rd.get_u64();
             for (int k = 0; k < F; ++k) res.runs[k][r] = get_stats(rd);
         }
-        HINF_CHECK(rd.p == rd.end, "engine: a rank sent more than its runs (bug)");
+        HINF_CHECK(rd.at_end(), "engine: a rank sent more than its runs (bug)");
     }
     return res;
 }

@@ -89,6 +89,8 @@ struct EngineOptions {
     const std::vector<Signals>* signals = nullptr;  // [R] explicit signals per run instead of the draws
     std::string label = "compare";                  // progress label
     bool quiet = false;
+    bool split = true;  // under mpirun, deal the runs out over the processes; false: this process runs them all
+                        // (for a caller that already split its work, e.g. the worst-case replay's sets)
 };
 
 struct EngineResult {
@@ -101,7 +103,8 @@ struct EngineResult {
 
 /// Runs every filter (prototypes, cloned per thread) on the same R simulated runs; OpenMP over runs, results in
 /// run order: they do not depend on the thread count. Under mpirun the runs are dealt out over the processes
-/// (engine_rank_of) and every process ends with the whole table, the same bits as one process computes.
+/// (engine_rank_of) and every process ends with the whole table, the same bits as one process computes
+/// (unless opt.split is false: then no collective is called and this process computes every run).
 EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                         const EngineOptions& opt, const StepObserver* observer = nullptr);
 

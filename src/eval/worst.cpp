@@ -20,6 +20,7 @@
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
 #include "io/progress.hpp"
+#include "par/par.hpp"
 #include "random.hpp"
 
 namespace hinf {
@@ -74,6 +75,7 @@ struct Parametrisation {
     std::int64_t K = 0;
     double dt = 0, energy = 0, amp_piece = 0, amp_sine = 0, logf_lo = 0, logf_hi = 0;
     const Signals* base = nullptr;  // energy-normalised, or nullptr
+    const double* t = nullptr;      // [K] t_k (RunConfig::time_of)
 
     int channels() const { return nv + m; }
     int offset() const { return base != nullptr ? 1 : 0; }
@@ -85,9 +87,9 @@ struct Parametrisation {
         const int C = channels(), o = offset();
         std::vector<double> sn(S), cs(S);
         for (std::int64_t k = 0; k < K; ++k) {
-            const double t = double(k) * dt;
+            const double tk = t[k];
             for (int q = 0; q < S; ++q) {
-                const double w = 2.0 * kPi * frequency(theta[o + q]) * t;
+                const double w = 2.0 * kPi * frequency(theta[o + q]) * tk;
                 sn[q] = std::sin(w);
                 cs[q] = std::cos(w);
             }
@@ -311,6 +313,7 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     par.S = opt.sines;
     par.K = K;
     par.dt = cfg.dt;
+    par.t = t.data();
     par.energy = E;
     const double T = cfg.time_of(K);
     par.amp_piece = std::sqrt(E / T);        // a constant of this amplitude over [0, T) carries the budget
@@ -340,19 +343,61 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     }
     HINF_CHECK(!tasks.empty(), "worst: no starts (--random-starts 0 and no --scenario-starts)");
 
+    // under mpirun the restarts are dealt out over the processes (worst_rank_of: every filter's restarts spread
+    // over all of them, so a slow filter's restarts do not pile up on one); each restart is a pure function of
+    // its inputs, so who computes it does not change a bit of it
     const std::int64_t N = std::int64_t(tasks.size());
+    const int rank = par_rank(), ranks = par_size();
+    HINF_CHECK(ranks <= N, std::to_string(ranks) + " MPI processes for " + std::to_string(N) +
+                               " restart(s): start at most as many processes as restarts (mpirun -np), or add "
+                               "restarts (--random-starts)");
+    std::vector<std::int64_t> mine;
+    for (std::int64_t j = 0; j < N; ++j)
+        if (worst_rank_of(j, ranks) == rank) mine.push_back(j);
+    const std::int64_t L = std::int64_t(mine.size());
     std::vector<TaskResult> done(N);
-    Progress progress("worst", 0, N, opt.quiet);
+    Progress progress("worst", 0, L, opt.quiet);
     std::int64_t finished = 0;
 #pragma omp parallel for schedule(dynamic, 1)
-    for (std::int64_t j = 0; j < N; ++j) {
+    for (std::int64_t i = 0; i < L; ++i) {
+        const std::int64_t j = mine[i];
         done[j] = run_task(cfg, *filters[tasks[j].filter], par, tasks[j], opt, t);
         char detail[200];
-        std::snprintf(detail, sizeof detail, "restarts | %s %s: ratio %.4g (start %.4g) |",
-                      filters[tasks[j].filter]->name().c_str(), tasks[j].start.c_str(), done[j].restart.ratio,
-                      done[j].restart.start_ratio);
+        std::snprintf(detail, sizeof detail, "restarts%s | %s %s: ratio %.4g (start %.4g) |",
+                      ranks > 1 ? " of rank 0" : "", filters[tasks[j].filter]->name().c_str(), tasks[j].start.c_str(),
+                      done[j].restart.ratio, done[j].restart.start_ratio);
 #pragma omp critical
         progress.update(++finished, detail);
+    }
+    if (ranks > 1) {
+        // every process's restarts to every process, placed in task order
+        ParBytesOut w;
+        for (std::int64_t j : mine) {
+            const TaskResult& d = done[j];
+            w.put(d.restart.start);
+            w.put(d.restart.nlopt_result);
+            w.put(d.restart.start_ratio);
+            w.put(d.restart.ratio);
+            w.put(std::uint64_t(d.restart.evals));
+            w.put(d.best.v);
+            w.put(d.best.n);
+        }
+        const std::vector<std::vector<char>> all = par_allgather(w.bytes);
+        for (int q = 0; q < ranks; ++q) {
+            ParBytesIn rd(all[q]);
+            for (std::int64_t j = 0; j < N; ++j) {
+                if (worst_rank_of(j, ranks) != q) continue;
+                TaskResult& d = done[j];
+                d.restart.start = rd.get_string();
+                d.restart.nlopt_result = rd.get_string();
+                d.restart.start_ratio = rd.get_double();
+                d.restart.ratio = rd.get_double();
+                d.restart.evals = int(rd.get_u64());
+                d.best.v = rd.get_vector();
+                d.best.n = rd.get_vector();
+            }
+            HINF_CHECK(rd.at_end(), "worst: a process sent more than its restarts (bug)");
+        }
     }
 
     WorstResult res;
@@ -389,7 +434,10 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
     r.signal_energy.assign(D, 0.0);
     r.stride = std::max<std::int64_t>(1, steps / 2000);
     r.err.resize(std::size_t(D) * F);
+    // under mpirun the sets are dealt out over the processes (set d to worst_rank_of(d)); a process may have none
+    const int rank = par_rank(), ranks = par_size();
     for (int d = 0; d < D; ++d) {
+        if (worst_rank_of(d, ranks) != rank) continue;
         // one run per set, each with run 0's initial estimate and draws (the PF's): the search's own conditions
         std::vector<Signals> one{sets[d].signals};
         EngineOptions eo;
@@ -399,6 +447,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
         eo.signals = &one;
         eo.label = "replay " + sets[d].source;
         eo.quiet = quiet;
+        eo.split = false;
         EngineResult er = engine_run(cfg, filters, eo);
         for (int f = 0; f < F; ++f) {
             FilterRunStats& st = er.runs[f][0];
@@ -408,8 +457,36 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
             r.err[d * F + f] = std::move(st.err_sub);
         }
     }
+    if (ranks > 1) {
+        ParBytesOut w;
+        for (int d = 0; d < D; ++d) {
+            if (worst_rank_of(d, ranks) != rank) continue;
+            w.put(r.signal_energy[d]);
+            for (int f = 0; f < F; ++f) {
+                w.put(r.ratio[d * F + f]);
+                w.put(r.diverged_at[d * F + f]);
+                w.put(r.err[d * F + f]);
+            }
+        }
+        const std::vector<std::vector<char>> all = par_allgather(w.bytes);
+        for (int q = 0; q < ranks; ++q) {
+            ParBytesIn rd(all[q]);
+            for (int d = 0; d < D; ++d) {
+                if (worst_rank_of(d, ranks) != q) continue;
+                r.signal_energy[d] = rd.get_double();
+                for (int f = 0; f < F; ++f) {
+                    r.ratio[d * F + f] = rd.get_double();
+                    r.diverged_at[d * F + f] = rd.get_double();
+                    r.err[d * F + f] = rd.get_vector();
+                }
+            }
+            HINF_CHECK(rd.at_end(), "worst: a process sent more than its replays (bug)");
+        }
+    }
     return r;
 }
+
+std::int64_t worst_rank_of(std::int64_t task, int ranks) { return task % ranks; }
 
 namespace {
 

@@ -93,12 +93,17 @@ double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t 
 double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s, std::int64_t steps);
 
 /// The search: R restarts per filter, OpenMP over (filter, restart), each a pure function of its inputs:
-/// the result does not depend on the thread count. games: [F] (or empty). Ends with the replay of every
+/// the result does not depend on the thread count; under mpirun the restarts are dealt out over the processes
+/// (worst_rank_of) and the result is the same bits for any number of them. games: [F] (or empty). Ends with the replay of every
 /// worst set against every filter (WorstResult::cross). Runs on worst_config(cfg, opt).
 WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt);
 
-/// Every filter on every set, through the engine (one run per set, run 0's initial estimate).
+/// The process that computes restart (or replayed set) `task` among `ranks` under mpirun.
+std::int64_t worst_rank_of(std::int64_t task, int ranks);
+
+/// Every filter on every set, through the engine (one run per set, run 0's initial estimate); under mpirun the
+/// sets are split over the processes and every process ends with the whole table.
 WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstSignals>& sets, std::int64_t steps, bool quiet = true);
 

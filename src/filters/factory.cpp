@@ -77,7 +77,7 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
         if (simple != nullptr) owned.push_back(simple->make(cfg, a, told, exact));
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
-            GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, cfg.rho);
+            GlfDesign g = glf_design(cfg, a.glf_vertices, cfg.rho);
             HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
                                  " (try another --glf-vertices, or drop glf)");
             char note[160];

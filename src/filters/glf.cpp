@@ -92,8 +92,10 @@ private:
 
 }  // namespace
 
-GlfDesign glf_design(const System& sys, const std::vector<double>& x0, const std::vector<double>& Q, double dt,
-                     double t_final, int vertices, double rho_max) {
+GlfDesign glf_design(const ProblemConfig& problem, int vertices, double rho_max) {
+    const System& sys = *problem.system;
+    const std::vector<double>&x0 = problem.x0, &Q = problem.Q;
+    const double dt = problem.dt;
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
     HINF_CHECK(vertices >= 1, "glf: the vertex count must be >= 1");
     // seed 001's design linearizes the vector field A(x) and discretizes by Euler: continuous time only
@@ -103,14 +105,14 @@ GlfDesign glf_design(const System& sys, const std::vector<double>& x0, const std
     GlfDesign d;
     d.vertices = vertices;
     // vertices along the noise-free Euler trajectory from x0
-    const std::int64_t steps = std::max<std::int64_t>(1, std::llround(t_final / dt));
+    const std::int64_t steps = std::max<std::int64_t>(1, problem.steps_until());
     std::vector<std::int64_t> at(vertices);
     for (int i = 0; i < vertices; ++i)
         at[i] = vertices == 1 ? 0 : std::min<std::int64_t>(steps - 1, std::llround(double(i) * double(steps - 1) / (vertices - 1)));
     std::vector<Vertex> vx;
-    std::vector<double> x = x0, a(n);
+    std::vector<double> x = x0;
     for (std::int64_t s = 0, next = 0; s < steps && next < vertices; ++s) {
-        const double t = double(s) * dt;
+        const double t = problem.time_of(s);
         while (next < vertices && at[next] == s) {
             RowMat J(n, n), B(n, nv), H(m, n);
             sys.drift_jacobian(J.data(), x.data(), t);
@@ -120,8 +122,7 @@ GlfDesign glf_design(const System& sys, const std::vector<double>& x0, const std
             d.vertex_times.push_back(t);
             ++next;
         }
-        sys.drift(a.data(), x.data(), t, 1);
-        for (int i = 0; i < n; ++i) x[i] += dt * a[i];
+        system_advance(sys, x.data(), x.data(), nullptr, t, dt);
     }
     // The LMIs are homogeneous in (P, Y, rho, Q): solve with Q / max|Q| (so the margin means the same for
     // any scale of Q) and scale rho back.

@@ -193,10 +193,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         if (ec) std::filesystem::copy_file(path, prev, std::filesystem::copy_options::overwrite_existing, ec);
         HINF_CHECK(!ec, "cannot keep '" + path + "' as '" + prev + "': " + ec.message());
     }
-    std::filesystem::rename(tmp, path, ec);
-    HINF_CHECK(!ec, "cannot rename '" + tmp + "' to '" + path + "': " + ec.message());
-    std::string dir = std::filesystem::path(path).parent_path().string();
-    sync_path(dir.empty() ? "." : dir);
+    commit_rename(tmp, path);
 }
 
 std::string ckpt_precision(const std::string& path) {

@@ -3,10 +3,12 @@
 // MPI_THREAD_FUNNELED, only the main thread may call MPI.
 #include "par/par.hpp"
 
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <unistd.h>
 
 #include "hinf/error.hpp"
 
@@ -31,6 +33,20 @@ void check(int rc, const char* what) {
     MPI_Error_string(rc, msg, &len);
     std::fprintf(stderr, "hinf: error on rank %d: %s failed: %.*s\n", g_world_rank, what, len, msg);
     MPI_Abort(MPI_COMM_WORLD, 2);
+}
+
+// When one process of a job dies (killed, out of memory, a crash), mpirun ends the others with SIGTERM, and its
+// own message names only the dead rank's PID and signal. Rank 0, which prints everything else, then says in
+// one line what happened to the run and what is safe (only write(2): async-signal-safe), and dies of the signal.
+void on_terminate(int sig) {
+    static const char line[] =
+        "hinf: error: this MPI job was stopped while running (another process died or mpirun was interrupted: "
+        "see mpirun's message); result files are written whole or not at all, and a training continues from its "
+        "last checkpoint with `hinf resume DIR/checkpoint.h5` under any process count\n";
+    ssize_t ignored = write(STDERR_FILENO, line, sizeof line - 1);
+    (void)ignored;
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
 }
 
 // mpirun (OpenMPI, MPICH, Slurm's PMI) leaves one of these in the environment of every process it starts
@@ -64,6 +80,12 @@ void par_init(int* argc, char*** argv) {
     g_comm = MPI_COMM_WORLD;
     g_rank = g_world_rank;
     g_size = g_world_size;
+    if (g_world_rank == 0 && g_world_size > 1) {
+        struct sigaction sa {};
+        sa.sa_handler = on_terminate;
+        sigemptyset(&sa.sa_mask);
+        sigaction(SIGTERM, &sa, nullptr);
+    }
 #else
     (void)argc;
     (void)argv;

@@ -5,8 +5,11 @@
 // started by mpirun) there is one process of rank 0 and every collective is a copy.
 #pragma once
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
+
+#include "hinf/error.hpp"
 
 namespace hinf {
 
@@ -43,6 +46,48 @@ std::vector<double> par_allgather_double(double mine);
 /// The root's bytes on every rank of the work communicator.
 void par_broadcast(std::vector<char>& bytes);
 void par_barrier();
+
+/// A result packed as bytes for par_allgather: plain values and vectors of doubles, read back in the order
+/// they were put (par_bytes_in). The packing is memcpy of the host's representation: every rank of a job
+/// runs the same binary on the same kind of machine.
+struct ParBytesOut {
+    std::vector<char> bytes;
+    void put(const void* p, std::size_t n) { bytes.insert(bytes.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n); }
+    void put(double v) { put(&v, sizeof v); }
+    void put(std::uint64_t v) { put(&v, sizeof v); }
+    void put(const std::vector<double>& v) {
+        put(std::uint64_t(v.size()));
+        put(v.data(), sizeof(double) * v.size());
+    }
+    void put(const std::string& s) {
+        put(std::uint64_t(s.size()));
+        put(s.data(), s.size());
+    }
+};
+
+struct ParBytesIn {
+    const char* p;
+    const char* end;
+    explicit ParBytesIn(const std::vector<char>& b) : p(b.data()), end(b.data() + b.size()) {}
+    void get(void* dst, std::size_t n) {
+        HINF_CHECK(std::size_t(end - p) >= n, "a process sent a truncated result (bug)");
+        std::memcpy(dst, p, n);
+        p += n;
+    }
+    double get_double() { double v; get(&v, sizeof v); return v; }
+    std::uint64_t get_u64() { std::uint64_t v; get(&v, sizeof v); return v; }
+    std::vector<double> get_vector() {
+        std::vector<double> v(get_u64());
+        get(v.data(), sizeof(double) * v.size());
+        return v;
+    }
+    std::string get_string() {
+        std::string s(get_u64(), '\0');
+        get(s.data(), s.size());
+        return s;
+    }
+    bool at_end() const { return p == end; }
+};
 
 /// [begin, end) of `count` items for rank r of `size`: consecutive blocks, sizes differing by at most one.
 inline std::int64_t par_block_begin(std::int64_t count, int r, int size) { return count * r / size; }

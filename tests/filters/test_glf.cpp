@@ -43,7 +43,7 @@ TEST_CASE("GLF: 8 vertices on the missile, each closed loop stable with H-inf no
     const System& sys = *cfg.system;
     const int n = cfg.n, m = cfg.m, nv = cfg.nv;
     for (double rho_max : {cfg.rho, -1.0}) {
-        GlfDesign d = glf_design(sys, cfg.x0, cfg.Q, cfg.dt, cfg.t_final, 8, rho_max);
+        GlfDesign d = glf_design(cfg, 8, rho_max);
         INFO("rho_max " << rho_max << ": " << d.status);
         REQUIRE(d.ok);
         REQUIRE(d.vertex_times.size() == 8u);

@@ -1,6 +1,7 @@
 // The MPI layer (src/par) and what runs over it: one process without mpirun; under `mpirun -np R` (when
 // built with MPI) compare.h5 holds the same bits for R = 1, 2, 3 as a plain single-process run.
 #include <catch2/catch.hpp>
+#include <filesystem>
 
 #include "eval/engine.hpp"
 #include "helpers.hpp"
@@ -99,6 +100,77 @@ TEST_CASE("more processes than Monte Carlo runs: one line from rank 0 and a non-
     CHECK(r.output.rfind("hinf: error: 3 MPI processes for 2 run(s)", 0) == 0);
     // the line is printed once (by rank 0), whatever mpirun adds after it
     CHECK(r.output.find("MPI processes for") == r.output.rfind("MPI processes for"));
+}
+
+TEST_CASE("worst-case search: restarts dealt out over the processes, worst.h5 and a replay the same bits for "
+          "mpirun -np 1, 2, 3 as for one plain process", "[par][mpi][worst]") {
+    if (!have_mpi()) {
+        WARN("built without MPI: nothing to launch");
+        return;
+    }
+    TempDir d("par-worst");
+    // 4 filters x (2 random + 1 scenario start) = 12 restarts; the PF's restarts are dealt to every process
+    const std::string cfg = hinf::test::source_path("runs/missile_hinf.toml");
+    const std::string args = " worst " + cfg + " --filters ekf,ukf,pf,open_loop --particles 100 --until 2 --evals 10 "
+                             "--random-starts 2 --scenario-starts nominal --threads 1 --quiet --out ";
+    CommandResult one = hinf::test::run_hinf(args + d / "plain");
+    INFO(one.output);
+    REQUIRE(one.status == 0);
+    const std::set<std::string> timings{"wall_seconds"};
+    for (int np : {1, 2, 3}) {
+        const std::string out = d / ("np" + std::to_string(np));
+        CommandResult r = hinf::test::run_command(mpirun(np) + HINF_CLI_PATH + args + out);
+        INFO("mpirun -np " << np << "\n" << r.output);
+        REQUIRE(r.status == 0);
+        CHECK(r.output.find("worst ratio") == r.output.rfind("worst ratio"));  // rank 0 alone prints the table
+        const auto diff = hinf::test::h5_differences(d / "plain/worst.h5", out + "/worst.h5", timings);
+        for (const auto& p : diff) UNSCOPED_INFO("differs: " << p);
+        CHECK(diff.empty());
+        CHECK(hinf::test::h5_contents(out + "/worst.h5", timings).size() > 40);
+    }
+    // the replay of the 4 saved sets split over 3 processes (one of them replays two)
+    const std::string replay = " worst " + cfg + " --replay " + d / "plain/worst.h5" +
+                               " --filters ekf,pf --particles 100 --threads 1 --quiet --out ";
+    CommandResult p1 = hinf::test::run_hinf(replay + d / "replay1");
+    INFO(p1.output);
+    REQUIRE(p1.status == 0);
+    CommandResult p3 = hinf::test::run_command(mpirun(3) + HINF_CLI_PATH + replay + d / "replay3");
+    INFO(p3.output);
+    REQUIRE(p3.status == 0);
+    const auto diff = hinf::test::h5_differences(d / "replay1/replay.h5", d / "replay3/replay.h5", {});
+    for (const auto& p : diff) UNSCOPED_INFO("differs: " << p);
+    CHECK(diff.empty());
+    // more processes than restarts: one line from rank 0, non-zero exit, no hang
+    CommandResult bad = hinf::test::run_command(mpirun(3) + HINF_CLI_PATH + " worst " + cfg +
+                                                " --filters ekf --until 1 --evals 4 --random-starts 1 "
+                                                "--scenario-starts nominal --threads 1 --quiet --out " + d / "bad");
+    INFO(bad.output);
+    CHECK(bad.status == 2);
+    CHECK(bad.output.rfind("hinf: error: 3 MPI processes for 2 restart(s)", 0) == 0);
+    CHECK(bad.output.find("MPI processes for") == bad.output.rfind("MPI processes for"));
+}
+
+TEST_CASE("a process that dies takes the job down, with one line from rank 0 and no hang", "[par][mpi]") {
+    if (!have_mpi()) {
+        WARN("built without MPI: nothing to launch");
+        return;
+    }
+    TempDir d("par-die");
+    // rank 1 kills itself (kill -9, as the kernel's OOM killer would) a second into a run that takes far longer;
+    // `timeout` turns a hang into status 124
+    const std::string job = std::string(HINF_CLI_PATH) + " compare " + hinf::test::source_path("runs/missile_hinf.toml") +
+                            " --filters pf --particles 4000 --runs 4 --threads 1 --quiet --out " + d / "o";
+    CommandResult r = hinf::test::run_command(
+        "timeout 60 " + mpirun(2) + "bash -c 'if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then (sleep 1; kill -9 $$) & fi; exec " +
+        job + "'");
+    INFO(r.output);
+    CHECK(r.status != 0);
+    CHECK(r.status != 124);
+    const std::string line = "hinf: error: this MPI job was stopped while running";
+    CHECK(r.output.find(line) != std::string::npos);
+    CHECK(r.output.find(line) == r.output.rfind(line));  // rank 0's, once
+    CHECK(r.output.find("exited on signal 9") != std::string::npos);  // mpirun's own line names the dead rank
+    CHECK(!std::filesystem::exists(d / "o/compare.h5"));
 }
 
 namespace {
