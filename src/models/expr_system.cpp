@@ -264,7 +264,7 @@ private:
                 if (t.magnitude != "1.0") coefficient = t.magnitude;
             } else if (GiNaC::is_a<GiNaC::power>(f) && GiNaC::is_a<GiNaC::numeric>(f.op(1)) &&
                        f.op(1).info(GiNaC::info_flags::negint)) {
-                t = power(f.op(0), -f.op(1));
+                t = f.op(1).is_equal(-1) ? print(f.op(0)) : power(f.op(0), -f.op(1));
                 down.push_back(t);
             } else {
                 t = print(f);
