@@ -20,7 +20,7 @@ struct ExprSystem::Compiled {
     bool constant = true;
     double value = 0;  // if constant
     int program = -1;  // else: index into programs_ and Workspace::parsers
-    std::string text;  // what muParser evaluates (GiNaC's print_csrc_double)
+    std::string text;  // what muParser evaluates (CanonicalPrinter: GiNaC's tree in an order of ours)
 };
 
 struct ExprSystem::Workspace {
@@ -202,6 +202,165 @@ std::string c_text(const GiNaC::ex& e) {
     return os.str();
 }
 
+// The text muParser evaluates, in an order hinf defines (docs/method.md §12). GiNaC keeps the operands of sums
+// and products in the order of hash values that depend on the load address of its library (address-space
+// randomisation) and on how many symbols the process made before, so its own print_csrc_double gives
+// another order, and other round-off, from one process (MPI rank, resumed run, Python module) to the next.
+// This printer walks GiNaC's tree and sorts the operands of every sum and product by their own canonical
+// text; it also picks the sign of a sum itself (its first sorted term positive), because GiNaC normalises
+// (a - b)^-1 to -(b - a)^-1 by whichever term its hash order puts first. Leaves (numbers, symbols, pi) and
+// the powers of symbols keep GiNaC's C syntax: numbers with 17 digits, x^3 as (x*x*x).
+class CanonicalPrinter {
+public:
+    std::string operator()(const GiNaC::ex& e) const { return print(e).with_sign; }
+
+private:
+    struct Text {
+        std::string magnitude;  // |value| (a sum: with the signs that make its first term positive)
+        bool negative = false;  // value = -magnitude
+        std::string with_sign;  // the value itself (a sum: its terms with their own signs)
+        bool sum = false;       // magnitude is a sum: parenthesised as an operand of * / or a term
+    };
+
+    static Text plain(std::string s, bool negative = false) {
+        Text t;
+        t.magnitude = std::move(s);
+        t.negative = negative;
+        t.with_sign = negative ? "-" + t.magnitude : t.magnitude;
+        return t;
+    }
+    static std::string operand(const Text& t) { return t.sum ? "(" + t.magnitude + ")" : t.magnitude; }
+    // a divisor: anything but a name, a number, a call or a parenthesised group gets parentheses
+    static std::string divisor(const Text& t) {
+        int depth = 0;
+        for (char c : t.magnitude) {
+            depth += c == '(' ? 1 : c == ')' ? -1 : 0;
+            if (depth == 0 && (c == '*' || c == '/' || c == '+' || c == '-') ) return "(" + t.magnitude + ")";
+        }
+        return t.magnitude;
+    }
+    static bool before(const Text& a, const Text& b) {
+        return a.magnitude != b.magnitude ? a.magnitude < b.magnitude : a.negative < b.negative;
+    }
+
+    static Text number(const GiNaC::numeric& v) {
+        std::string s = c_text(GiNaC::abs(v));
+        if (s.find('/') != std::string::npos && s.front() != '(') s = "(" + s + ")";
+        return plain(s, v.is_negative());
+    }
+
+    // GiNaC's x^n for a symbol (or pi) and an integer n: repeated multiplication, as print_csrc_double does
+    static std::string symbol_power(const std::string& x, long n) {
+        if (n == 1) return x;
+        if (n == 2) return x + "*" + x;
+        if (n % 2) return x + "*" + symbol_power(x, n - 1);
+        const std::string half = symbol_power(x, n / 2);
+        return "(" + half + ")*(" + half + ")";
+    }
+
+    Text power(const GiNaC::ex& base, const GiNaC::ex& exponent) const {
+        if (GiNaC::is_a<GiNaC::numeric>(exponent) && exponent.info(GiNaC::info_flags::integer)) {
+            const long n = GiNaC::ex_to<GiNaC::numeric>(exponent).to_long();
+            if (GiNaC::is_a<GiNaC::symbol>(base) || GiNaC::is_a<GiNaC::constant>(base)) {
+                const std::string x = c_text(base);
+                return plain(n > 0 ? "(" + symbol_power(x, n) + ")" : "1.0/(" + symbol_power(x, -n) + ")");
+            }
+            // an integer power of -b is (-1)^n b^n: the sign goes to the caller, b is printed positive
+            const Text b = print(base);
+            const bool negative = b.negative && n % 2 != 0;
+            if (n == -1) return plain("1.0/(" + b.magnitude + ")", negative);
+            return plain("pow(" + b.magnitude + "," + number(GiNaC::numeric(n)).with_sign + ")", negative);
+        }
+        return plain("pow(" + print(base).with_sign + "," + print(exponent).with_sign + ")");
+    }
+
+    Text product(const GiNaC::ex& e) const {
+        bool negative = false;
+        std::string coefficient;
+        std::vector<Text> up, down;  // factors x^k (k not a negative integer) and divisors x^n (x^-n, n > 0)
+        for (std::size_t i = 0; i < e.nops(); ++i) {
+            const GiNaC::ex& f = e.op(i);
+            Text t;
+            if (GiNaC::is_a<GiNaC::numeric>(f)) {
+                t = number(GiNaC::ex_to<GiNaC::numeric>(f));
+                if (t.magnitude != "1.0") coefficient = t.magnitude;
+            } else if (GiNaC::is_a<GiNaC::power>(f) && GiNaC::is_a<GiNaC::numeric>(f.op(1)) &&
+                       f.op(1).info(GiNaC::info_flags::negint)) {
+                t = f.op(1).is_equal(-1) ? print(f.op(0)) : power(f.op(0), -f.op(1));
+                down.push_back(t);
+            } else {
+                t = print(f);
+                up.push_back(t);
+            }
+            negative = negative != t.negative;
+        }
+        std::sort(up.begin(), up.end(), before);
+        std::sort(down.begin(), down.end(), before);
+        std::string s = coefficient;
+        for (const Text& t : up) s += (s.empty() ? "" : "*") + operand(t);
+        if (s.empty()) s = "1.0";
+        for (const Text& t : down) s += "/" + divisor(t);
+        return plain(s, negative);
+    }
+
+    Text sum(const GiNaC::ex& e) const {
+        std::vector<Text> terms;
+        Text constant;
+        bool has_constant = false;
+        for (std::size_t i = 0; i < e.nops(); ++i) {
+            if (GiNaC::is_a<GiNaC::numeric>(e.op(i))) {
+                constant = number(GiNaC::ex_to<GiNaC::numeric>(e.op(i)));
+                has_constant = true;
+            } else {
+                terms.push_back(print(e.op(i)));
+            }
+        }
+        std::sort(terms.begin(), terms.end(), before);
+        if (has_constant) terms.push_back(constant);  // the number last, as GiNaC prints it
+        auto join = [&](bool flip) {
+            std::string s;
+            for (std::size_t i = 0; i < terms.size(); ++i) {
+                const bool minus = terms[i].negative != flip;
+                s += (minus ? "-" : i == 0 ? "" : "+") + operand(terms[i]);
+            }
+            return s;
+        };
+        Text t;
+        t.negative = !terms.empty() && terms.front().negative;
+        t.magnitude = join(t.negative);
+        t.with_sign = join(false);
+        t.sum = true;
+        return t;
+    }
+
+    Text print(const GiNaC::ex& e) const {
+        if (GiNaC::is_a<GiNaC::numeric>(e)) return number(GiNaC::ex_to<GiNaC::numeric>(e));
+        if (GiNaC::is_a<GiNaC::symbol>(e) || GiNaC::is_a<GiNaC::constant>(e)) return plain(c_text(e));
+        if (GiNaC::is_a<GiNaC::add>(e)) return sum(e);
+        if (GiNaC::is_a<GiNaC::mul>(e)) return product(e);
+        if (GiNaC::is_a<GiNaC::power>(e)) return power(e.op(0), e.op(1));
+        if (GiNaC::is_a<GiNaC::function>(e) && !GiNaC::is_a<GiNaC::fderivative>(e)) {
+            std::string s = GiNaC::ex_to<GiNaC::function>(e).get_name() + "(";
+            for (std::size_t i = 0; i < e.nops(); ++i) s += (i ? "," : "") + print(e.op(i)).with_sign;
+            return plain(s + ")");
+        }
+        throw std::runtime_error("no muParser form for " + c_text_plain(e) + " (class " +
+                                 GiNaC::ex_to<GiNaC::basic>(e).class_name() + ")");
+    }
+};
+
+// A constant entry (g = 0/1, dC/dx of a linear h, 2*pi) is evaluated once, from its canonical text.
+double constant_value(const std::string& text) {
+    mu::Parser p;
+    define_functions(p);
+    try {
+        p.SetExpr(text);
+        return p.Eval();
+    } catch (const mu::Parser::exception_type& err) {
+        throw std::runtime_error("muParser cannot read the constant \"" + text + "\": " + err.GetMsg());
+    }
+}
+
 }  // namespace
 
 ExprSystem::~ExprSystem() = default;
@@ -294,17 +453,18 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         for (const auto& hi : h)
             for (const auto& xj : state_symbols) dh.push_back(no_step(hi.diff(xj)));
 
+        const CanonicalPrinter canonical;
         auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
             for (const auto& e : exprs) {
                 Compiled c;
                 check_expression_size(e, spec.where + ": a derivative of f or h");
+                c.text = canonical(e);
                 GiNaC::ex value = e.evalf();
                 if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
-                    c.value = GiNaC::ex_to<GiNaC::numeric>(value).to_double();
-                    c.text = c_text(e);
+                    // the number muParser gives for the canonical text: GiNaC's evalf sums in its hash order
+                    c.value = constant_value(c.text);
                 } else {
                     c.constant = false;
-                    c.text = c_text(e);
                     HINF_CHECK(c.text.size() <= std::size_t(mu::MaxLenExpression),
                                spec.where + ": an expression (or its derivative) prints to " +
                                    std::to_string(c.text.size()) + " characters once its definitions are "
