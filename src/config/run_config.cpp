@@ -111,8 +111,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     // the defaults are seed 000's missile; a system of one's own must say where it starts
     if (c.system->name() == "expr")
         for (const char* key : {"x0", "xhat0"})
-            if (!f.has(key))
-                f.reject(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
+            f.require(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
                                   " numbers: the " + (std::string(key) == "x0" ? "true" : "estimated") +
                                   " initial state)");
     c.x0 = f.get_doubles("x0", {150000, 210000, 120000, -2500, -2500, -2500}, n);
@@ -218,10 +217,10 @@ RunConfig load_run_config(ConfigDoc doc) {
                                 "unless [objective] ";
         const bool has_dist_std = on.has("disturbance_std"), has_noise_std = on.has("noise_std");
         if (!has_dist_std && !has_dist_intensity)
-            on.reject("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
+            on.require("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
                                          "per step (hinf's default 20 is the missile's)");
         if (!has_noise_std && !has_noise_intensity)
-            on.reject("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
+            on.require("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
                                    "output units (hinf's default 20 is the missile's)");
         if (!has_dist_intensity) c.disturbance_intensity = c.disturbance_std * c.disturbance_std * c.dt;
         if (!has_noise_intensity) c.noise_intensity = c.noise_std * c.noise_std * c.dt;
