@@ -78,6 +78,9 @@ public:
     std::string where(const std::string& key) const;
     /// Throws a hinf::Error "<where(key)>: <problem>".
     [[noreturn]] void reject(const std::string& key, const std::string& problem) const;
+    /// For a required key: when it is missing, rejects it with `problem`, adding "did you mean" when a key
+    /// present in the table is a near miss of it ("measurement = 1" for "measurements").
+    void require(const std::string& key, const std::string& problem) const;
 
 private:
     const ConfigDoc& doc_;

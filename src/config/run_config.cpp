@@ -78,6 +78,44 @@ std::vector<double> own_error_floor_default(const RunConfig& c) {
     return floor;
 }
 
+// f, g, h and the Jacobians must be finite at the true and estimated initial states (t = 0): an expression
+// singular there (1/p at p = 0, log(-1)) is named here, not met as a "divergence at step 0".
+void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
+    const System& sys = *c.system;
+    const int n = c.n, nv = c.nv, m = c.m;
+    const std::vector<std::string> names = sys.state_names();
+    std::vector<double> a(n), B(std::size_t(n) * nv), y(m), J(std::size_t(n) * n), H(std::size_t(m) * n);
+    for (const char* key : {"x0", "xhat0"}) {
+        const std::vector<double>& x = std::string(key) == "x0" ? c.x0 : c.xhat0;
+        sys.drift(a.data(), x.data(), 0.0, 1);
+        sys.disturbance_gain(B.data(), x.data(), 0.0, 1);
+        sys.measurement(y.data(), x.data(), 0.0, 1);
+        sys.drift_jacobian(J.data(), x.data(), 0.0);
+        sys.measurement_jacobian(H.data(), x.data(), 0.0);
+        std::string bad;
+        double value = 0;
+        auto look = [&](const std::vector<double>& v, int cols, const std::string& what, bool per_state_col) {
+            for (std::size_t k = 0; k < v.size() && bad.empty(); ++k)
+                if (!std::isfinite(v[k])) {
+                    value = v[k];
+                    const int r = int(k) / cols, col = int(k) % cols;
+                    bad = what + "[" + std::to_string(r + 1) + "]" +
+                          (cols > 1 || per_state_col ? "[" + std::to_string(col + 1) + "]" : "") +
+                          (per_state_col ? " (d/d" + names[std::size_t(col)] + ")" : "");
+                }
+        };
+        look(a, 1, "f", false);
+        look(B, nv, "g", false);
+        look(y, 1, "h", false);
+        look(J, n, "the Jacobian of f", true);
+        look(H, n, "the Jacobian of h", true);
+        if (!bad.empty())
+            f.reject(key, "the system's " + bad + " is " + num(value) + " at this initial state (t = 0): an "
+                          "expression is singular there (e.g. 1/p at p = 0, log of a negative number, 1/t at t = 0); "
+                          "move the initial state or guard the expression");
+    }
+}
+
 RunConfig load_run_config(ConfigDoc doc) {
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
     RunConfig c;
@@ -113,8 +151,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     // the defaults are seed 000's missile; a system of one's own must say where it starts
     if (c.system->name() == "expr")
         for (const char* key : {"x0", "xhat0"})
-            if (!f.has(key))
-                f.reject(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
+            f.require(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
                                   " numbers: the " + (std::string(key) == "x0" ? "true" : "estimated") +
                                   " initial state)");
     c.x0 = f.get_doubles("x0", {150000, 210000, 120000, -2500, -2500, -2500}, n);
@@ -124,6 +161,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.t_final = f.get_double("t_final", c.t_final, 0.0, 1e9);
     if (c.t_final <= 0) f.reject("t_final", "must be > 0");
     if (c.t_final / c.dt > 1e9) f.reject("t_final", "gives more than 1e9 time steps (raise dt or lower t_final)");
+    check_system_finite_at_start(c, f);
     if (std::llround(c.t_final / c.dt) < 1)
         f.reject("t_final", "= " + num(c.t_final) + " s is less than one time step dt = " +
                                 num(c.dt) + " s: nothing would run (raise t_final or lower dt)");
@@ -220,10 +258,10 @@ RunConfig load_run_config(ConfigDoc doc) {
                                 "unless [objective] ";
         const bool has_dist_std = on.has("disturbance_std"), has_noise_std = on.has("noise_std");
         if (!has_dist_std && !has_dist_intensity)
-            on.reject("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
+            on.require("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
                                          "per step (hinf's default 20 is the missile's)");
         if (!has_noise_std && !has_noise_intensity)
-            on.reject("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
+            on.require("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
                                    "output units (hinf's default 20 is the missile's)");
         if (!has_dist_intensity) c.disturbance_intensity = c.disturbance_std * c.disturbance_std * c.dt;
         if (!has_noise_intensity) c.noise_intensity = c.noise_std * c.noise_std * c.dt;

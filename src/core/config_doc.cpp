@@ -195,6 +195,21 @@ void ConfigSection::reject(const std::string& key, const std::string& problem) c
 
 bool ConfigSection::has(const std::string& key) const { return table_ && table_->get(key) != nullptr; }
 
+void ConfigSection::require(const std::string& key, const std::string& problem) const {
+    if (has(key)) return;
+    std::string near;
+    int best = 1 + int(key.size()) / 4;  // a near miss: at most a quarter of the name (at least one edit) off
+    if (table_)
+        for (const auto& [k, v] : *table_) {
+            const int d = edit_distance(std::string(k.str()), key);
+            if (d <= best) {
+                best = d;
+                near = std::string(k.str());
+            }
+        }
+    reject(key, problem + (near.empty() ? "" : " ('" + near + "' is there: did you mean '" + key + "'?)"));
+}
+
 double ConfigSection::get_double(const std::string& key, double fallback, double lo, double hi) {
     known_.insert(key);
     if (!has(key)) return fallback;

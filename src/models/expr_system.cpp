@@ -605,7 +605,7 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s, double period) {
     spec.where = s.where("kind");
     spec.where = spec.where.substr(0, spec.where.rfind(" kind"));  // "file.toml:3: [system]"
     auto require = [&](const std::string& key, const std::string& example) {
-        if (!s.has(key)) s.reject(key, "is required for kind = \"expr\" (e.g. " + example + ", see docs/byos.md)");
+        s.require(key, "is required for kind = \"expr\" (e.g. " + example + ", see docs/byos.md)");
     };
     require("states", "states = [\"x1\", \"x2\"]");
     require("f", "f = [\"x2\", \"-x1\"]");
