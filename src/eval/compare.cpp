@@ -169,7 +169,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         }
         mean_ci(&fr.mse, &ci, over_kept([](const FilterRun& q) { return q.mse; }));
         fr.mse_db = 10.0 * std::log10(fr.mse);
-        if (filters[k]->filtered() != nullptr || !er.runs[k][0].err_sq_filtered.empty()) {
+        bool has_filtered = false;  // a filter that diverged at its first step in every run never gave one
+        for (std::int64_t r = 0; r < R; ++r) has_filtered = has_filtered || !er.runs[k][r].err_sq_filtered.empty();
+        if (has_filtered) {
             mean_ci(&fr.mse_filtered, &ci, over_kept([](const FilterRun& q) { return q.mse_filtered; }));
             fr.mse_filtered_db = 10.0 * std::log10(fr.mse_filtered);
         }
