@@ -454,3 +454,80 @@ TEST_CASE("an expression system's EKF is the same bits in every process (address
         CHECK(test::bitwise_equal(P, first_p));
     }
 }
+
+namespace {
+
+// A random expression as text (for the config) and its value computed here in C++: an oracle for the printer
+// that does not share its code. States p, w in [-1, 1], parameter k; divisors and pow bases kept away from 0.
+struct RandomExpr {
+    std::mt19937_64& rng;
+    int pick(int n) { return int(rng() % std::uint64_t(n)); }
+    // text and value at (p, w) with k; a copy of one generator draws the same expression at every point
+    std::pair<std::string, double> node(int depth, double p, double w, double k) {
+        if (depth == 0) {
+            switch (pick(5)) {
+                case 0: return {"p", p};
+                case 1: return {"w", w};
+                case 2: return {"k", k};
+                case 3: return {"0.3", 0.3};
+                default: return {"2", 2.0};
+            }
+        }
+        auto a = node(depth - 1, p, w, k), b = node(depth - 1, p, w, k);
+        const std::string A = "(" + a.first + ")", B = "(" + b.first + ")";
+        switch (pick(9)) {
+            case 0: return {A + " + " + B, a.second + b.second};
+            case 1: return {A + " - " + B, a.second - b.second};
+            case 2: return {A + "*" + B, a.second * b.second};
+            case 3: return {A + "/(3 + " + B + "^2)", a.second / (3 + b.second * b.second)};
+            case 4: return {"1/(" + A + " - " + B + " + 40)", 1 / (a.second - b.second + 40)};  // a sum's sign
+            case 5: return {A + "^3 - " + B + "^2", a.second * a.second * a.second - b.second * b.second};
+            case 6: return {"sin(" + a.first + ")*cos(" + b.first + ")", std::sin(a.second) * std::cos(b.second)};
+            case 7: return {"sqrt(1 + " + A + "^2)", std::sqrt(1 + a.second * a.second)};
+            default: return {"atan(" + a.first + ") - 0.5*" + B, std::atan(a.second) - 0.5 * b.second};
+        }
+    }
+};
+
+}  // namespace
+
+TEST_CASE("the canonical programs of random expressions equal the expressions, and Jacobians agree",
+          "[model][expr]") {
+    // 60 random expressions (depth 3): the printed programs (sorted terms, signs moved out of sums) must give
+    // the values the expressions have; the exact Jacobian is checked against central differences
+    const std::uint64_t seed = 20261125;
+    INFO("std::mt19937_64 seed " << seed);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const double k = 0.7;
+    for (int trial = 0; trial < 60; ++trial) {
+        const std::uint64_t expr_seed = rng();
+        auto at = [&](double p, double w) {
+            std::mt19937_64 r(expr_seed);
+            return RandomExpr{r}.node(3, p, w, k);
+        };
+        const std::string text = at(0, 0).first;
+        INFO(text);
+        std::string cfg = vdp_config("", kStart);
+        cfg.replace(cfg.find("p + c*p^3"), 9, text);
+        cfg.replace(cfg.find("c = 0.3"), 7, "c = 0.3, k = 0.7");
+        std::unique_ptr<System> sys = make_system(ConfigDoc::from_text(cfg, "random.toml"));
+        INFO("printed " << dynamic_cast<const ExprSystem&>(*sys).compiled("h").at(0));
+        for (int point = 0; point < 5; ++point) {
+            double x[2] = {u(rng), u(rng)}, c = 0, H[2];
+            sys->measurement(&c, x, 0.0, 1);
+            const double want = at(x[0], x[1]).second;
+            CHECK(std::fabs(c - want) <= 1e-12 * std::max(1.0, std::fabs(want)));
+            sys->measurement_jacobian(H, x, 0.0);
+            for (int j = 0; j < 2; ++j) {
+                const double eps = 1e-6;
+                double xp[2] = {x[0], x[1]}, xm[2] = {x[0], x[1]};
+                xp[j] += eps;
+                xm[j] -= eps;
+                const double fd = (at(xp[0], xp[1]).second - at(xm[0], xm[1]).second) / (2 * eps);
+                // central differences: truncation ~eps^2, round-off ~1e-16 |h| / eps
+                CHECK(H[j] == Approx(fd).margin(1e-6 + 1e-9 * std::fabs(want)).epsilon(1e-6));
+            }
+        }
+    }
+}
