@@ -405,9 +405,9 @@ TEST_CASE("expression programs are printed in hinf's order: the same text howeve
     struct Case {
         const char *h, *text, *dh_dp;
     };
-    for (const Case& c : {Case{"1/(p - w)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
-                          Case{"-1/(w - p)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
-                          Case{"2/(w - p)", "-2.0/(p-w)", "2.0/pow(p-w,2.0)"}}) {
+    for (const Case& c :
+         {Case{"1/(p - w)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"}, Case{"-1/(w - p)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
+          Case{"2/(w - p)", "-2.0/(p-w)", "2.0/pow(p-w,2.0)"}}) {
         INFO(c.h);
         std::string text = vdp_config("", kStart);
         text.replace(text.find("p + c*p^3"), 9, c.h);
@@ -436,8 +436,8 @@ TEST_CASE("an expression system's EKF is the same bits in every process (address
     std::vector<double> first_x, first_p;
     for (int run = 0; run < 4; ++run) {
         const std::string out = dir / ("run" + std::to_string(run));
-        test::CommandResult r = test::run_hinf("filter " + cfg + " --measurements " + csv +
-                                               " --filters ekf --quiet --out " + out);
+        test::CommandResult r =
+            test::run_hinf("filter " + cfg + " --measurements " + csv + " --filters ekf --quiet --out " + out);
         INFO(r.output);
         REQUIRE(r.status == 0);
         h5::Handle f = h5::open_file(out + "/estimates.h5", false);
@@ -466,33 +466,46 @@ struct RandomExpr {
     std::pair<std::string, double> node(int depth, double p, double w, double k) {
         if (depth == 0) {
             switch (pick(5)) {
-                case 0: return {"p", p};
-                case 1: return {"w", w};
-                case 2: return {"k", k};
-                case 3: return {"0.3", 0.3};
-                default: return {"2", 2.0};
+                case 0:
+                    return {"p", p};
+                case 1:
+                    return {"w", w};
+                case 2:
+                    return {"k", k};
+                case 3:
+                    return {"0.3", 0.3};
+                default:
+                    return {"2", 2.0};
             }
         }
         auto a = node(depth - 1, p, w, k), b = node(depth - 1, p, w, k);
         const std::string A = "(" + a.first + ")", B = "(" + b.first + ")";
         switch (pick(9)) {
-            case 0: return {A + " + " + B, a.second + b.second};
-            case 1: return {A + " - " + B, a.second - b.second};
-            case 2: return {A + "*" + B, a.second * b.second};
-            case 3: return {A + "/(3 + " + B + "^2)", a.second / (3 + b.second * b.second)};
-            case 4: return {"1/(" + A + " - " + B + " + 40)", 1 / (a.second - b.second + 40)};  // a sum's sign
-            case 5: return {A + "^3 - " + B + "^2", a.second * a.second * a.second - b.second * b.second};
-            case 6: return {"sin(" + a.first + ")*cos(" + b.first + ")", std::sin(a.second) * std::cos(b.second)};
-            case 7: return {"sqrt(1 + " + A + "^2)", std::sqrt(1 + a.second * a.second)};
-            default: return {"atan(" + a.first + ") - 0.5*" + B, std::atan(a.second) - 0.5 * b.second};
+            case 0:
+                return {A + " + " + B, a.second + b.second};
+            case 1:
+                return {A + " - " + B, a.second - b.second};
+            case 2:
+                return {A + "*" + B, a.second * b.second};
+            case 3:
+                return {A + "/(3 + " + B + "^2)", a.second / (3 + b.second * b.second)};
+            case 4:
+                return {"1/(" + A + " - " + B + " + 40)", 1 / (a.second - b.second + 40)};  // a sum's sign
+            case 5:
+                return {A + "^3 - " + B + "^2", a.second * a.second * a.second - b.second * b.second};
+            case 6:
+                return {"sin(" + a.first + ")*cos(" + b.first + ")", std::sin(a.second) * std::cos(b.second)};
+            case 7:
+                return {"sqrt(1 + " + A + "^2)", std::sqrt(1 + a.second * a.second)};
+            default:
+                return {"atan(" + a.first + ") - 0.5*" + B, std::atan(a.second) - 0.5 * b.second};
         }
     }
 };
 
 }  // namespace
 
-TEST_CASE("the canonical programs of random expressions equal the expressions, and Jacobians agree",
-          "[model][expr]") {
+TEST_CASE("the canonical programs of random expressions equal the expressions, and Jacobians agree", "[model][expr]") {
     // 60 random expressions (depth 3): the printed programs (sorted terms, signs moved out of sums) must give
     // the values the expressions have; the exact Jacobian is checked against central differences
     const std::uint64_t seed = 20261125;
