@@ -104,10 +104,10 @@ const char* kStart = "x0 = [2.0, 0.0]\nxhat0 = [0.5, 1.0]\n";
 // own print ordered these differently in each process, and 8 runs of `hinf filter` gave 8 different EKF outputs
 std::string rich_vdp_config() {
     return "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 1\nmeasurements = 2\n"
-           "parameters = { mu = 1.0, c = 0.3, k = 0.7 }\ndefinitions = [\"r = sqrt(1 + p^2 + w^2)\"]\n"
-           "f = [\"w + 0.1*sin(p)*w - 0.02*p*w^2\", \"mu*(1 - p^2)*w - p + 0.3*k*p*w*c - 0.05*w^3/(1 + p^2) + "
-           "0.01*exp(-p*w)*r + c*k/(p - w - 7)\"]\ng = [[\"0\"], [\"1 + 0.1*p*w*k\"]]\n"
-           "h = [\"p + c*p^3 + 0.2*k*p*w + 0.1*sin(w)*cos(p)\", \"r + 0.3*w*p^2*k - c/(w - p + 9)\"]\n"
+           "parameters = { mu = 1.0, c = 0.3, q = 0.7 }\ndefinitions = [\"r = sqrt(1 + p^2 + w^2)\"]\n"
+           "f = [\"w + 0.1*sin(p)*w - 0.02*p*w^2\", \"mu*(1 - p^2)*w - p + 0.3*q*p*w*c - 0.05*w^3/(1 + p^2) + "
+           "0.01*exp(-p*w)*r + c*q/(p - w - 7)\"]\ng = [[\"0\"], [\"1 + 0.1*p*w*q\"]]\n"
+           "h = [\"p + c*p^3 + 0.2*q*p*w + 0.1*sin(w)*cos(p)\", \"r + 0.3*w*p^2*q - c/(w - p + 9)\"]\n"
            "[filter]\nrho = 0.5\nQ = [1.0, 1.0]\nx0 = [2.0, 0.0]\nxhat0 = [0.5, 1.0]\ndt = 0.01\nt_final = 1.0\n"
            "[network]\nhidden = [8]\n[sampling]\nerror_floor = [0.2, 0.2]\n";
 }
@@ -458,12 +458,12 @@ TEST_CASE("an expression system's EKF is the same bits in every process (address
 namespace {
 
 // A random expression as text (for the config) and its value computed here in C++: an oracle for the printer
-// that does not share its code. States p, w in [-1, 1], parameter k; divisors and pow bases kept away from 0.
+// that does not share its code. States p, w in [-1, 1], parameter q; divisors and pow bases kept away from 0.
 struct RandomExpr {
     std::mt19937_64& rng;
     int pick(int n) { return int(rng() % std::uint64_t(n)); }
-    // text and value at (p, w) with k; a copy of one generator draws the same expression at every point
-    std::pair<std::string, double> node(int depth, double p, double w, double k) {
+    // text and value at (p, w) with q; a copy of one generator draws the same expression at every point
+    std::pair<std::string, double> node(int depth, double p, double w, double q) {
         if (depth == 0) {
             switch (pick(5)) {
                 case 0:
@@ -471,14 +471,14 @@ struct RandomExpr {
                 case 1:
                     return {"w", w};
                 case 2:
-                    return {"k", k};
+                    return {"q", q};
                 case 3:
                     return {"0.3", 0.3};
                 default:
                     return {"2", 2.0};
             }
         }
-        auto a = node(depth - 1, p, w, k), b = node(depth - 1, p, w, k);
+        auto a = node(depth - 1, p, w, q), b = node(depth - 1, p, w, q);
         const std::string A = "(" + a.first + ")", B = "(" + b.first + ")";
         switch (pick(9)) {
             case 0:
@@ -512,18 +512,18 @@ TEST_CASE("the canonical programs of random expressions equal the expressions, a
     INFO("std::mt19937_64 seed " << seed);
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const double k = 0.7;
+    const double q = 0.7;
     for (int trial = 0; trial < 60; ++trial) {
         const std::uint64_t expr_seed = rng();
         auto at = [&](double p, double w) {
             std::mt19937_64 r(expr_seed);
-            return RandomExpr{r}.node(3, p, w, k);
+            return RandomExpr{r}.node(3, p, w, q);
         };
         const std::string text = at(0, 0).first;
         INFO(text);
         std::string cfg = vdp_config("", kStart);
         cfg.replace(cfg.find("p + c*p^3"), 9, text);
-        cfg.replace(cfg.find("c = 0.3"), 7, "c = 0.3, k = 0.7");
+        cfg.replace(cfg.find("c = 0.3"), 7, "c = 0.3, q = 0.7");
         std::unique_ptr<System> sys = make_system(ConfigDoc::from_text(cfg, "random.toml"));
         INFO("printed " << dynamic_cast<const ExprSystem&>(*sys).compiled("h").at(0));
         for (int point = 0; point < 5; ++point) {
