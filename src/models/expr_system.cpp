@@ -235,7 +235,7 @@ private:
         int depth = 0;
         for (char c : t.magnitude) {
             depth += c == '(' ? 1 : c == ')' ? -1 : 0;
-            if (depth == 0 && (c == '*' || c == '/' || c == '+' || c == '-') ) return "(" + t.magnitude + ")";
+            if (depth == 0 && (c == '*' || c == '/' || c == '+' || c == '-')) return "(" + t.magnitude + ")";
         }
         return t.magnitude;
     }

@@ -104,10 +104,10 @@ const char* kStart = "x0 = [2.0, 0.0]\nxhat0 = [0.5, 1.0]\n";
 // own print ordered these differently in each process, and 8 runs of `hinf filter` gave 8 different EKF outputs
 std::string rich_vdp_config() {
     return "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 1\nmeasurements = 2\n"
-           "parameters = { mu = 1.0, c = 0.3, k = 0.7 }\ndefinitions = [\"r = sqrt(1 + p^2 + w^2)\"]\n"
-           "f = [\"w + 0.1*sin(p)*w - 0.02*p*w^2\", \"mu*(1 - p^2)*w - p + 0.3*k*p*w*c - 0.05*w^3/(1 + p^2) + "
-           "0.01*exp(-p*w)*r + c*k/(p - w - 7)\"]\ng = [[\"0\"], [\"1 + 0.1*p*w*k\"]]\n"
-           "h = [\"p + c*p^3 + 0.2*k*p*w + 0.1*sin(w)*cos(p)\", \"r + 0.3*w*p^2*k - c/(w - p + 9)\"]\n"
+           "parameters = { mu = 1.0, c = 0.3, q = 0.7 }\ndefinitions = [\"r = sqrt(1 + p^2 + w^2)\"]\n"
+           "f = [\"w + 0.1*sin(p)*w - 0.02*p*w^2\", \"mu*(1 - p^2)*w - p + 0.3*q*p*w*c - 0.05*w^3/(1 + p^2) + "
+           "0.01*exp(-p*w)*r + c*q/(p - w - 7)\"]\ng = [[\"0\"], [\"1 + 0.1*p*w*q\"]]\n"
+           "h = [\"p + c*p^3 + 0.2*q*p*w + 0.1*sin(w)*cos(p)\", \"r + 0.3*w*p^2*q - c/(w - p + 9)\"]\n"
            "[filter]\nrho = 0.5\nQ = [1.0, 1.0]\nx0 = [2.0, 0.0]\nxhat0 = [0.5, 1.0]\ndt = 0.01\nt_final = 1.0\n"
            "[network]\nhidden = [8]\n[sampling]\nerror_floor = [0.2, 0.2]\n";
 }
@@ -405,9 +405,9 @@ TEST_CASE("expression programs are printed in hinf's order: the same text howeve
     struct Case {
         const char *h, *text, *dh_dp;
     };
-    for (const Case& c : {Case{"1/(p - w)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
-                          Case{"-1/(w - p)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
-                          Case{"2/(w - p)", "-2.0/(p-w)", "2.0/pow(p-w,2.0)"}}) {
+    for (const Case& c :
+         {Case{"1/(p - w)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"}, Case{"-1/(w - p)", "1.0/(p-w)", "-1.0/pow(p-w,2.0)"},
+          Case{"2/(w - p)", "-2.0/(p-w)", "2.0/pow(p-w,2.0)"}}) {
         INFO(c.h);
         std::string text = vdp_config("", kStart);
         text.replace(text.find("p + c*p^3"), 9, c.h);
@@ -436,8 +436,8 @@ TEST_CASE("an expression system's EKF is the same bits in every process (address
     std::vector<double> first_x, first_p;
     for (int run = 0; run < 4; ++run) {
         const std::string out = dir / ("run" + std::to_string(run));
-        test::CommandResult r = test::run_hinf("filter " + cfg + " --measurements " + csv +
-                                               " --filters ekf --quiet --out " + out);
+        test::CommandResult r =
+            test::run_hinf("filter " + cfg + " --measurements " + csv + " --filters ekf --quiet --out " + out);
         INFO(r.output);
         REQUIRE(r.status == 0);
         h5::Handle f = h5::open_file(out + "/estimates.h5", false);
@@ -452,5 +452,95 @@ TEST_CASE("an expression system's EKF is the same bits in every process (address
         INFO("run " << run << ": largest relative difference to run 0 " << test::max_rel_diff(x, first_x));
         CHECK(test::bitwise_equal(x, first_x));
         CHECK(test::bitwise_equal(P, first_p));
+    }
+}
+
+namespace {
+
+// A random expression as text (for the config) and its value computed here in C++: an oracle for the printer
+// that does not share its code. States p, w in [-1, 1], parameter q; divisors and pow bases kept away from 0.
+struct RandomExpr {
+    std::mt19937_64& rng;
+    int pick(int n) { return int(rng() % std::uint64_t(n)); }
+    // text and value at (p, w) with q; a copy of one generator draws the same expression at every point
+    std::pair<std::string, double> node(int depth, double p, double w, double q) {
+        if (depth == 0) {
+            switch (pick(5)) {
+                case 0:
+                    return {"p", p};
+                case 1:
+                    return {"w", w};
+                case 2:
+                    return {"q", q};
+                case 3:
+                    return {"0.3", 0.3};
+                default:
+                    return {"2", 2.0};
+            }
+        }
+        auto a = node(depth - 1, p, w, q), b = node(depth - 1, p, w, q);
+        const std::string A = "(" + a.first + ")", B = "(" + b.first + ")";
+        switch (pick(9)) {
+            case 0:
+                return {A + " + " + B, a.second + b.second};
+            case 1:
+                return {A + " - " + B, a.second - b.second};
+            case 2:
+                return {A + "*" + B, a.second * b.second};
+            case 3:
+                return {A + "/(3 + " + B + "^2)", a.second / (3 + b.second * b.second)};
+            case 4:
+                return {"1/(" + A + " - " + B + " + 40)", 1 / (a.second - b.second + 40)};  // a sum's sign
+            case 5:
+                return {A + "^3 - " + B + "^2", a.second * a.second * a.second - b.second * b.second};
+            case 6:
+                return {"sin(" + a.first + ")*cos(" + b.first + ")", std::sin(a.second) * std::cos(b.second)};
+            case 7:
+                return {"sqrt(1 + " + A + "^2)", std::sqrt(1 + a.second * a.second)};
+            default:
+                return {"atan(" + a.first + ") - 0.5*" + B, std::atan(a.second) - 0.5 * b.second};
+        }
+    }
+};
+
+}  // namespace
+
+TEST_CASE("the canonical programs of random expressions equal the expressions, and Jacobians agree", "[model][expr]") {
+    // 60 random expressions (depth 3): the printed programs (sorted terms, signs moved out of sums) must give
+    // the values the expressions have; the exact Jacobian is checked against central differences
+    const std::uint64_t seed = 20261125;
+    INFO("std::mt19937_64 seed " << seed);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const double q = 0.7;
+    for (int trial = 0; trial < 60; ++trial) {
+        const std::uint64_t expr_seed = rng();
+        auto at = [&](double p, double w) {
+            std::mt19937_64 r(expr_seed);
+            return RandomExpr{r}.node(3, p, w, q);
+        };
+        const std::string text = at(0, 0).first;
+        INFO(text);
+        std::string cfg = vdp_config("", kStart);
+        cfg.replace(cfg.find("p + c*p^3"), 9, text);
+        cfg.replace(cfg.find("c = 0.3"), 7, "c = 0.3, q = 0.7");
+        std::unique_ptr<System> sys = make_system(ConfigDoc::from_text(cfg, "random.toml"));
+        INFO("printed " << dynamic_cast<const ExprSystem&>(*sys).compiled("h").at(0));
+        for (int point = 0; point < 5; ++point) {
+            double x[2] = {u(rng), u(rng)}, c = 0, H[2];
+            sys->measurement(&c, x, 0.0, 1);
+            const double want = at(x[0], x[1]).second;
+            CHECK(std::fabs(c - want) <= 1e-12 * std::max(1.0, std::fabs(want)));
+            sys->measurement_jacobian(H, x, 0.0);
+            for (int j = 0; j < 2; ++j) {
+                const double eps = 1e-6;
+                double xp[2] = {x[0], x[1]}, xm[2] = {x[0], x[1]};
+                xp[j] += eps;
+                xm[j] -= eps;
+                const double fd = (at(xp[0], xp[1]).second - at(xm[0], xm[1]).second) / (2 * eps);
+                // central differences: truncation ~eps^2, round-off ~1e-16 |h| / eps
+                CHECK(H[j] == Approx(fd).margin(1e-6 + 1e-9 * std::fabs(want)).epsilon(1e-6));
+            }
+        }
     }
 }
