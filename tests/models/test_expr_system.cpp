@@ -109,7 +109,7 @@ std::string rich_vdp_config() {
            "0.01*exp(-p*w)*r + c*q/(p - w - 7)\"]\ng = [[\"0\"], [\"1 + 0.1*p*w*q\"]]\n"
            "h = [\"p + c*p^3 + 0.2*q*p*w + 0.1*sin(w)*cos(p)\", \"r + 0.3*w*p^2*q - c/(w - p + 9)\"]\n"
            "[filter]\nrho = 0.5\nQ = [1.0, 1.0]\nx0 = [2.0, 0.0]\nxhat0 = [0.5, 1.0]\ndt = 0.01\nt_final = 1.0\n"
-           "[network]\nhidden = [8]\n[sampling]\nerror_floor = [0.2, 0.2]\n";
+           "[network]\nhidden = [8]\n[sampling]\nerror_floor = [0.2, 0.2]\n[online]\ndisturbance_std = 0.5\nnoise_std = 0.1\n";
 }
 
 std::vector<std::string> all_programs(const System& sys) {
