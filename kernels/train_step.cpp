@@ -48,6 +48,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     p.assign(padded * n, 0.0);
     P.assign(padded * n * n, 0.0);
     values.assign(padded, HjieSampleValue{});
+    if (cfg.gain.enabled) K.assign(padded * n * cfg.gain.m, 0.0);
 }
 
 template <typename T>

@@ -55,7 +55,9 @@ RunConfig load_run_config(ConfigDoc doc) {
 
     ConfigSection f(doc, "filter");
     c.type = f.get_string("type", c.type, {"hinf", "h2hinf"});
-    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper"});
+    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper", "gain"});
+    if (c.variant == "gain" && c.type != "hinf")
+        f.reject("variant", "\"gain\" is an H-infinity filter: use it with type = \"hinf\"");
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
     std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
@@ -140,6 +142,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.local_fraction = s.get_double("local_fraction", c.local_fraction, 0.0, 1.0);
     c.local_spread = s.get_double("local_spread", c.local_spread, 0.0, 1e6);
     c.radius_decades = s.get_double("radius_decades", c.radius_decades, 0.0, 30.0);
+    c.trajectories = s.get_int("trajectories", c.trajectories, 1, 100000);
     c.error_floor = s.get_doubles("error_floor", std::vector<double>(n, 20.0), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");

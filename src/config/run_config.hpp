@@ -18,7 +18,7 @@ struct ProblemConfig {
 
     // [filter]
     std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
-    std::string variant = "dissipative";  // "dissipative" (default) or "paper"
+    std::string variant = "dissipative";  // "dissipative" (default), "paper" or "gain" (K(x^), docs/method.md 14)
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
@@ -58,6 +58,7 @@ struct TrainingConfig {
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
     std::vector<double> error_floor;  // n
+    std::int64_t trajectories = 16;   // variant gain: simulated truth runs the estimates are sampled along
 
     // [objective] (dissipative variant)
     double margin = 0.02, h2_weight = 0.1, disturbance_intensity = 4.0, noise_intensity = 4.0;

@@ -34,6 +34,13 @@ public:
         const int n = cfg_.n;
         std::vector<double> xt(n), pt(n);
         for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+        if (net_->step_config().gain.enabled) {  // variant gain: its own inequality (docs/method.md section 14)
+            double S = 0;
+            const double H = gain_point_residual(&S, nullptr, *net_, *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
+            violations_ += H > 0.01 * S ? 1 : 0;
+            steps_ += 1;
+            return;
+        }
         net_->gradient(pt.data(), xt.data(), 1);
         double terms[4];
         hjie_point_terms(terms, pt.data(), *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
@@ -81,7 +88,11 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
 
     // the engine over {the DNN filter, the open-loop predictor}: the same truth, the same measurements
     const FilterModel model = filter_model(cfg);
-    std::unique_ptr<OnlineFilter> dnn = make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
+    const bool gain = network.step_config().gain.enabled;
+    HINF_CHECK(!gain || measured, "network '" + network_path + "' is variant \"gain\": its gain K(x^) never sees the "
+                                  "true error, so --mode oracle is meaningless for it (use --mode measured)");
+    std::unique_ptr<OnlineFilter> dnn = gain ? make_gain_filter(model, network, "dnn")
+                                             : make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
     std::unique_ptr<OnlineFilter> open_loop = make_open_loop_filter(model);
     EngineOptions eo;
     eo.runs = sum.runs;
@@ -97,8 +108,15 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     // V(x~(0)) along the segment (defined for the quadratic head: p^T x~ > 0 on every ray)
     std::vector<double> xt0(n);
     for (int i = 0; i < n; ++i) xt0[i] = cfg.x0[i] - cfg.xhat0[i];
-    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC;
-    sum.v0 = network.value(xt0.data(), n);
+    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC || gain;
+    if (gain) {
+        std::vector<double> S(static_cast<std::size_t>(n) * n), K(static_cast<std::size_t>(n) * cfg.m);
+        std::unique_ptr<FrozenNetwork> net = network.clone();
+        net->gain(K.data(), S.data(), cfg.xhat0.data(), 1);
+        sum.v0 = quadratic_form(S.data(), xt0.data(), n);
+    } else {
+        sum.v0 = network.value(xt0.data(), n);
+    }
 
     std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
     for (std::int64_t r = 0; r < sum.runs; ++r) {

@@ -39,4 +39,8 @@ void dnn_error_from_innovation(double* xt, const System& sys, const double* xhat
 std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const FrozenNetwork& network,
                                               const DnnGainLaw& law, bool measured, const std::string& name);
 
+/// Variant gain: x^' = A(x^) + K(x^)(y - C(x^)) with K from the network at x^ alone (measured by construction).
+std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
+                                               const std::string& name);
+
 }  // namespace hinf
