@@ -49,6 +49,31 @@ void gain_parts(GainParts* g, const double* K, const double* S, const HjieSystem
     }
 }
 
+// relu(dt |D^-1 K dC| / |D^-1 x~| - kappa); dr [n x m] (may be null) gets d(dt |D^-1 K dC| / |D^-1 x~|)/dK
+double step_correction_excess(const double* K, const HjieSystemView& sv, std::int64_t i, const GainLossParams& gp,
+                              double* dr) {
+    if (!(gp.dt > 0) || gp.dx == nullptr) return 0.0;
+    const int n = sv.n, m = sv.m;
+    const double* xt = sv.xt + i * n;
+    const double* dC = sv.dC + i * m;
+    double w[kMax], kk = 0, ee = 0;
+    for (int a = 0; a < n; ++a) {
+        double t = 0;
+        for (int j = 0; j < m; ++j) t += K[a * m + j] * dC[j];
+        w[a] = t / gp.dx[a];
+        kk += w[a] * w[a];
+        ee += (xt[a] / gp.dx[a]) * (xt[a] / gp.dx[a]);
+    }
+    if (!(ee > 0) || !(kk > 0)) return 0.0;
+    const double nk = std::sqrt(kk), ne = std::sqrt(ee);
+    const double r = gp.dt * nk / ne;
+    if (r <= gp.kappa) return 0.0;
+    if (dr != nullptr)
+        for (int a = 0; a < n; ++a)
+            for (int j = 0; j < m; ++j) dr[a * m + j] = gp.dt / ne * (w[a] / nk) * dC[j] / gp.dx[a];
+    return r - gp.kappa;
+}
+
 // tr(B'S B) and tr(K'S K)
 double trace_form(const double* S, const double* X, int n, int cols) {
     double tr = 0;
@@ -75,14 +100,16 @@ GainSampleValue gain_sample_forward(const double* K, const double* S, const Hjie
     const double r = v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
     const double h = std::max(0.0, r + gp.margin);
     v.hinge = h * h;
+    const double c = step_correction_excess(K, sv, i, gp, nullptr);
+    v.hinge += c * c;
     double v0 = 0;
-    if (gp.xt0 != nullptr) {
+    if (gp.xt0 != nullptr && gp.initial_weight > 0) {
         for (int a = 0; a < n; ++a)
             for (int c = 0; c < n; ++c) v0 += gp.xt0[a] * S[a * n + c] * gp.xt0[c];
     }
     const double rate = gp.disturbance_intensity * trace_form(S, sv.Bm + i * n * nv, n, nv) +
                         gp.noise_intensity * trace_form(S, K, n, m);
-    v.h2 = (v0 / gp.horizon + rate) / gp.h2_reference;
+    v.h2 = (gp.initial_weight * v0 / gp.horizon + rate) / gp.h2_reference;
     return v;
 }
 
@@ -131,12 +158,19 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
         for (int a = 0; a < n; ++a)
             for (int c = 0; c < n; ++c) gS[a * n + c] += gs[a] * xt[c];
     }
+    {  // the sampled-data cap
+        double dr[kMax * kMax];
+        const double c = step_correction_excess(K, sv, i, gp, dr);
+        if (c > 0)
+            for (int k = 0; k < n * m; ++k) gK[k] += d_hinge * 2.0 * c * dr[k];
+    }
     if (d_h2 != 0) {
         const double w = d_h2 / gp.h2_reference;
         for (int a = 0; a < n; ++a)
             for (int c = 0; c < n; ++c) {
                 double t = 0;
-                if (gp.xt0 != nullptr) t += gp.xt0[a] * gp.xt0[c] / gp.horizon;
+                if (gp.xt0 != nullptr && gp.initial_weight > 0)
+                    t += gp.initial_weight * gp.xt0[a] * gp.xt0[c] / gp.horizon;
                 double bb = 0, kk = 0;
                 for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[c * nv + j];
                 for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[c * m + j];
@@ -234,6 +268,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     const T* wt = pack_weights(ws, theta, sh);
     GainLossParams lp = gs.loss;
     lp.xt0 = gs.xt0.data();
+    lp.dx = gs.dx.data();
     const T* sparams = theta + P;
     double S[kMax * kMax];
     storage_forward(S, sparams, gs.dx.data(), n, gs.storage_scale, gs.eps);

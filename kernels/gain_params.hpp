@@ -12,6 +12,11 @@ struct GainLossParams {
     double horizon = 70.0;                                      // T [s]
     double h2_reference = 1.0;                                  // the H2 bound is divided by this constant
     const double* xt0 = nullptr;                                // [n] the initial error the user expects (x0 - x^0)
+    double initial_weight = 0.0;  // weight of x~0'S x~0 / T in h2 (0: the stationary H2 rate alone)
+    // sampled-data cap: dt |D^-1 K dC| <= kappa |D^-1 x~| (the Euler filter's correction per step stays below
+    // kappa times the error; a hinge relu(dt |D^-1 K dC| / |D^-1 x~| - kappa)^2 added to the sample's hinge)
+    double dt = 0.0, kappa = 0.5;  // dt = 0: no cap
+    const double* dx = nullptr;    // [n] D
 };
 
 /// What turns the network's raw outputs into K(x^) and its extra parameters into S (fixed at creation, from the config).

@@ -154,6 +154,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
     c.noise_intensity = o.get_double("noise_intensity", c.noise_intensity, 0.0, 1e12);
     c.horizon = o.get_double("horizon", c.horizon, 0.0, 1e12);
+    c.initial_weight = o.get_double("initial_weight", c.initial_weight, 0.0, 1e12);
     c.max_step_correction = o.get_double("max_step_correction", c.max_step_correction, 0.0, 2.0);
     if (c.max_step_correction <= 0) o.reject("max_step_correction", "must be in (0, 2]");
     o.finish();

@@ -63,6 +63,7 @@ struct TrainingConfig {
     // [objective] (dissipative variant)
     double margin = 0.02, h2_weight = 0.1, disturbance_intensity = 4.0, noise_intensity = 4.0;
     double horizon = 0.0;               // 0: t_final
+    double initial_weight = 0.0;        // variant gain: weight of V(x~(0))/T in its H2 objective
     double max_step_correction = 0.5;   // kappa: dt * |k dC| <= kappa |x~| (sets eps when eps = 0)
 };
 

@@ -75,11 +75,14 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     g.loss.disturbance_intensity = cfg.disturbance_intensity;
     g.loss.noise_intensity = cfg.noise_intensity;
     g.loss.horizon = cfg.resolved_horizon();
+    g.loss.initial_weight = cfg.initial_weight;
+    g.loss.dt = cfg.dt;
+    g.loss.kappa = cfg.max_step_correction;
     // h2 at S = c D^-2, o = all ones: x~0'S x~0 / T + sv2 tr(B'S B) + sn2 rate^2 c n sum_j dy_j^-2
     std::vector<double> B(static_cast<std::size_t>(n) * cfg.nv);
     sys.disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);
     double ref = 0, bsb = 0, ky = 0;
-    for (int j = 0; j < n; ++j) ref += std::pow(g.xt0[j] / g.dx[j], 2) / g.loss.horizon;
+    for (int j = 0; j < n; ++j) ref += g.loss.initial_weight * std::pow(g.xt0[j] / g.dx[j], 2) / g.loss.horizon;
     for (std::size_t e = 0; e < B.size(); ++e) bsb += std::pow(B[e] / g.dx[e / cfg.nv], 2);
     for (int j = 0; j < m; ++j) ky += 1.0 / (g.dy[j] * g.dy[j]);
     ref += g.loss.disturbance_intensity * bsb + g.loss.noise_intensity * g.rate * g.rate * n * ky;

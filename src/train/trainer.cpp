@@ -286,6 +286,7 @@ private:
         kern::gain_network_eval(K_all_.data(), S.data(), ck_.net.theta.data(), gsm_.z.data(), N, ck_.net.step, ws_);
         kern::GainLossParams lp = g.loss;
         lp.xt0 = g.xt0.data();
+        lp.dx = g.dx.data();
         std::vector<double> rel(N);
         double viol = 0, pos = 0;
         for (std::int64_t i = 0; i < N; ++i) {
