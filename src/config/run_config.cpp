@@ -120,6 +120,10 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.rollback_factor = t.get_double("rollback_factor", c.rollback_factor, 1e-6, 1.0);
     if (c.rollback_factor >= 1) t.reject("rollback_factor", "must be < 1 (each roll-back lowers the learning rate)");
     c.max_rollbacks = t.get_int("max_rollbacks", c.max_rollbacks, 0, 1000);
+    c.acceptance_runs = t.get_int("acceptance_runs", c.acceptance_runs, 0, 100000);
+    c.require_acceptance = t.get_bool("require_acceptance", c.require_acceptance);
+    if (c.require_acceptance && c.acceptance_runs == 0)
+        t.reject("require_acceptance", "needs training.acceptance_runs > 0 (the validation Monte Carlo it checks)");
     // consistency: the network and the per-time-step buffers must fit in memory (a typo such as
     // hidden = [65536, 65536] or samples = 1e8 must fail here, not as bad_alloc an hour later)
     double params = 0, width_sum = 0;

@@ -54,6 +54,8 @@ struct TrainingConfig {
     std::string on_divergence = "stop";  // "stop" (exit 4) or "rollback" (to the last checkpoint, smaller rate)
     double rollback_factor = 0.5;        // learning rate multiplier per roll-back
     std::int64_t max_rollbacks = 3;      // then stop as with "stop"
+    std::int64_t acceptance_runs = 5;    // validation Monte Carlo at the end of `hinf train` (0: none)
+    bool require_acceptance = false;     // exit 5 when the acceptance check fails
 
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;

@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "helpers.hpp"
+#include "hinf/h5.hpp"
 
 using hinf::test::run_hinf;
 
@@ -55,6 +56,11 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
     INFO(t.output);
     REQUIRE(t.status == 0);
+    CHECK(t.output.find("acceptance (5 measured runs") != std::string::npos);
+    {
+        hinf::h5::Handle f = hinf::h5::open_file(net, false);
+        CHECK(hinf::h5::has_attr(f.get(), "acceptance_verdict"));
+    }
     auto op = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 2 --out " + (d / "op"));
     INFO(op.output);
     CHECK(op.status == 0);
@@ -76,4 +82,20 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     // resume continues the same run
     auto r = run_hinf("resume " + net + " --quiet");
     CHECK(r.status == 0);
+}
+
+TEST_CASE("training.require_acceptance: a filter that fails its validation Monte Carlo exits 5", "[cli][gain]") {
+    hinf::test::TempDir d("gainacc");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << kVdp;
+    // no initial error (V(x~(0)) = 0) and rho far below any filter's ratio: the check must fail
+    const std::string sets = " --set filter.xhat0=[2.0,0.0] --set filter.rho=1e-9 --set training.require_acceptance=true";
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet" + sets);
+    INFO(t.output);
+    CHECK(t.status == 5);
+    CHECK(t.output.find("FAIL") != std::string::npos);
+    CHECK(t.output.find("failed its acceptance check") != std::string::npos);
+    auto ok = run_hinf("train " + cfg + " --out " + (d / "run2") + " --quiet --set training.require_acceptance=true");
+    INFO(ok.output);
+    CHECK(ok.status == 0);
 }
