@@ -101,7 +101,9 @@ void add_train_commands(CLI::App& app) {
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
-        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && par_root()) {
+        if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
+            std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
+        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && par_world_size() == 1) {
             const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet);
             if (!pass && cfg.require_acceptance) {
                 std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5: "
@@ -166,7 +168,8 @@ void add_train_commands(CLI::App& app) {
         if (dir.empty()) dir = ".";
         print_summary(s, dir);
         RunConfig cfg = ckpt_config(args->checkpoint);
-        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step && par_root()) {
+        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step &&
+            par_world_size() == 1) {
             const bool pass = acceptance_check(cfg, dir, args->quiet);
             if (!pass && cfg.require_acceptance) {
                 std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5); "
