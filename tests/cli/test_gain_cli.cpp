@@ -79,6 +79,16 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     INFO(w.output);
     CHECK(w.status == 0);
     CHECK(w.output.find("dnn_gain_measured") != std::string::npos);
+    {  // recorded measurements (hinf filter): the gain filter runs on y alone
+        std::ofstream rec(d / "rec.csv");
+        rec << "t,y0\n";
+        for (int k = 0; k < 50; ++k) rec << 0.01 * k << "," << 2.0 - 0.001 * k << "\n";
+    }
+    auto fl = run_hinf("filter " + cfg + " --measurements " + (d / "rec.csv") + " --network " + net +
+                       " --filters dnn --out " + (d / "filt"));
+    INFO(fl.output);
+    CHECK(fl.status == 0);
+    CHECK(fl.output.find("dnn_gain_measured") != std::string::npos);
     // resume continues the same run
     auto r = run_hinf("resume " + net + " --quiet");
     CHECK(r.status == 0);
