@@ -18,6 +18,8 @@ enum RngStream : std::uint32_t {
     RNG_STREAM_HEAVY_TAIL = 8, // compare scenarios: chi-square draws of Student-t noise (a = run, b = time step)
     RNG_STREAM_ROUGHEN = 9,    // particle filter roughening jitter after resampling (a = run, b = step)
     RNG_STREAM_WORST = 10,     // worst-case search: random start points (a = start, b = 0), the same for every filter
+    RNG_STREAM_GAIN = 11,      // variant gain: (x^, x~) samples (a = time step, b = 0: normals, 1: uniforms); on-line
+                               // check and retraining (a = 2^40 + step, b as before)
 };
 
 /// out[i] ~ N(0,1), i in [0, count), for the counter (seed, stream, a, b). Thread-count independent.

@@ -53,6 +53,7 @@ void StepWorkspace<T>::reserve(const StepConfig& cfg, int max_batch) {
     P.assign(padded * n * n, 0.0);
     values.assign(padded, HjieSampleValue{});
     work.assign(chunks * step_work_stride(cfg), 0.0);
+    if (cfg.gain.enabled) K.assign(padded * n * cfg.gain.m, 0.0);
 }
 
 template <typename T>

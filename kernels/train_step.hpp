@@ -10,6 +10,7 @@
 #include <new>
 #include <vector>
 
+#include "gain_params.hpp"
 #include "head.hpp"
 #include "hjie.hpp"
 #include "mlp.hpp"
@@ -23,6 +24,7 @@ struct StepConfig {
     HjieObjective objective = HJIE_OBJECTIVE_DISSIPATIVE;
     double input_scale = 1.0;  // network input = x~ / input_scale (seed 000 Remark 6)
     int chunk = 100;           // samples per chunk: fixed, never derived from the thread count
+    GainSpec gain;             // variant `gain` only (enabled): K(x^) head and storage S (gain.hpp)
 };
 
 /// Allocator of cache-line (64 B) aligned storage: the own kernels' vector loads of packed panels and
@@ -60,6 +62,7 @@ struct StepWorkspace {
     LineVector<T> input, acts, dout, scratch, partial;
     LineVector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
     std::vector<double> p, P;
+    std::vector<double> K;  // gain variant: per-sample K [n x m]; P then holds per-sample dL/dS
     std::vector<HjieSampleValue> values;
     std::vector<double> work;  // per chunk: step_work_stride doubles of scratch (sized from n: any state count)
     void reserve(const StepConfig& cfg, int max_batch);

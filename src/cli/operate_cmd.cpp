@@ -81,6 +81,9 @@ void add_operate_command(CLI::App& app) {
         for (int i = 0; i < cfg.n; ++i)
             std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean_settled[i], s.error_std_settled[i]);
         std::printf("\nHJI inequality violated (> 1%% of S) at %.2f%% of the on-line steps", 100 * s.online_hji_violation_fraction);
+        if (std::isfinite(s.online_check_violation_fraction))
+            std::printf("\non-line check from x^ alone (16 sampled errors per step): %.2f%% of them violate the dissipation "
+                        "inequality", 100 * s.online_check_violation_fraction);
         std::printf("\nposition RMSE %.4g m (open loop %.4g m); file: %s/operate.h5\n", s.rmse_position,
                     s.rmse_position_open_loop, opt.out_dir.c_str());
     });

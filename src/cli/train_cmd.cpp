@@ -1,11 +1,15 @@
 // `hinf train` and `hinf resume`: argument parsing and the end-of-run summary.
 #include <algorithm>
 #include <csignal>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "eval/operate.hpp"
+#include "hinf/h5.hpp"
+#include "io/checkpoint.hpp"
 #include "io/progress.hpp"
 #include "par/par.hpp"
 #include "train/sweep.hpp"
@@ -52,6 +56,38 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
     std::printf("files: %s/trajectory.h5 %s/checkpoint.h5\n", dir.c_str(), dir.c_str());
 }
 
+// The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
+// [online] noise (operate's engine), verdict = no run diverged and attenuation ratio <= rho. Printed, written into
+// the checkpoint's root attributes and DIR/acceptance/operate.h5. Returns true when it passes.
+bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) {
+    const std::string path = dir + "/checkpoint.h5";
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
+    OperateOptions oo;
+    oo.out_dir = dir + "/acceptance";
+    oo.mode = "measured";
+    oo.runs = cfg.acceptance_runs;
+    oo.quiet = quiet;
+    std::filesystem::create_directories(oo.out_dir);
+    OperateSummary s = operate_run(cfg, *net, path, oo);
+    // the H-infinity bound is int x~'Qx~ <= V(x~(0)) + rho int (v'v + n'n): the ratio less V(x~(0)) where V is defined
+    const double ratio = std::isfinite(s.attenuation_ratio_minus_v0) ? s.attenuation_ratio_minus_v0 : s.attenuation_ratio;
+    const bool pass = s.diverged_runs == 0 && ratio <= cfg.rho;
+    {
+        h5::Handle f = h5::open_file(path, true);
+        h5::set_attr(f.get(), "acceptance_verdict", pass ? "pass" : "fail");
+        h5::set_attr(f.get(), "acceptance_runs", s.runs);
+        h5::set_attr(f.get(), "acceptance_attenuation_ratio", s.attenuation_ratio);
+        h5::set_attr(f.get(), "acceptance_attenuation_ratio_minus_v0", s.attenuation_ratio_minus_v0);
+        h5::set_attr(f.get(), "acceptance_rmse_position", s.rmse_position);
+        h5::set_attr(f.get(), "acceptance_diverged_runs", static_cast<std::int64_t>(s.diverged_runs));
+    }
+    std::printf("acceptance (%lld measured runs, [online] noise): attenuation ratio %.4g, less V(x~(0)) %.4g (rho %.4g), "
+                "position RMSE %.4g, diverged %lld: %s; file: %s/operate.h5\n",
+                static_cast<long long>(s.runs), s.attenuation_ratio, s.attenuation_ratio_minus_v0, cfg.rho, s.rmse_position,
+                static_cast<long long>(s.diverged_runs), pass ? "PASS" : "FAIL", oo.out_dir.c_str());
+    return pass;
+}
+
 }  // namespace
 
 void add_train_commands(CLI::App& app) {
@@ -78,6 +114,17 @@ void add_train_commands(CLI::App& app) {
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
+        if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
+            std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
+        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && par_world_size() == 1) {
+            const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet);
+            if (!pass && cfg.require_acceptance) {
+                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5: "
+                                     "attenuation ratio above [filter] rho, or a diverged run); training.require_acceptance "
+                                     "is set (train longer or with another seed, or lower it)\n", opt.out_dir.c_str());
+                throw CLI::RuntimeError(5);
+            }
+        }
     });
 
     auto sw = std::make_shared<TrainArgs>();
@@ -131,7 +178,19 @@ void add_train_commands(CLI::App& app) {
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
-        print_summary(s, std::filesystem::path(args->checkpoint).parent_path().string());
+        std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
+        if (dir.empty()) dir = ".";
+        print_summary(s, dir);
+        RunConfig cfg = ckpt_config(args->checkpoint);
+        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step &&
+            par_world_size() == 1) {
+            const bool pass = acceptance_check(cfg, dir, args->quiet);
+            if (!pass && cfg.require_acceptance) {
+                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5); "
+                                     "training.require_acceptance is set\n", dir.c_str());
+                throw CLI::RuntimeError(5);
+            }
+        }
     });
 }
 

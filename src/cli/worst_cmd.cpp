@@ -148,7 +148,10 @@ void add_worst_command(CLI::App& app) {
         std::vector<WorstGame> games(filters.size());
         for (std::size_t i = 0; i < filters.size(); ++i)
             for (std::size_t j = 0; j < nets.size(); ++j)
-                if (filters[i]->name().rfind(prefixes[j], 0) == 0) games[i] = WorstGame{nets[j].get(), rhos[j]};
+                // the game start needs dV/dx~ of the network (variants dissipative, paper); the gain variant's
+                // filter is searched from the scenario and random starts
+                if (filters[i]->name().rfind(prefixes[j], 0) == 0 && !nets[j]->step_config().gain.enabled)
+                    games[i] = WorstGame{nets[j].get(), rhos[j]};
 
         WorstResult r = worst_search(cfg, filters, games, opt);
         const RunDirLock lock(out, "hinf worst");

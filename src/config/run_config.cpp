@@ -128,7 +128,9 @@ RunConfig load_run_config(ConfigDoc doc) {
 
     ConfigSection f(doc, "filter");
     c.type = f.get_string("type", c.type, {"hinf", "h2hinf"});
-    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper"});
+    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper", "gain"});
+    if (c.variant == "gain" && c.type != "hinf")
+        f.reject("variant", "\"gain\" is an H-infinity filter: use it with type = \"hinf\"");
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
     std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
@@ -206,6 +208,10 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.rollback_factor = t.get_double("rollback_factor", c.rollback_factor, 1e-6, 1.0);
     if (c.rollback_factor >= 1) t.reject("rollback_factor", "must be < 1 (each roll-back lowers the learning rate)");
     c.max_rollbacks = t.get_int("max_rollbacks", c.max_rollbacks, 0, 1000);
+    c.acceptance_runs = t.get_int("acceptance_runs", c.acceptance_runs, 0, 100000);
+    c.require_acceptance = t.get_bool("require_acceptance", c.require_acceptance);
+    if (c.require_acceptance && c.acceptance_runs == 0)
+        t.reject("require_acceptance", "needs training.acceptance_runs > 0 (the validation Monte Carlo it checks)");
     // consistency: the network and the per-time-step buffers must fit in memory (a typo such as
     // hidden = [65536, 65536] or samples = 1e8 must fail here, not as bad_alloc an hour later)
     double params = 0, width_sum = 0;
@@ -228,6 +234,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.local_fraction = s.get_double("local_fraction", c.local_fraction, 0.0, 1.0);
     c.local_spread = s.get_double("local_spread", c.local_spread, 0.0, 1e6);
     c.radius_decades = s.get_double("radius_decades", c.radius_decades, 0.0, 30.0);
+    c.trajectories = s.get_int("trajectories", c.trajectories, 1, 100000);
     c.error_floor = s.get_doubles("error_floor", own ? own_error_floor_default(c) : std::vector<double>(n, 20.0), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");
@@ -240,6 +247,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
     c.noise_intensity = o.get_double("noise_intensity", c.noise_intensity, 0.0, 1e12);
     c.horizon = o.get_double("horizon", c.horizon, 0.0, 1e12);
+    c.initial_weight = o.get_double("initial_weight", c.initial_weight, 0.0, 1e12);
     c.max_step_correction = o.get_double("max_step_correction", c.max_step_correction, 0.0, 2.0);
     if (c.max_step_correction <= 0) o.reject("max_step_correction", "must be in (0, 2]");
     o.finish();

@@ -18,7 +18,7 @@ struct ProblemConfig {
 
     // [filter]
     std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
-    std::string variant = "dissipative";  // "dissipative" (default) or "paper"
+    std::string variant = "dissipative";  // "dissipative" (default), "paper" or "gain" (K(x^), docs/method.md 14)
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
@@ -54,14 +54,18 @@ struct TrainingConfig {
     std::string on_divergence = "stop";  // "stop" (exit 4) or "rollback" (to the last checkpoint, smaller rate)
     double rollback_factor = 0.5;        // learning rate multiplier per roll-back
     std::int64_t max_rollbacks = 3;      // then stop as with "stop"
+    std::int64_t acceptance_runs = 5;    // validation Monte Carlo at the end of `hinf train` (0: none)
+    bool require_acceptance = false;     // exit 5 when the acceptance check fails
 
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
     std::vector<double> error_floor;  // n
+    std::int64_t trajectories = 16;   // variant gain: simulated truth runs the estimates are sampled along
 
     // [objective] (dissipative variant)
     double margin = 0.02, h2_weight = 0.1, disturbance_intensity = 4.0, noise_intensity = 4.0;
     double horizon = 0.0;               // 0: t_final
+    double initial_weight = 0.0;        // variant gain: weight of V(x~(0))/T in its H2 objective
     double max_step_correction = 0.5;   // kappa: dt * |k dC| <= kappa |x~| (sets eps when eps = 0)
 };
 

@@ -18,6 +18,8 @@
 #include "filters/dnn.hpp"
 #include "filters/gain_law.hpp"
 #include "filters/open_loop.hpp"
+#include "gain.hpp"
+#include "train/gain_samples.hpp"
 
 namespace hinf {
 
@@ -28,15 +30,43 @@ namespace {
 class HjiCheck final : public StepObserver {
 public:
     HjiCheck(const RunConfig& cfg, const FrozenNetwork& net) : cfg_(cfg), net_(net.clone()) {}
-    void begin(int filter, std::uint64_t) override {
+    void begin(int filter, std::uint64_t run) override {
         active_ = filter == 0;
-        violations_ = steps_ = 0;
+        violations_ = steps_ = sampled_violations_ = sampled_ = 0;
+        run_ = run;
     }
-    void observe(std::int64_t, double t, const double* x, const double* xhat) override {
+    // The on-line check a user has (variant gain, docs/method.md section 14.5): at the estimate x^ alone, the
+    // inequality (14.1) over kCheck errors drawn as in training (Philox stream RNG_STREAM_GAIN, counter
+    // 2^40 + run * 2^24 + step: deterministic, disjoint from training's time-step counters).
+    void check_sampled(std::int64_t k, double t, const double* xhat) {
+        constexpr std::int64_t kCheck = 16;
+        const kern::GainSpec& g = net_->step_config().gain;
+        gain_samples_at(&smp_, cfg_, g, xhat, t, kCheck, (std::uint64_t(1) << 40) + (run_ << 24) + std::uint64_t(k));
+        const int n = cfg_.n, m = cfg_.m;
+        std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n);
+        net_->gain(K.data(), S.data(), xhat, 1);
+        kern::GainLossParams lp;
+        lp.rho = cfg_.rho;
+        const kern::HjieSystemView view = smp_.view();
+        for (std::int64_t i = 0; i < kCheck; ++i) {
+            const kern::GainSampleValue v = kern::gain_sample_forward(K.data(), S.data(), view, i, lp);
+            sampled_violations_ += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+            sampled_ += 1;
+        }
+    }
+    void observe(std::int64_t k, double t, const double* x, const double* xhat) override {
         if (!active_) return;
         const int n = cfg_.n;
         std::vector<double> xt(n), pt(n);
         for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+        if (net_->step_config().gain.enabled) {  // variant gain: its own inequality (docs/method.md section 14)
+            double S = 0;
+            const double H = gain_point_residual(&S, nullptr, *net_, *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
+            violations_ += H > 0.01 * S ? 1 : 0;
+            steps_ += 1;
+            check_sampled(k, t, xhat);
+            return;
+        }
         net_->gradient(pt.data(), xt.data(), 1);
         double terms[4];
         hjie_point_terms(terms, pt.data(), *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
@@ -44,14 +74,19 @@ public:
         violations_ += (terms[0] + terms[1] + terms[2] + terms[3]) > 0.01 * S ? 1 : 0;
         steps_ += 1;
     }
-    std::vector<double> end() override { return {violations_, steps_}; }
+    std::vector<double> end() override {
+        if (sampled_ > 0) return {violations_, steps_, sampled_violations_, sampled_};
+        return {violations_, steps_};
+    }
     std::unique_ptr<StepObserver> clone() const override { return std::make_unique<HjiCheck>(cfg_, *net_); }
 
 private:
     const RunConfig& cfg_;
     std::unique_ptr<FrozenNetwork> net_;
     bool active_ = false;
-    double violations_ = 0, steps_ = 0;
+    double violations_ = 0, steps_ = 0, sampled_violations_ = 0, sampled_ = 0;
+    std::uint64_t run_ = 0;
+    GainSamples smp_;
 };
 
 void mean_std(std::vector<double>* mean, std::vector<double>* sd, const std::vector<double>& sum,
@@ -88,7 +123,11 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
 
     // the engine over {the DNN filter, the open-loop predictor}: the same truth, the same measurements
     const FilterModel model = filter_model(cfg);
-    std::unique_ptr<OnlineFilter> dnn = make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
+    const bool gain = network.step_config().gain.enabled;
+    HINF_CHECK(!gain || measured, "network '" + network_path + "' is variant \"gain\": its gain K(x^) never sees the "
+                                  "true error, so --mode oracle is meaningless for it (use --mode measured)");
+    std::unique_ptr<OnlineFilter> dnn = gain ? make_gain_filter(model, network, "dnn")
+                                             : make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
     std::unique_ptr<OnlineFilter> open_loop = make_open_loop_filter(model);
     EngineOptions eo;
     eo.runs = sum.runs;
@@ -104,8 +143,15 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     // V(x~(0)) along the segment (defined for the quadratic head: p^T x~ > 0 on every ray)
     std::vector<double> xt0(n);
     for (int i = 0; i < n; ++i) xt0[i] = cfg.x0[i] - cfg.xhat0[i];
-    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC;
-    sum.v0 = network.value(xt0.data(), n);
+    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC || gain;
+    if (gain) {
+        std::vector<double> S(static_cast<std::size_t>(n) * n), K(static_cast<std::size_t>(n) * cfg.m);
+        std::unique_ptr<FrozenNetwork> net = network.clone();
+        net->gain(K.data(), S.data(), cfg.xhat0.data(), 1);
+        sum.v0 = quadratic_form(S.data(), xt0.data(), n);
+    } else {
+        sum.v0 = network.value(xt0.data(), n);
+    }
 
     std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
     for (std::int64_t r = 0; r < sum.runs; ++r) {
@@ -116,7 +162,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         }
     }
     std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0), ss(n, 0), sq(n, 0);
-    double set_count = 0, hji_v = 0, hji_n = 0;
+    double set_count = 0, hji_v = 0, hji_n = 0, chk_v = 0, chk_n = 0;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         // a diverged filter's error energy counts as infinite (its estimate is frozen)
         const double num = D[r].diverged_at >= 0 ? INFINITY : D[r].error_energy, den = D[r].signal_energy;
@@ -137,12 +183,15 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         set_count += D[r].settled_steps;
         hji_v += D[r].observed[0];
         hji_n += D[r].observed[1];
+        chk_v += D[r].observed.size() > 3 ? D[r].observed[2] : 0.0;
+        chk_n += D[r].observed.size() > 3 ? D[r].observed[3] : 0.0;
     }
     if (!v_defined) sum.attenuation_ratio_minus_v0 = NAN;
     const double count = double(steps) * double(sum.runs);
     mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
     mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
     sum.online_hji_violation_fraction = hji_n > 0 ? hji_v / hji_n : 0.0;
+    sum.online_check_violation_fraction = chk_n > 0 ? chk_v / chk_n : NAN;
     if (set_count > 0) mean_std(&sum.error_mean_settled, &sum.error_std_settled, ss, sq, set_count);
     else sum.error_mean_settled = sum.error_std_settled = std::vector<double>(n, NAN);
     for (int i : state_unit_group(*cfg.system, 0)) {  // the states of the first state's unit
@@ -175,6 +224,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "error_std", sum.error_std);
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "online_hji_violation_fraction", sum.online_hji_violation_fraction);
+    h5::set_attr(root, "online_check_violation_fraction", sum.online_check_violation_fraction);
     h5::set_attr(root, "error_mean_settled", sum.error_mean_settled);
     h5::set_attr(root, "error_std_settled", sum.error_std_settled);
     h5::set_attr(root, "error_mean_open_loop", sum.error_mean_open_loop);

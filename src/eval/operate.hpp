@@ -1,6 +1,7 @@
 // The on-line phase (seed 000 Fig. 3, Section IV): the frozen network drives the filter while the
 // true system runs with real disturbance and noise; attenuation ratios and error statistics.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -29,6 +30,7 @@ struct OperateSummary {
     std::vector<double> error_mean_settled, error_std_settled;  // over t >= settle_time
     std::vector<double> error_mean_open_loop, error_std_open_loop;
     double rmse_position = 0, rmse_position_open_loop = 0;
+    double online_check_violation_fraction = NAN;  // variant gain: share of sampled errors at x^ violating (14.1)
     double online_hji_violation_fraction = 0;  // share of on-line steps where HJIE(p(x~), x, x^) > 0.01 S
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none

@@ -78,7 +78,46 @@ private:
     std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
 };
 
+// Variant gain (docs/method.md section 14): x^' = A(x^) + K(x^)(y - C(x^)), K from the network at x^ alone.
+class GainFilter final : public OnlineFilter {
+public:
+    GainFilter(const FilterModel& model, std::unique_ptr<FrozenNetwork> net, std::string name)
+        : model_(model), net_(std::move(net)), name_(std::move(name)) {}
+    std::string name() const override { return name_; }
+    void reset(const FilterStart& start) override { xhat_ = start.xhat0; }
+    bool uses_true_state() const override { return false; }
+    FilterStatus step(const FilterInput& in) override {
+        const System& sys = *model_.system;
+        const int n = sys.state_dim(), m = sys.output_dim();
+        std::vector<double> a(n), ch(m), e(m), k(static_cast<std::size_t>(n) * m);
+        sys.drift(a.data(), xhat_.data(), in.t, 1);
+        sys.measurement(ch.data(), xhat_.data(), in.t, 1);
+        for (int j = 0; j < m; ++j) e[j] = in.y[j] - ch[j];
+        net_->gain(k.data(), nullptr, xhat_.data(), 1);
+        bool finite = filter_estimate_ok(xhat_.data(), n);
+        for (double g : k) finite = finite && std::isfinite(g);
+        if (!finite) return FILTER_DIVERGED;
+        luenberger_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt);
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override {
+        return std::make_unique<GainFilter>(model_, net_->clone(), name_);
+    }
+
+private:
+    FilterModel model_;
+    std::unique_ptr<FrozenNetwork> net_;
+    std::string name_;
+    std::vector<double> xhat_;
+};
+
 }  // namespace
+
+std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
+                                               const std::string& name) {
+    return std::make_unique<GainFilter>(model, network.clone(), name);
+}
 
 std::unique_ptr<DnnGainLaw> make_hinf_gain_law(double rho) { return std::make_unique<HinfGainLaw>(rho); }
 
@@ -105,7 +144,7 @@ std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const Fr
 
 std::string dnn_measured_warning(const std::string& variant, int n, int m) {
     // variants whose measured filter handles m < n itself (none yet: issue 15; a new variant adds its name here)
-    static const std::set<std::string> kMeasuredNative = {};
+    static const std::set<std::string> kMeasuredNative = {"gain"};  // K(x^) from x^ alone (method §16)
     if (m >= n || kMeasuredNative.count(variant) != 0) return "";
     return "hinf: warning: the '" + variant + "' DNN filter in measured mode sees " + std::to_string(m) +
            " measurement(s) of " + std::to_string(n) + " states: it rebuilds x~ from the innovation by least squares, "

@@ -44,5 +44,8 @@ std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const Fr
 /// than states (m < n) every unmeasured component of x~ is zero to the filter. The one place this is decided:
 /// a variant that handles m < n natively is listed in dnn.cpp's kMeasuredNative and gets "".
 std::string dnn_measured_warning(const std::string& variant, int n, int m);
+/// Variant gain: x^' = A(x^) + K(x^)(y - C(x^)) with K from the network at x^ alone (measured by construction).
+std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
+                                               const std::string& name);
 
 }  // namespace hinf

@@ -101,7 +101,25 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                                here + " (use a network trained on this config's system)");
                 HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
                                                 " states, the config's system has " + std::to_string(cfg.n));
-                for (const std::string& mode : split_list(a.modes)) {
+                const std::vector<std::string> modes = split_list(a.modes);
+                if (ncfg.variant == "gain") {  // its gain never sees x~: it runs from measurements only
+                    bool measured = false;
+                    for (const std::string& mode : modes) {
+                        HINF_CHECK(mode == "oracle" || mode == "measured",
+                                   "--mode '" + mode + "' is not one of: oracle, measured");
+                        measured = measured || mode == "measured";
+                    }
+                    HINF_CHECK(measured, "network '" + path + "' is variant \"gain\": its gain K(x^) never sees the "
+                                         "true error, so --mode oracle is meaningless for it (use --mode measured)");
+                    std::string label = "dnn_gain_measured";
+                    for (const auto& o : owned)
+                        HINF_CHECK(o->name() != label,
+                                   "two --network files give the filter name '" + label + "' (same variant twice)");
+                    owned.push_back(make_gain_filter(exact, *net, label));
+                    set.networks.push_back(std::move(net));
+                    continue;
+                }
+                for (const std::string& mode : modes) {
                     HINF_CHECK(mode == "oracle" || mode == "measured",
                                "--mode '" + mode + "' is not one of: oracle, measured");
                     std::string label = "dnn_" + ncfg.variant + "_" + mode;

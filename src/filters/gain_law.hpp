@@ -87,4 +87,10 @@ inline void luenberger_correct(double* xhat_filtered, const double* xhat, const 
 void hjie_point_terms(double* terms, const double* p, const System& sys, const double* x, const double* xhat,
                       double t, const double* Q, double rho);
 
+class FrozenNetwork;
+/// Variant gain (docs/method.md section 14): the dissipation inequality's value H at x~ = x - x^ for the network's
+/// K(x^) and storage S (kern::gain_sample_forward); *abs_sum gets its scale. *v0 (may be null) gets x~'S x~.
+double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
+                           const double* xhat, double t, const double* Q, double rho);
+
 }  // namespace hinf

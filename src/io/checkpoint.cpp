@@ -136,7 +136,9 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         std::vector<double> sizes(sc.shape.sizes.begin(), sc.shape.sizes.end());
         h5::set_attr(net.get(), "sizes", sizes);
         h5::set_attr(net.get(), "slopes", std::vector<double>{sc.shape.slope_positive, sc.shape.slope_negative});
-        h5::set_attr(net.get(), "head", sc.head.kind == kern::HEAD_GRADIENT ? "gradient" : "quadratic");
+        h5::set_attr(net.get(), "head", sc.gain.enabled                         ? "gain"
+                                        : sc.head.kind == kern::HEAD_GRADIENT ? "gradient"
+                                                                              : "quadratic");
         h5::set_attr(net.get(), "input_scale", sc.input_scale);
         h5::set_attr(net.get(), "output_scale", sc.head.scale);
         h5::set_attr(net.get(), "eps", sc.head.eps);
@@ -150,6 +152,18 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             std::vector<T> w(W, W + std::int64_t(din) * dout), b(W + std::int64_t(din) * dout, W + std::int64_t(din) * dout + dout);
             write_array(g.get(), "W", w, {hsize_t(dout), hsize_t(din)}, "weights [out x in]");
             write_array(g.get(), "b", b, {hsize_t(dout)}, "biases");
+        }
+        if (sc.gain.enabled) {  // variant gain: the storage's parameters follow the MLP's in theta
+            const std::int64_t P = sc.shape.param_count(), ns = sc.gain.storage_params(cfg.n);
+            std::vector<T> sp(ck.net.theta.begin() + P, ck.net.theta.begin() + P + ns);
+            write_array(net.get(), "storage", sp, {hsize_t(ns)},
+                        "storage V = x~'S x~: S = c D^-1 (M M' + eps I) D^-1, M = I + tril(storage) (docs/method.md 14)");
+            h5::set_attr(net.get(), "input_shift", sc.gain.shift);
+            h5::set_attr(net.get(), "input_spread", sc.gain.spread);
+            h5::set_attr(net.get(), "error_scale", sc.gain.dx);
+            h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
+            h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
+            h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
         }
         h5::flush(root);
         test_pause_mid_write();
@@ -244,6 +258,16 @@ Checkpoint<T> ckpt_read(const std::string& path) {
         T* W = ck.net.theta.data() + sc.shape.weight_offset(l);
         std::copy(w.begin(), w.end(), W);
         std::copy(b.begin(), b.end(), W + std::int64_t(din) * dout);
+    }
+    if (sc.gain.enabled) {
+        const std::int64_t P = sc.shape.param_count(), ns = sc.gain.storage_params(cfg.n);
+        std::vector<T> sp = read_array<T>(net.get(), "storage", nullptr);
+        HINF_CHECK(std::int64_t(sp.size()) == ns, "checkpoint '" + path + "': network/storage has the wrong size");
+        HINF_CHECK(h5::get_attr_doubles(net.get(), "input_shift") == sc.gain.shift &&
+                       h5::get_attr_doubles(net.get(), "input_spread") == sc.gain.spread,
+                   "checkpoint '" + path + "': input standardisation does not match its config (damaged file, or "
+                   "the system's model changed since training)");
+        std::copy(sp.begin(), sp.end(), ck.net.theta.begin() + P);
     }
     h5::Handle adam = h5::open_group(f.get(), "adam");
     ck.state.adam_step = h5::get_attr_int(adam.get(), "step");

@@ -1,15 +1,100 @@
 // Network creation (shapes, scales, initialisation) and the frozen-network wrapper.
 #include "net/network.hpp"
 
+#include <algorithm>
 #include <cmath>
 
+#include "gain.hpp"
+#include "hinf/error.hpp"
 #include "random.hpp"
 
 namespace hinf {
 
+namespace {
+
+// The gain variant's fixed scales (docs/method.md section 14.4), all from the config: the error scale
+// dx_j = |x0_j - x^0_j| + error_floor_j, the innovation scale dy = |H(x^0) diag(dx)| row norms, the input
+// standardisation from the noise-free trajectory from x0 over [0, t_final], the gain rate 10 / t_final and the
+// storage scale mean_j(Q_jj dx_j^2) t_final / 10.
+kern::GainSpec gain_spec(const RunConfig& cfg) {
+    const int n = cfg.n, m = cfg.m;
+    const System& sys = *cfg.system;
+    kern::GainSpec g;
+    g.enabled = true;
+    g.m = m;
+    g.dx.resize(n);
+    g.xt0.resize(n);
+    for (int j = 0; j < n; ++j) {
+        g.xt0[j] = cfg.x0[j] - cfg.xhat0[j];
+        g.dx[j] = std::fabs(g.xt0[j]) + cfg.error_floor[j];
+        if (!(g.dx[j] > 0)) g.dx[j] = 1.0;
+    }
+    std::vector<double> H(static_cast<std::size_t>(m) * n), c0(m), c1(m);
+    sys.measurement_jacobian(H.data(), cfg.xhat0.data(), 0.0);
+    sys.measurement(c0.data(), cfg.x0.data(), 0.0, 1);
+    sys.measurement(c1.data(), cfg.xhat0.data(), 0.0, 1);
+    g.dy.resize(m);
+    for (int j = 0; j < m; ++j) {
+        double s = 0;
+        for (int a = 0; a < n; ++a) s += std::pow(H[j * n + a] * g.dx[a], 2);
+        g.dy[j] = std::sqrt(s);
+        if (!(g.dy[j] > 0)) g.dy[j] = std::fabs(c0[j] - c1[j]);
+        if (!(g.dy[j] > 0) || !std::isfinite(g.dy[j])) g.dy[j] = 1.0;
+    }
+    // the noise-free trajectory: where the estimates will be
+    const std::int64_t steps = cfg.steps_until();
+    std::vector<double> x = cfg.x0, sum(n, 0.0), sum2(n, 0.0);
+    for (std::int64_t k = 0; k <= steps; ++k) {
+        for (int j = 0; j < n; ++j) {
+            sum[j] += x[j];
+            sum2[j] += x[j] * x[j];
+        }
+        if (k < steps) system_advance(sys, x.data(), x.data(), nullptr, cfg.time_of(k), cfg.dt);
+    }
+    g.shift.resize(n);
+    g.spread.resize(n);
+    const double cnt = double(steps + 1);
+    for (int j = 0; j < n; ++j) {
+        g.shift[j] = sum[j] / cnt;
+        const double var = std::max(0.0, sum2[j] / cnt - g.shift[j] * g.shift[j]);
+        g.spread[j] = std::sqrt(var) + g.dx[j];
+        if (!std::isfinite(g.shift[j]) || !std::isfinite(g.spread[j])) {  // a trajectory that escapes: no shift
+            g.shift[j] = 0.0;
+            g.spread[j] = g.dx[j];
+        }
+    }
+    const double T = cfg.t_final;
+    g.rate = cfg.output_scale > 0 ? cfg.output_scale : 10.0 / T;
+    double qd = 0;
+    for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
+    g.storage_scale = qd > 0 ? qd / n * T / 10.0 : 1.0;
+    g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
+    g.h2_weight = cfg.h2_weight;
+    g.loss.rho = cfg.rho;
+    g.loss.margin = cfg.margin;
+    g.loss.disturbance_intensity = cfg.disturbance_intensity;
+    g.loss.noise_intensity = cfg.noise_intensity;
+    g.loss.horizon = cfg.resolved_horizon();
+    g.loss.initial_weight = cfg.initial_weight;
+    g.loss.dt = cfg.dt;
+    g.loss.kappa = cfg.max_step_correction;
+    // h2 at S = c D^-2, o = all ones: x~0'S x~0 / T + sv2 tr(B'S B) + sn2 rate^2 c n sum_j dy_j^-2
+    std::vector<double> B(static_cast<std::size_t>(n) * cfg.nv);
+    sys.disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);
+    double ref = 0, bsb = 0, ky = 0;
+    for (int j = 0; j < n; ++j) ref += g.loss.initial_weight * std::pow(g.xt0[j] / g.dx[j], 2) / g.loss.horizon;
+    for (std::size_t e = 0; e < B.size(); ++e) bsb += std::pow(B[e] / g.dx[e / cfg.nv], 2);
+    for (int j = 0; j < m; ++j) ky += 1.0 / (g.dy[j] * g.dy[j]);
+    ref += g.loss.disturbance_intensity * bsb + g.loss.noise_intensity * g.rate * g.rate * n * ky;
+    g.loss.h2_reference = g.storage_scale * (ref > 0 && std::isfinite(ref) ? ref : 1.0);
+    return g;
+}
+
+}  // namespace
+
 kern::StepConfig network_step_config(const RunConfig& cfg) {
     kern::StepConfig sc;
-    const bool paper = cfg.variant == "paper";
+    const bool paper = cfg.variant == "paper", gain = cfg.variant == "gain";
     sc.head.kind = paper ? kern::HEAD_GRADIENT : kern::HEAD_QUADRATIC;
     sc.head.n = cfg.n;
     sc.input_scale = cfg.resolved_input_scale();
@@ -18,7 +103,7 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     sc.head.eps = cfg.resolved_eps();
     sc.shape.sizes.push_back(cfg.n);
     for (int h : cfg.hidden) sc.shape.sizes.push_back(h);
-    sc.shape.sizes.push_back(kern::head_outputs(sc.head.kind, cfg.n));
+    sc.shape.sizes.push_back(gain ? cfg.n * cfg.m : kern::head_outputs(sc.head.kind, cfg.n));
     sc.shape.slope_positive = cfg.slope_positive;
     sc.shape.slope_negative = cfg.slope_negative;
     // the GEMM kernels sum in different orders: the choice is part of the run (and of its checkpoint's config)
@@ -37,6 +122,10 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     sc.hjie.h2_reference = cfg.rho * sc.input_scale * sc.input_scale;
     sc.hjie.horizon = cfg.resolved_horizon();
     sc.chunk = cfg.chunk;
+    if (gain) {
+        sc.gain = gain_spec(cfg);
+        sc.input_scale = 1.0;  // the gain network sees z = (x^ - shift) / spread (sc.gain)
+    }
     return sc;
 }
 
@@ -44,7 +133,8 @@ template <typename T>
 Network<T> network_shell(const RunConfig& cfg) {
     Network<T> net;
     net.step = network_step_config(cfg);
-    net.theta.assign(static_cast<std::size_t>(net.step.shape.param_count()), T(0));
+    // theta = [MLP parameters | storage parameters (gain variant: M = I + tril(s), all zero: S = c (1 + eps) D^-2)]
+    net.theta.assign(static_cast<std::size_t>(net.step.shape.param_count() + net.step.gain.storage_params(cfg.n)), T(0));
     return net;
 }
 
@@ -65,6 +155,10 @@ Network<T> network_create(const RunConfig& cfg) {
         // biases start at zero
     }
     return net;
+}
+
+void FrozenNetwork::gain(double*, double*, const double*, std::int64_t) {
+    HINF_FAIL("this network is not of variant \"gain\": it has no gain K(x^) (train with [filter] variant = \"gain\")");
 }
 
 double FrozenNetwork::value(const double* xt, int n) {
@@ -98,12 +192,21 @@ public:
     void gradient(double* p, const double* xt, std::int64_t count) override {
         kern::network_eval(p, nullptr, net_.theta.data(), xt, count, net_.step, ws_);
     }
+    void gain(double* K, double* S, const double* xhat, std::int64_t count) override {
+        const int n = net_.step.head.n;
+        const kern::GainSpec& g = net_.step.gain;
+        z_.resize(static_cast<std::size_t>(std::max<std::int64_t>(count, 0) * n));
+        for (std::int64_t i = 0; i < count; ++i)
+            for (int a = 0; a < n; ++a) z_[i * n + a] = (xhat[i * n + a] - g.shift[a]) / g.spread[a];
+        kern::gain_network_eval(K, S, net_.theta.data(), z_.data(), count, net_.step, ws_);
+    }
     const kern::StepConfig& step_config() const override { return net_.step; }
     std::unique_ptr<FrozenNetwork> clone() const override { return std::make_unique<FrozenImpl<T>>(net_); }
 
 private:
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
+    std::vector<double> z_;
 };
 }  // namespace
 

@@ -39,6 +39,9 @@ public:
     /// V(x~) by Gauss-Legendre quadrature of p along the segment 0 -> x~ (exact for the gradient of a
     /// quadratic V; for the `paper` head p need not be a gradient, so V is path-dependent).
     double value(const double* xt, int n);
+    /// Variant `gain`: K [count x n x m] = K(x^) at estimates xhat [count x n], and S [n x n] (may be null).
+    /// Other variants throw (a network of another variant has no K(x^)).
+    virtual void gain(double* K, double* S, const double* xhat, std::int64_t count);
     virtual const kern::StepConfig& step_config() const = 0;
     /// An independent copy (own workspace), for use from another thread.
     virtual std::unique_ptr<FrozenNetwork> clone() const = 0;

@@ -22,6 +22,8 @@
 #include "par/par.hpp"
 #include "sampling.hpp"
 #include "filters/gain_law.hpp"
+#include "gain.hpp"
+#include "train/gain_samples.hpp"
 #include "train/samples.hpp"
 
 namespace hinf {
@@ -182,6 +184,11 @@ public:
         cos_.resize(N);
         ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
 
+        if (gain_) {
+            HINF_CHECK(split_.ranks == 1, "variant \"gain\" trains in one process (run hinf train without mpirun)");
+            if (pool_.runs.empty()) pool_ = gain_pool_build(cfg_);
+            K_all_.resize(N * n * cfg_.m);
+        }
         const int chunks = int((cfg_.batch + ck_.net.step.chunk - 1) / ck_.net.step.chunk);
         HINF_CHECK(split_.ranks <= chunks,
                    std::to_string(split_.ranks) + " MPI processes for a minibatch of " + std::to_string(chunks) +
@@ -262,6 +269,7 @@ private:
         const std::int64_t step = ck_.state.step;
         *rec = StepRecord();
         rec->t = cfg_.time_of(step);
+        if (gain_) return gain_time_step(rec, step);
         // 1. N samples around x~(t), and their constants (independent of the weights: once per time step)
         samples_build(&smp_, cfg_, ck_.state.x, ck_.state.xhat, step);
         // 2. K Adam steps on minibatches of M (seed 000 eqs. (14)-(15))
@@ -270,6 +278,126 @@ private:
         if (!residual_statistics(rec, step)) return false;
         // 4. p at x~(t), gain k*, worst case v*, n* (eqs. (6)-(8)), then eqs. (18)-(20)
         return advance_state(rec, step);
+    }
+
+    // Variant gain (docs/method.md section 14): samples (x^_i, x~_i) along the pool's truth runs, K Adam steps on
+    // the dissipation inequality of V = x~'S x~ with the gain K(x^), then the diagnostic filter (the current
+    // network on pool run 0, real noise) advanced one step. One trajectory row per time step.
+    bool gain_time_step(StepRecord* rec, std::int64_t step) {
+        const kern::GainSpec& g = ck_.net.step.gain;
+        gain_samples_build(&gsm_, cfg_, pool_, g, cfg_.samples, std::uint64_t(step));
+        const kern::HjieSystemView view = gsm_.view();
+        kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
+        if (cfg_.reset_adam) {
+            std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
+            std::fill(ck_.adam_v.begin(), ck_.adam_v.end(), T(0));
+            ck_.state.adam_step = 0;
+        }
+        for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
+            kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
+                                   perm_.data());
+            kern::StepLoss L = kern::gain_step_gradient(grad_.data(), ck_.net.theta.data(), view, gsm_.z.data(),
+                                                        idx_.data(), int(cfg_.batch), ck_.net.step, ws_);
+            if (k == 1) rec->loss_first = L.loss;
+            if (k == cfg_.adam_steps) rec->loss_last = L.loss;
+            if (!std::isfinite(L.loss) || (k > 1 && L.loss > cfg_.loss_limit)) {
+                diagnose(step, "training loss", L.loss);
+                return false;
+            }
+            ++ck_.state.adam_step;
+            kern::adam_update(ck_.net.theta.data(), ck_.adam_m.data(), ck_.adam_v.data(), grad_.data(),
+                              std::int64_t(grad_.size()), ck_.state.adam_step, ap);
+        }
+        if (!all_finite_t(ck_.net.theta)) {
+            diagnose(step, "network weights", NAN);
+            return false;
+        }
+        // statistics over all N samples after the K steps
+        const int n = cfg_.n, m = cfg_.m, nv = cfg_.nv;
+        const std::int64_t N = cfg_.samples;
+        std::vector<double> S(n * n);
+        kern::gain_network_eval(K_all_.data(), S.data(), ck_.net.theta.data(), gsm_.z.data(), N, ck_.net.step, ws_);
+        kern::GainLossParams lp = g.loss;
+        lp.xt0 = g.xt0.data();
+        lp.dx = g.dx.data();
+        std::vector<double> rel(N);
+        double viol = 0, pos = 0;
+        for (std::int64_t i = 0; i < N; ++i) {
+            kern::GainSampleValue v = kern::gain_sample_forward(K_all_.data() + i * n * m, S.data(), view, i, lp);
+            rel[i] = v.abs_sum > 0 ? std::fabs(v.residual) / v.abs_sum : 0.0;
+            viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+            pos += v.residual > 0 ? 1 : 0;
+        }
+        rec->rel_median = percentile(rel, 0.5);
+        rec->rel_p95 = percentile(rel, 0.95);
+        rec->violation = viol / double(N);
+        rec->positive = pos / double(N);
+        // the diagnostic filter on pool run 0: x from the truth, x^ by x^' = A(x^) + K(x^)(y - C(x^))
+        const TruthRun& run = pool_.runs[0];
+        const double t = rec->t;
+        const System& sys = *cfg_.system;
+        std::vector<double>& x = ck_.state.x;
+        std::vector<double>& xhat = ck_.state.xhat;
+        x.assign(run.x.begin() + step * n, run.x.begin() + (step + 1) * n);
+        std::vector<double> K(n * m), xt(n), s(n), ah(n), ch(m), e(m), y(run.y.begin() + step * m,
+                                                                         run.y.begin() + (step + 1) * m);
+        std::vector<double> z(n), B(n * nv);
+        for (int j = 0; j < n; ++j) {
+            z[j] = (xhat[j] - g.shift[j]) / g.spread[j];
+            xt[j] = x[j] - xhat[j];
+        }
+        kern::gain_network_eval(K.data(), nullptr, ck_.net.theta.data(), z.data(), 1, ck_.net.step, ws_);
+        sys.drift(ah.data(), xhat.data(), t, 1);
+        sys.measurement(ch.data(), xhat.data(), t, 1);
+        sys.disturbance_gain(B.data(), x.data(), t, 1);
+        for (int j = 0; j < m; ++j) e[j] = y[j] - ch[j];
+        for (int a = 0; a < n; ++a) {
+            s[a] = 0;
+            for (int c = 0; c < n; ++c) s[a] += S[a * n + c] * xt[c];
+        }
+        // the game's worst case at this x~: v* = B's / rho, n* = -K's / rho; p = dV/dx~ = 2 S x~
+        rec->v_star.assign(nv, 0.0);
+        rec->n_star.assign(m, 0.0);
+        for (int j = 0; j < nv; ++j)
+            for (int a = 0; a < n; ++a) rec->v_star[j] += B[a * nv + j] * s[a] / cfg_.rho;
+        for (int j = 0; j < m; ++j)
+            for (int a = 0; a < n; ++a) rec->n_star[j] -= K[a * m + j] * s[a] / cfg_.rho;
+        rec->p.resize(n);
+        for (int a = 0; a < n; ++a) rec->p[a] = 2.0 * s[a];
+        rec->cosine = cosine(s.data(), xt.data(), n);
+        {  // the inequality's value at the diagnostic filter's own error
+            GainSamples one;
+            one.n = n;
+            one.nv = nv;
+            one.m = m;
+            one.xt = xt;
+            one.dA.resize(n);
+            sys.drift(one.dA.data(), x.data(), t, 1);
+            for (int a = 0; a < n; ++a) one.dA[a] -= ah[a];
+            one.Bm = B;
+            one.dC.resize(m);
+            sys.measurement(one.dC.data(), x.data(), t, 1);
+            for (int j = 0; j < m; ++j) one.dC[j] -= ch[j];
+            one.q = {quadratic_form(cfg_.Q.data(), xt.data(), n)};
+            rec->residual = kern::gain_sample_forward(K.data(), S.data(), one.view(), 0, lp).residual;
+        }
+        rec->x = x;
+        rec->xhat = xhat;
+        rec->xtilde = xt;
+        rec->y = y;
+        rec->gain = K;
+        if (writer_) traj_.append(record_row(*rec, cfg_));
+        std::vector<double> xhat_next(n);
+        luenberger_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt);
+        if (!all_finite(xhat_next) || !all_finite(K)) {
+            diagnose(step, !all_finite(K) ? "gain" : "diagnostic filter estimate", NAN);
+            return false;
+        }
+        xhat = xhat_next;
+        // the state at the next step: the truth of pool run 0 (kept in the checkpoint for the record)
+        if (step + 1 < pool_.steps) x.assign(run.x.begin() + (step + 1) * n, run.x.begin() + (step + 2) * n);
+        rec_loss_finite_ = rec->loss_last;
+        return true;
     }
 
     bool adam_phase(StepRecord* rec, std::int64_t step) {
@@ -485,6 +613,10 @@ private:
     TrajectoryWriter traj_;
     kern::StepWorkspace<T> ws_;
     TimeStepSamples smp_;  // this time step's samples and their constants
+    bool gain_ = cfg_.variant == "gain";
+    GainPool pool_;        // variant gain: the truth runs the estimates are sampled along (from the config)
+    GainSamples gsm_;      // variant gain: this time step's samples
+    std::vector<double> K_all_;
     std::vector<double> work_, p_all_, P_all_, cos_;
     std::vector<kern::HjieSampleValue> vals_;  // per-sample statistics of the time step
     std::vector<T> grad_;

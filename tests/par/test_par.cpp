@@ -179,7 +179,7 @@ namespace {
 std::string data_parallel_config(const std::string& t_final) {
     return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +
            "\n[network]\nhidden = [16]\nchunk = 50\n[training]\nsamples = 400\nbatch = 300\nadam_steps = 3\n"
-           "checkpoint_every = 2\n";
+           "checkpoint_every = 2\nacceptance_runs = 0\n";  // the plain runs compared with sweeps: no acceptance attributes
 }
 
 void check_same_run(const std::string& a, const std::string& b) {

@@ -63,7 +63,7 @@ TrainSummary train(const RunConfig& cfg, const std::string& dir, double until, i
 }  // namespace
 
 TEST_CASE("1 and 2 threads give bit-identical training", "[train][determinism]") {
-    for (const char* variant : {"dissipative", "paper"}) {
+    for (const char* variant : {"dissipative", "paper", "gain"}) {
         INFO(variant);
         test::TempDir d1("thr1"), d2("thr2");
         RunConfig cfg = small_config(variant, "float");
@@ -125,9 +125,10 @@ TEST_CASE("mixed filter: x^ + x~ equals x at every step, eqs. (11) and (23) as p
 TEST_CASE("train 2T equals train T, resume, train T (bit-identical)", "[train][resume]") {
     for (std::string precision : {"float", "double"}) {
         for (bool reset : {true, false}) {
-            INFO(precision << " reset_adam " << reset);
+          for (const char* variant : {"dissipative", "gain"}) {
+            INFO(precision << " reset_adam " << reset << " variant " << variant);
             test::TempDir d("resume");
-            RunConfig cfg = small_config("dissipative", precision, reset);
+            RunConfig cfg = small_config(variant, precision, reset);
             train(cfg, d / "full", -1, 2);
             TrainSummary half = train(cfg, d / "split", 0.06, 2);
             REQUIRE(half.last_step == 6);
@@ -139,6 +140,7 @@ TEST_CASE("train 2T equals train T, resume, train T (bit-identical)", "[train][r
             if (precision == "float") require_same_checkpoint<float>(d / "full/checkpoint.h5", d / "split/checkpoint.h5");
             else require_same_checkpoint<double>(d / "full/checkpoint.h5", d / "split/checkpoint.h5");
             require_same_trajectory(d / "full/trajectory.h5", d / "split/trajectory.h5");
+          }
         }
     }
 }

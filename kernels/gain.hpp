@@ -1,0 +1,59 @@
+// The `gain` variant (issue 14): a filter gain K(x^) from a network that sees only the estimate, a learned constant
+// storage V(x~) = x~^T S x~ with S positive definite, and the dissipation inequality of the filtering game for that
+// pair (docs/method.md section 14). Per-sample loss pieces and their gradients with respect to K and S, the
+// storage's and the gain head's parameterisations, and the chunked minibatch gradient. Not the sampling of
+// (x^, x~) pairs (src/train/gain_samples.cpp) and not any particular system.
+//
+// Shape legend: N = samples, M = minibatch, n = states, nv = disturbance inputs, m = outputs,
+//   K [n x m] row-major gain, S [n x n] storage matrix, o [n x m] raw network output, s [n(n+1)/2] storage params.
+#pragma once
+#include <cstdint>
+
+#include "hjie.hpp"
+#include "train_step.hpp"
+
+namespace hinf::kern {
+
+/// Loss pieces of one sample (x^_i, x~_i):
+///   H_i   = x~'Qx~ + 2 s'(dA - K dC) + |B's|^2/rho + |K's|^2/rho,  s = S x~
+///           (= sup over v, n of x~'Qx~ + dV/dt - rho |v|^2 - rho |n|^2 for x~' = dA - K dC + B v - K n)
+///   S_i   = |x~'Qx~| + 2|s'dA| + 2|s'K dC| + |B's|^2/rho + |K's|^2/rho   (its scale)
+///   hinge = relu(H_i / S_i + margin)^2
+///   h2    = (x~0'S x~0 / T + sv2 tr(B'S B) + sn2 tr(K'S K)) / h2_reference   (the H2 bound per unit time)
+
+struct GainSampleValue {
+    double residual = 0, abs_sum = 0, hinge = 0, h2 = 0;
+};
+
+GainSampleValue gain_sample_forward(const double* K, const double* S, const HjieSystemView& s, std::int64_t i,
+                                    const GainLossParams& gp);
+/// gK [n x m] = dL/dK (overwritten); gS [n x n] += dL/dS (accumulated), for dL/dhinge_i = d_hinge, dL/dh2_i = d_h2.
+void gain_sample_backward(double* gK, double* gS, const double* K, const double* S, const HjieSystemView& s,
+                          std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2);
+
+/// S = c D^-1 (M M' + eps I) D^-1, M = I + tril(s) (row-major lower-triangular packing), D = diag(d).
+template <typename T>
+void storage_forward(double* S, const T* s, const double* d, int n, double c, double eps);
+/// ds [n(n+1)/2] = dL/ds from gS = dL/dS (overwritten).
+template <typename T>
+void storage_backward(T* ds, const double* gS, const T* s, const double* d, int n, double c);
+
+/// K_ij = rate * dx_i * o_ij / dy_j.
+template <typename T>
+void gain_head_forward(double* K, const T* o, const double* dx, const double* dy, int n, int m, double rate);
+template <typename T>
+void gain_head_backward(T* d_o, const double* gK, const double* dx, const double* dy, int n, int m, double rate);
+
+/// grad [P + n(n+1)/2] = dL/dtheta (overwritten), theta = [MLP parameters | storage parameters]; the network input
+/// of sample i is z [i x n] (the standardised estimate). L = sqrt(mean hinge) + eta mean h2 over idx[0..M).
+/// Fixed chunks of cfg.chunk samples, partials summed in chunk order: the bits do not depend on the thread count.
+template <typename T>
+StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
+                            const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws);
+
+/// K [count x n x m] at standardised inputs z [count x n] and S [n x n] (may be null).
+template <typename T>
+void gain_network_eval(double* K, double* S, const T* theta, const double* z, std::int64_t count,
+                       const StepConfig& cfg, StepWorkspace<T>& ws);
+
+}  // namespace hinf::kern

@@ -1,0 +1,37 @@
+// Parameters of the `gain` variant (issue 14, docs/method.md section 14): the scales of its gain head and storage
+// and the loss constants. Part of kern::StepConfig; the kernels are in gain.hpp.
+#pragma once
+#include <vector>
+
+namespace hinf::kern {
+
+/// Loss constants of the gain variant (see gain.hpp for the per-sample pieces).
+struct GainLossParams {
+    double rho = 0.03, margin = 0.02;
+    double disturbance_intensity = 4.0, noise_intensity = 4.0;  // sv2, sn2: white-noise intensities the H2 term plans for
+    double horizon = 70.0;                                      // T [s]
+    double h2_reference = 1.0;                                  // the H2 bound is divided by this constant
+    const double* xt0 = nullptr;                                // [n] the initial error the user expects (x0 - x^0)
+    double initial_weight = 0.0;  // weight of x~0'S x~0 / T in h2 (0: the stationary H2 rate alone)
+    // sampled-data cap: dt |D^-1 K dC| <= kappa |D^-1 x~| (the Euler filter's correction per step stays below
+    // kappa times the error; a hinge relu(dt |D^-1 K dC| / |D^-1 x~| - kappa)^2 added to the sample's hinge)
+    double dt = 0.0, kappa = 0.5;  // dt = 0: no cap
+    const double* dx = nullptr;    // [n] D
+};
+
+/// What turns the network's raw outputs into K(x^) and its extra parameters into S (fixed at creation, from the config).
+struct GainSpec {
+    bool enabled = false;
+    int m = 0;                       // outputs
+    std::vector<double> dx, dy;      // error scale per state [n], innovation scale per output [m]
+    std::vector<double> shift, spread;  // network input z = (x^ - shift) / spread  [n]
+    std::vector<double> xt0;         // [n]
+    double rate = 1.0;               // K = rate * diag(dx) o diag(dy)^-1  [1/s]
+    double storage_scale = 1.0;      // S = c D^-1 (M M' + eps I) D^-1
+    double eps = 1e-3;
+    double h2_weight = 0.1;          // eta
+    GainLossParams loss;             // xt0 points into this spec's xt0 at call time
+    int storage_params(int n) const { return enabled ? n * (n + 1) / 2 : 0; }
+};
+
+}  // namespace hinf::kern

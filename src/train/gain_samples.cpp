@@ -1,0 +1,121 @@
+// Samples of the gain variant (see gain_samples.hpp).
+#include "train/gain_samples.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "filters/gain_law.hpp"
+#include "random.hpp"
+
+namespace hinf {
+
+kern::HjieSystemView GainSamples::view() const {
+    return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data()};
+}
+
+GainPool gain_pool_build(const RunConfig& cfg) {
+    GainPool pool;
+    pool.steps = cfg.steps_until();
+    RunConfig c = cfg;
+    // a seed of its own: splitmix of the training seed, never equal to a plain on-line seed
+    std::uint64_t z = cfg.seed + 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    c.online_seed = (z ^ (z >> 31)) >> 1;
+    pool.runs.resize(static_cast<std::size_t>(cfg.trajectories));
+    for (std::int64_t r = 0; r < cfg.trajectories; ++r)
+        pool.runs[r] = truth_simulate(c, Scenario{}, std::uint64_t(r), pool.steps);
+    return pool;
+}
+
+namespace {
+
+void resize(GainSamples* s, const RunConfig& cfg, std::int64_t N) {
+    const int n = cfg.n, nv = cfg.nv, m = cfg.m;
+    s->n = n;
+    s->nv = nv;
+    s->m = m;
+    s->xt.resize(N * n);
+    s->dA.resize(N * n);
+    s->Bm.resize(N * n * nv);
+    s->dC.resize(N * m);
+    s->q.resize(N);
+    s->z.resize(N * n);
+    s->xhat.resize(N * n);
+    s->x.resize(N * n);
+    s->t.resize(N);
+}
+
+// the per-sample constants from s->x, s->xhat, s->t (per sample: each has its own time)
+void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::int64_t N) {
+    const int n = s->n, nv = s->nv, m = s->m;
+    const System& sys = *cfg.system;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < N; ++i) {
+        double ah[32], ch[32];
+        const double* x = s->x.data() + i * n;
+        const double* xh = s->xhat.data() + i * n;
+        sys.drift(s->dA.data() + i * n, x, s->t[i], 1);
+        sys.drift(ah, xh, s->t[i], 1);
+        sys.disturbance_gain(s->Bm.data() + i * n * nv, x, s->t[i], 1);
+        sys.measurement(s->dC.data() + i * m, x, s->t[i], 1);
+        sys.measurement(ch, xh, s->t[i], 1);
+        for (int j = 0; j < n; ++j) s->dA[i * n + j] -= ah[j];
+        for (int j = 0; j < m; ++j) s->dC[i * m + j] -= ch[j];
+        s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
+        for (int j = 0; j < n; ++j) s->z[i * n + j] = (xh[j] - g.shift[j]) / g.spread[j];
+    }
+}
+
+void draw_errors(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::int64_t N, std::uint64_t a,
+                 std::vector<double>* u) {
+    const int n = cfg.n;
+    std::vector<double> xi(static_cast<std::size_t>(N * n));
+    u->resize(static_cast<std::size_t>(N * 3));
+    kern::rng_normal(xi.data(), N * n, cfg.seed, kern::RNG_STREAM_GAIN, a, 0);
+    kern::rng_uniform(u->data(), N * 3, cfg.seed, kern::RNG_STREAM_GAIN, a, 1);
+    for (std::int64_t i = 0; i < N; ++i) {
+        const double radius = std::pow(10.0, -cfg.radius_decades * (*u)[i * 3 + 2]);
+        for (int j = 0; j < n; ++j) s->xt[i * n + j] = radius * g.dx[j] * xi[i * n + j];
+    }
+}
+
+}  // namespace
+
+void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
+                        std::int64_t N, std::uint64_t a) {
+    const int n = cfg.n;
+    resize(s, cfg, N);
+    std::vector<double> u;
+    draw_errors(s, cfg, g, N, a, &u);
+    const std::int64_t R = std::int64_t(pool.runs.size());
+    for (std::int64_t i = 0; i < N; ++i) {
+        const std::int64_t r = std::min(R - 1, std::int64_t(u[i * 3] * double(R)));
+        const std::int64_t k = std::min(pool.steps - 1, std::int64_t(u[i * 3 + 1] * double(pool.steps)));
+        const double* x = pool.runs[r].x.data() + k * n;
+        for (int j = 0; j < n; ++j) {
+            s->x[i * n + j] = x[j];
+            s->xhat[i * n + j] = x[j] - s->xt[i * n + j];
+        }
+        s->t[i] = cfg.time_of(k);
+    }
+    constants(s, cfg, g, N);
+}
+
+void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
+                     std::int64_t N, std::uint64_t a) {
+    const int n = cfg.n;
+    resize(s, cfg, N);
+    std::vector<double> u;
+    draw_errors(s, cfg, g, N, a, &u);
+    for (std::int64_t i = 0; i < N; ++i) {
+        for (int j = 0; j < n; ++j) {
+            s->xhat[i * n + j] = xhat[j];
+            s->x[i * n + j] = xhat[j] + s->xt[i * n + j];
+        }
+        s->t[i] = t;
+    }
+    constants(s, cfg, g, N);
+}
+
+}  // namespace hinf

@@ -1,0 +1,39 @@
+// Training data of the `gain` variant (issue 14, docs/method.md section 14.3): estimates x^ along many simulated
+// truth runs (the one truth simulator) and errors x~ over the region the filter meets, with their per-sample
+// constants. Not the loss (kernels/gain.hpp) and not the time-step loop (trainer.cpp).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "config/run_config.hpp"
+#include "hjie.hpp"
+#include "sim/truth.hpp"
+#include "train_step.hpp"
+
+namespace hinf {
+
+/// cfg.trajectories truth runs over [0, t_final] with the [online] noise, keyed by the training seed (never the
+/// on-line seed: the filter is not trained on the runs it is measured on).
+struct GainPool {
+    std::vector<TruthRun> runs;
+    std::int64_t steps = 0;
+};
+GainPool gain_pool_build(const RunConfig& cfg);
+
+struct GainSamples {
+    int n = 0, nv = 0, m = 0;
+    std::vector<double> xt, dA, Bm, dC, q, z, xhat, x, t;  // [N x n] ... z: standardised x^ (network input)
+    kern::HjieSystemView view() const;
+};
+
+/// N samples for time step `step` (Philox (seed, RNG_STREAM_GAIN, a, 0/1)): run r and time index k uniform,
+/// x = pool run r at k, x~_j = 10^(-D u) dx_j xi_j (u ~ U(0,1), xi ~ N(0,1), D = sampling.radius_decades),
+/// x^ = x - x~. `a` is the counter (the time step; the on-line check uses its own range).
+void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
+                        std::int64_t N, std::uint64_t a);
+
+/// The same for errors around one known estimate x^ (on-line check and retraining): x = x^ + x~, at time t.
+void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
+                     std::int64_t N, std::uint64_t a);
+
+}  // namespace hinf
