@@ -18,7 +18,7 @@ struct ProblemConfig {
 
     // [filter]
     std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
-    std::string variant = "dissipative";  // "dissipative" (default), "paper" or "gain" (K(x^), docs/method.md 14)
+    std::string variant = "dissipative";  // "dissipative" (default), "paper" or "gain" (K(x^), docs/method.md §16)
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
