@@ -84,7 +84,8 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         std::vector<double> c(m);
         std::int64_t used = 0;
         Progress progress("filter " + r.name, 0, K, opt.quiet);
-        StreamResult sr = filter_stream(*f, ms.y.data(), m, ms.t.data(), K, nullptr, n,
+        const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ms.y.data(), K);
+        StreamResult sr = filter_stream(*f, ms.y.data(), m, ms.t.data(), K, nullptr, n, bound.data(), ms.missing.empty() ? nullptr : ms.missing.data(),
                                         [&](std::int64_t k, const double* xh, bool frozen) {
             p.xhat.insert(p.xhat.end(), xh, xh + n);
             if (p.has_cov) {
@@ -93,8 +94,8 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             }
             const double* y = ms.y.data() + k * m;
             sys.measurement(c.data(), xh, ms.t[k], 1);
-            for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);
-            if (frozen) return;  // frozen at its last finite estimate
+            for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);  // NaN where the measurement is missing
+            if (frozen || (!ms.missing.empty() && ms.missing[k])) return;  // frozen, or nothing to compare with
             for (int j = 0; j < m; ++j) {
                 r.innovation_mean[j] += y[j] - c[j];
                 r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
@@ -109,7 +110,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));
             r.innovation_rms[j] = std::sqrt(r.innovation_rms[j] / double(std::max<std::int64_t>(used, 1)));
         }
-        r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
+        r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(sr.stepped, 1));
         progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
         results.push_back(r);
         paths.push_back(std::move(p));
@@ -125,6 +126,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "system", sys.name());
         h5::set_attr(root, "rows", K);
         h5::set_attr(root, "dt", ms.dt);
+        h5::set_attr(root, "missing_rows", ms.missing_rows);  // rows without a measurement: predicted only
         h5::set_attr(root, "mode", "measured");
         h5::set_attr(root, "meaning",
                      "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "

@@ -62,6 +62,18 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
             GlfDesign g = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, cfg.rho);
+            if (!g.ok && cfg.rho > 0) {  // name the rho that fixes it: the smallest level these vertices allow
+                const GlfDesign least = glf_design(*cfg.system, cfg.x0, cfg.Q, exact.dt, cfg.t_final, a.glf_vertices, 0.0);
+                char fix[240];
+                if (least.ok)
+                    std::snprintf(fix, sizeof fix, "with [filter] rho = %.4g; the smallest rho these %d vertices allow is "
+                                  "%.4g: pass --set filter.rho=%.4g (or another --glf-vertices, or drop glf)",
+                                  cfg.rho, a.glf_vertices, least.rho, 1.01 * least.rho);
+                else
+                    std::snprintf(fix, sizeof fix, "at any rho (%d vertices; [filter] rho = %.4g): try another "
+                                  "--glf-vertices, or drop glf", a.glf_vertices, cfg.rho);
+                HINF_FAIL("--filters glf: the LMI design found no gain " + std::string(fix) + " (" + g.status + ")");
+            }
             HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
                                  " (try another --glf-vertices, or drop glf)");
             char note[160];
