@@ -115,7 +115,8 @@ void add_filter_command(CLI::App& app) {
         std::printf("  %9s\n", "us/step");
         for (const auto& r : res) {
             char div[32];
-            std::snprintf(div, sizeof div, "%s", r.diverged_at < 0 ? "no" : ("t=" + std::to_string(r.diverged_at)).c_str());
+            if (r.diverged_at < 0) std::snprintf(div, sizeof div, "no");
+            else std::snprintf(div, sizeof div, "t=%g", r.diverged_at);  // non-finite, or left the plausible range
             std::printf("%-26s %-9s", r.name.c_str(), div);
             for (int j = 0; j < std::min(cfg.m, 4); ++j) {
                 char cell[48];

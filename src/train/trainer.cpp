@@ -519,7 +519,9 @@ std::string resume_config_text(const std::string& text, const std::vector<std::s
     ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
     std::string record;
     for (const std::string& s : sets) {
-        const std::string key = s.substr(0, s.find('='));
+        std::string key = s.substr(0, s.find('='));
+        key.erase(key.find_last_not_of(" \t") + 1);
+        key.erase(0, key.find_first_not_of(" \t"));
         bool allowed = false;
         for (const std::string& k : kResumeKeys) allowed = allowed || key == k;
         std::string list;
