@@ -64,6 +64,13 @@ std::string read_string(hid_t loc, const std::string& name);
 void set_attr(hid_t loc, const std::string& name, double value);
 void set_attr(hid_t loc, const std::string& name, std::int64_t value);
 void set_attr(hid_t loc, const std::string& name, const std::string& value);
+/// Text of any length under `name` of group/file loc: an attribute up to kAttrTextMax bytes (libhdf5 keeps
+/// attributes in the object header, 64 kB in all), a string dataset beyond (a large config, a long network
+/// description). get_text / has_text read either form.
+constexpr std::size_t kAttrTextMax = 16384;
+void set_text(hid_t loc, const std::string& name, const std::string& value);
+bool has_text(hid_t loc, const std::string& name);
+std::string get_text(hid_t loc, const std::string& name);
 void set_attr(hid_t loc, const std::string& name, const char* value);
 void set_attr(hid_t loc, const std::string& name, const std::vector<double>& value);
 bool has_attr(hid_t loc, const std::string& name);

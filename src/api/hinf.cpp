@@ -299,7 +299,7 @@ FilterTrace Filter::run(const double* t, const double* y, std::int64_t K) const 
         f = fresh.filters.front().get();
     }
     RecordedPath path;
-    RecordedResult r = filter_record_path(*f, *c.system, ms, im.xhat0, im.P0, true, &path);
+    RecordedResult r = filter_record_path(*f, c, ms, im.xhat0, im.P0, true, &path);
     FilterTrace tr;
     tr.name = r.name;
     tr.steps = K;

@@ -80,7 +80,9 @@ void add_compare_command(CLI::App& app) {
                     cfg.settle_time);
         std::printf("%-26s %-8s %5s", "filter", "mode", "div");
         for (int i = 0; i < std::min(cfg.n, 3); ++i) std::printf("  %-27s", (names[i] + " (mean, std)").c_str());
-        std::printf("  %10s %10s %10s %9s %9s %9s\n", "RMSEpos", "RMSEpos5", "ratio", "MSEp[dB]", "MSEf[dB]", "us/step");
+        char settled_head[32];  // the settled-window RMSE, named by its window
+        std::snprintf(settled_head, sizeof settled_head, "RMSEpos%g", cfg.settle_time);
+        std::printf("  %10s %10s %10s %9s %9s %9s\n", "RMSEpos", settled_head, "ratio", "MSEp[dB]", "MSEf[dB]", "us/step");
         for (const auto& fr : s.filters) {
             std::printf("%-26s %-8s %5lld", fr.name.c_str(), fr.mode.c_str(), static_cast<long long>(fr.diverged_runs));
             for (int i = 0; i < std::min(cfg.n, 3); ++i) {

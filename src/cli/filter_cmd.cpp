@@ -14,7 +14,8 @@ namespace hinf::cli {
 
 namespace {
 struct FilterArgs {
-    std::string config, measurements, out, filters, dataset = "y", time_dataset = "t";
+    std::string config, measurements, out, filters, dataset = "y", time_dataset = "t", resample;
+    double time_tolerance = kUniformTolerance;
     std::vector<std::string> networks, sets;
     std::vector<double> xhat0, initial_std;
     std::int64_t particles = 2000;
@@ -38,6 +39,12 @@ void add_filter_command(CLI::App& app) {
                   "Comma list of: " + filter_names() + " (default: dnn with --network, else ekf)");
     c->add_option("--dataset", a->dataset, "HDF5: dataset of the measurements [K x m] (default y)");
     c->add_option("--time-dataset", a->time_dataset, "HDF5: dataset of the times [K] in s (default t)");
+    c->add_option("--time-tolerance", a->time_tolerance,
+                  "Largest difference of any time step from the record's mean step, as a fraction of that step "
+                  "(default 0.05: clock jitter of +-1e-4 s at 0.01 s passes)");
+    c->add_option("--resample", a->resample,
+                  "Put a non-uniform record on the uniform grid t_0 + k dt (dt its mean step): linear or zoh "
+                  "(zero-order hold)");
     c->add_option("--initial-estimate", a->xhat0, "x^(t_0), one value per state (default: the config's [filter] xhat0)")
         ->delimiter(',');
     c->add_option("--initial-std", a->initial_std,
@@ -56,7 +63,13 @@ void add_filter_command(CLI::App& app) {
         HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
         RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         const int n = cfg.n;
-        Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset});
+        Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
+                                                              a->time_tolerance, a->resample});
+        if (ms.dt > 10 * cfg.dt || ms.dt < 0.1 * cfg.dt)  // e.g. a time column in milliseconds
+            std::fprintf(stderr,
+                         "warning: the record's time step %g s is far from the config's dt %g s (is the time column in "
+                         "seconds?); the filters step on the record's\n",
+                         ms.dt, cfg.dt);
         recorded_check_sampling(cfg, ms, a->measurements);
 
         RecordedOptions opt;
@@ -97,9 +110,10 @@ void add_filter_command(CLI::App& app) {
         for (auto& f : set.filters) filters.push_back(f.get());
         std::printf("filter: %lld measurements of %d output(s) from %s, t = %g .. %g s, dt = %g s%s\n",
                     static_cast<long long>(ms.rows), ms.m, a->measurements.c_str(), ms.t.front(), ms.t.back(), ms.dt,
-                    std::fabs(ms.dt - cfg.dt) > 1e-9 * cfg.dt
-                        ? (" (the config's dt is " + std::to_string(cfg.dt) + " s: the filters use the record's)").c_str()
-                        : "");
+                    (std::string(a->resample.empty() ? "" : " (resampled, " + a->resample + ")") +
+                     (ms.missing_rows > 0 ? "; " + std::to_string(ms.missing_rows) +
+                                                " row(s) without a measurement (empty or NaN): predicted only"
+                                          : "")).c_str());
         std::vector<RecordedResult> res = filter_recorded(cfg, filters, ms, opt);
 
         std::printf("%-26s %-9s", "filter (mode measured)", "diverged");
@@ -107,7 +121,8 @@ void add_filter_command(CLI::App& app) {
         std::printf("  %9s\n", "us/step");
         for (const auto& r : res) {
             char div[32];
-            std::snprintf(div, sizeof div, "%s", r.diverged_at < 0 ? "no" : ("t=" + std::to_string(r.diverged_at)).c_str());
+            if (r.diverged_at < 0) std::snprintf(div, sizeof div, "no");
+            else std::snprintf(div, sizeof div, "t=%g", r.diverged_at);  // non-finite, or left the plausible range
             std::printf("%-26s %-9s", r.name.c_str(), div);
             for (int j = 0; j < std::min(cfg.m, 4); ++j) {
                 char cell[48];

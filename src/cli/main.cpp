@@ -2,6 +2,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <unistd.h>
 #include <iostream>
 #include <thread>
@@ -100,6 +101,13 @@ int run(int argc, char** argv) {
         return code == 0 ? 0 : 2;
     } catch (const hinf::Error& e) {
         return fail(std::string("hinf: error: ") + e.what(), 2);
+    } catch (const std::filesystem::filesystem_error& e) {
+        // a path the user gave that cannot be created or written (read-only, a file where a directory is
+        // expected, no space): the user's to fix, one line like every other input error
+        std::string where = e.path1().string();
+        return fail("hinf: error: cannot use '" + where + "': " + e.code().message() +
+                        " (check that the output path is a directory you can write, or pass another --out)",
+                    2);
     } catch (const std::exception& e) {
         return fail(std::string("hinf: internal error: ") + e.what() + " (please report this with the command you ran)", 3);
     } catch (...) {  // a library's own exception type (e.g. muParser's) that escaped a conversion: still one line

@@ -169,18 +169,28 @@ void add_train_commands(CLI::App& app) {
     resume->add_option("checkpoint", args->checkpoint, "DIR/checkpoint.h5 written by `hinf train`")->required();
     resume->add_option("--until", args->until, "Stop at this simulated time [s] (default: the config's t_final)");
     resume->add_option("--threads", args->threads, "OpenMP threads (default: all cores)");
+    resume->add_option("--set", args->sets,
+                       "Change a key that may change on resume, e.g. --set training.learning_rate=1e-4 (repeatable; "
+                       "recorded in the config of the checkpoint and trajectory)");
     resume->add_flag("--quiet", args->quiet, "No progress lines");
     resume->callback([args]() {
         apply_threads(args->threads);
         TrainOptions opt;
         opt.until = args->until;
         opt.quiet = args->quiet;
+        opt.sets = args->sets;
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
         if (dir.empty()) dir = ".";
         print_summary(s, dir);
+        if (!args->sets.empty()) {
+            std::string changed;
+            for (const auto& v : args->sets) changed += " " + v;
+            std::printf("changed on resume at step %lld:%s (recorded as a '# hinf resume' line in the config of the "
+                        "checkpoint and trajectory)\n", static_cast<long long>(s.first_step), changed.c_str());
+        }
         RunConfig cfg = ckpt_config(args->checkpoint);
         if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step &&
             par_world_size() == 1) {

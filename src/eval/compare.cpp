@@ -245,6 +245,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     std::string sn;
     for (const auto& s : cfg.system->state_names()) sn += (sn.empty() ? "" : ",") + s;
     h5::set_attr(root, "state_names", sn);
+    std::string su;  // the states' units, for axis labels (scripts/plot)
+    for (const auto& u : cfg.system->state_units()) su += (su.empty() ? "" : ",") + u;
+    h5::set_attr(root, "state_units", su);
     h5::set_attr(root, "meaning",
                  "one group per filter; every filter saw the same truth and measurements (measurement_stream_hash "
                  "== truth_stream_hash); errors are x - x^ of the one-step prediction (mse_filtered*: of the filtered estimate x^_{k|k}); statistics over the runs that "

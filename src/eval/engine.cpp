@@ -39,6 +39,24 @@ FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run) {
     return start;
 }
 
+std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& start, const double* x_true,
+                                    const double* y, std::int64_t K) {
+    const int n = cfg.n, m = cfg.m;
+    double ymax = 0;
+    if (y != nullptr)
+        for (std::int64_t i = 0; i < K * m; ++i)
+            if (std::isfinite(y[i])) ymax = std::max(ymax, std::fabs(y[i]));
+    std::vector<double> bound(n);
+    for (int i = 0; i < n; ++i) {
+        double s = std::max({std::fabs(cfg.x0[i]), std::fabs(start.xhat0[i]), ymax});
+        if (start.P0.size() == std::size_t(n) * n) s = std::max(s, std::sqrt(std::max(0.0, start.P0[i * n + i])));
+        if (x_true != nullptr)
+            for (std::int64_t k = 0; k < K; ++k) s = std::max(s, std::fabs(x_true[k * n + i]));
+        bound[i] = kPlausibleFactor * std::max(s, 1e-300);
+    }
+    return bound;
+}
+
 namespace {
 
 FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const TruthRun& tr, const std::vector<double>& t,
@@ -54,9 +72,11 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     r.err_sq_settled.assign(n, 0);
     r.stream_hash = hash_start;
     std::vector<double> e(n);
-    f.reset(engine_filter_start(cfg, run));
+    const FilterStart start = engine_filter_start(cfg, run);
+    f.reset(start);
     if (obs != nullptr) obs->begin(index, run);
-    StreamResult sr = filter_stream(f, tr.y.data(), m, t.data(), K, tr.x.data(), n,
+    const std::vector<double> bound = plausible_bound(cfg, start, tr.x.data(), nullptr, K);
+    StreamResult sr = filter_stream(f, tr.y.data(), m, t.data(), K, tr.x.data(), n, bound.data(), nullptr,
                                     [&](std::int64_t k, const double* xh, bool) {
         const double* x = tr.x.data() + k * n;
         if (obs != nullptr) obs->observe(k, t[k], x, xh);

@@ -6,6 +6,7 @@
 // Shape legend: R = runs, K = steps, n = states, m = outputs, F = filters.
 #pragma once
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -23,23 +24,45 @@ struct StreamResult {
     std::int64_t stepped = 0;  // steps before the divergence (the filter is frozen after it)
 };
 
+/// An estimate with |x^_i| > kPlausibleFactor * scale_i for any state is reported as diverged (plausible_bound).
+constexpr double kPlausibleFactor = 1000.0;
+
+/// The physically plausible range of each state, from the system's own scales: bound_i = kPlausibleFactor *
+/// max(|x0_i|, |x^0_i|, sd0_i, max_k |x_i(t_k)| of the truth (x_true [K x n], may be nullptr), the largest |y|
+/// of the measurements y [K x m] (recorded data, where no truth gives the states' scale; may be nullptr)).
+/// docs/compare.md "Divergence".
+std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& start, const double* x_true,
+                                    const double* y, std::int64_t K);
+
 /// Steps f over K measurements y [K x m] at times t [K]: before step k calls visit(k, xhat, frozen) with the
-/// estimate of x(t_k); a diverged filter stays frozen at its last finite estimate (visit is still called, with
-/// frozen = true). x_true [K x n] is handed to oracle filters (nullptr for recorded data).
+/// estimate of x(t_k); a filter that reports a divergence, or whose estimate leaves |x^_i| <= bound[i] (bound [n],
+/// nullptr: no range), stays frozen at its last estimate (visit is still called, with frozen = true). x_true [K x n]
+/// is handed to oracle filters (nullptr for recorded data). missing [K] (nullptr: none): rows without a
+/// measurement, stepped with FilterInput::y = nullptr (predict only).
 /// After step k calls visit_filtered(k, xhat_filtered) with the filtered estimate x^_{k|k} (f.filtered(); a frozen
-/// filter's last finite estimate); not called for filters without a filtered estimate.
+/// filter's last estimate); not called for filters without a filtered estimate.
 template <class Visit, class VisitFiltered>
 StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
-                           const double* x_true, int n, Visit&& visit, VisitFiltered&& visit_filtered) {
+                           const double* x_true, int n, const double* bound, const unsigned char* missing,
+                           Visit&& visit, VisitFiltered&& visit_filtered) {
     StreamResult r;
     for (std::int64_t k = 0; k < K; ++k) {
         visit(k, f.estimate(), r.diverged_at >= 0);
         if (r.diverged_at < 0) {
             auto c0 = std::chrono::steady_clock::now();
-            FilterStatus st = f.step(FilterInput{y + k * m, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
+            const double* yk = missing != nullptr && missing[k] ? nullptr : y + k * m;
+            FilterStatus st = f.step(FilterInput{yk, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
             r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
             ++r.stepped;
             if (st != FILTER_OK) r.diverged_at = t[k];
+            if (bound != nullptr && r.diverged_at < 0) {
+                const double* xh = f.estimate();
+                for (int i = 0; i < n; ++i)
+                    if (!(std::fabs(xh[i]) <= bound[i])) {  // NaN too
+                        r.diverged_at = t[k];
+                        break;
+                    }
+            }
         }
         if (f.filtered() != nullptr) visit_filtered(k, r.diverged_at >= 0 ? f.estimate() : f.filtered());
     }
@@ -48,8 +71,9 @@ StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double
 
 template <class Visit>
 StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
-                           const double* x_true, int n, Visit&& visit) {
-    return filter_stream(f, y, m, t, K, x_true, n, visit, [](std::int64_t, const double*) {});
+                           const double* x_true, int n, const double* bound, const unsigned char* missing,
+                           Visit&& visit) {
+    return filter_stream(f, y, m, t, K, x_true, n, bound, missing, visit, [](std::int64_t, const double*) {});
 }
 
 /// Watches one filter's run step by step (one instance per thread: clone()). begin/end bracket each (filter,

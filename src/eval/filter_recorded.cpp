@@ -76,7 +76,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
                                               "' reads the true state (oracle mode); recorded data have none: use "
                                               "--mode measured");
         Path p;  // the one loop of `hinf filter` and the library's Filter::run
-        results.push_back(filter_record_path(*f, sys, ms, opt.xhat0, opt.P0, opt.quiet, &p));
+        results.push_back(filter_record_path(*f, cfg, ms, opt.xhat0, opt.P0, opt.quiet, &p));
         paths.push_back(std::move(p));
     }
 
@@ -91,6 +91,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "rows", K);
         h5::set_attr(root, "dt", ms.dt);
         h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
+        h5::set_attr(root, "missing_rows", ms.missing_rows);  // rows without a measurement: predicted only
         h5::set_attr(root, "mode", "measured");
         h5::set_attr(root, "meaning",
                      "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "
@@ -148,9 +149,10 @@ std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std:
     return P0;
 }
 
-RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Measurements& ms,
+RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const Measurements& ms,
                                   const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
                                   RecordedPath* out) {
+    const System& sys = *cfg.system;
     const int n = sys.state_dim(), m = sys.output_dim();
     const std::int64_t K = ms.rows;
     HINF_CHECK(ms.m == m, "measurements have " + std::to_string(ms.m) + " outputs, the system " + std::to_string(m));
@@ -176,7 +178,9 @@ RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Meas
     std::vector<double> c(m);
     std::int64_t used = 0;
     Progress progress("filter " + r.name, 0, K, quiet);
-    StreamResult sr = filter_stream(f, ms.y.data(), m, ms.t.data(), K, nullptr, n,
+    const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ms.y.data(), K);
+    const unsigned char* missing = ms.missing.empty() ? nullptr : ms.missing.data();
+    StreamResult sr = filter_stream(f, ms.y.data(), m, ms.t.data(), K, nullptr, n, bound.data(), missing,
                                     [&](std::int64_t k, const double* xh, bool frozen) {
         p.xhat.insert(p.xhat.end(), xh, xh + n);
         if (p.has_cov) {
@@ -185,8 +189,8 @@ RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Meas
         }
         const double* y = ms.y.data() + k * m;
         sys.measurement(c.data(), xh, ms.t[k], 1);
-        for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);
-        if (frozen) return;  // frozen at its last finite estimate
+        for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);  // NaN where the measurement is missing
+        if (frozen || (missing != nullptr && missing[k])) return;  // frozen, or nothing to compare with
         for (int j = 0; j < m; ++j) {
             r.innovation_mean[j] += y[j] - c[j];
             r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
@@ -201,7 +205,7 @@ RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Meas
         r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));
         r.innovation_rms[j] = std::sqrt(r.innovation_rms[j] / double(std::max<std::int64_t>(used, 1)));
     }
-    r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(used, 1));
+    r.us_per_step = 1e6 * seconds / double(std::max<std::int64_t>(sr.stepped, 1));
     progress.finish(r.diverged_at >= 0 ? "diverged at t = " + std::to_string(r.diverged_at) + " s" : "no divergence");
     return r;
 }

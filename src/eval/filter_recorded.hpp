@@ -52,7 +52,7 @@ std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std:
 
 /// Resets f to xhat0 / P0 and steps it over the whole record; *out receives its path. The one loop of
 /// `hinf filter` and of the library's Filter::run.
-RecordedResult filter_record_path(OnlineFilter& f, const System& sys, const Measurements& ms,
+RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const Measurements& ms,
                                   const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
                                   RecordedPath* out);
 

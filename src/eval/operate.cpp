@@ -237,9 +237,15 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
                  "V(x~(0)); error_mean/std: per state, over time and runs, of x - x^; _settled: over t >= settle_time only (mode says whether the "
                  "filter used the true state: oracle, or only measurements: measured)");
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
+    std::string names, units;  // for axis labels (scripts/plot)
+    for (const auto& s : cfg.system->state_names()) names += (names.empty() ? "" : ",") + s;
+    for (const auto& u : cfg.system->state_units()) units += (units.empty() ? "" : ",") + u;
+    h5::set_attr(root, "state_names", names);
+    h5::set_attr(root, "state_units", units);
     h5::write_doubles(root, "attenuation_ratio_per_run", ratio.data(), {hsize_t(sum.runs)}, "1", "per Monte Carlo run");
     h5::write_doubles(root, "diverged_at", diverged_at.data(), {hsize_t(sum.runs)}, "s",
-                      "time the estimate became non-finite or left |x^| < 1e12 (-1: never); from then on it is frozen");
+                      "time the estimate became non-finite or left |x^| < 1e12 or the plausible range (-1: never); from then "
+                      "on it is frozen");
     h5::write_doubles(root, "attenuation_ratio_open_loop_per_run", ratio_open.data(), {hsize_t(sum.runs)}, "1",
                       "per Monte Carlo run, gain set to zero");
     h5::write_doubles(root, "t", er.t.data(), {hsize_t(steps)}, "s", "time");

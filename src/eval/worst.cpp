@@ -115,7 +115,7 @@ double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::in
     std::vector<double> e(n);
     double error_energy = 0, energy = 0;
     f.reset(engine_filter_start(cfg, 0));
-    filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, [&](std::int64_t k, const double* xh, bool) {
+    filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
         const double* x = tr.x.data() + k * n;
         for (int i = 0; i < n; ++i) e[i] = x[i] - xh[i];
         error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
@@ -147,7 +147,7 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
         TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K, &s);
         Signals g{std::vector<double>(K * nv), std::vector<double>(K * m)};
         f->reset(engine_filter_start(cfg, 0));
-        filter_stream(*f, tr.y.data(), m, t.data(), K, tr.x.data(), n, [&](std::int64_t k, const double* xh, bool) {
+        filter_stream(*f, tr.y.data(), m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
             const double* x = tr.x.data() + k * n;
             for (int i = 0; i < n; ++i) xt[i] = x[i] - xh[i];
             net->gradient(p.data(), xt.data(), 1);

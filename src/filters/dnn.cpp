@@ -41,7 +41,7 @@ public:
             k(static_cast<std::size_t>(n) * m);
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
-        for (int j = 0; j < m; ++j) e[j] = in.y[j] - ch[j];
+        for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - ch[j] : 0.0;  // missing: no correction
         if (measured_) {
             sys.disturbance_gain(B.data(), xhat_.data(), in.t, 1);
             dnn_error_from_innovation(xt.data(), sys, xhat_.data(), in.t, e.data());

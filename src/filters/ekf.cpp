@@ -36,9 +36,13 @@ public:
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
-        Vec xu = x_ + K * (Eigen::Map<const Vec>(in.y, m) - c);
-        Mat IKH = Mat::Identity(n, n) - K * H;
-        Mat Pu = IKH * P_ * IKH.transpose() + r * K * K.transpose();  // Joseph form: stays symmetric PSD
+        Vec xu = x_;
+        Mat Pu = P_;
+        if (in.y != nullptr) {  // a missing measurement: the prediction alone
+            xu += K * (Eigen::Map<const Vec>(in.y, m) - c);
+            Mat IKH = Mat::Identity(n, n) - K * H;
+            Pu = IKH * P_ * IKH.transpose() + r * K * K.transpose();  // Joseph form: stays symmetric PSD
+        }
         // predict to t_{k+1} through the shared step: Phi = d x_next / dx, G = d x_next / dv
         RowMat F(n, n), Gr(n, nv);
         system_advance_jacobian(sys, F.data(), Gr.data(), xu.data(), in.t, model_.dt);

@@ -78,6 +78,27 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
             GlfDesign g = glf_design(cfg, a.glf_vertices, cfg.rho);
+            if (!g.ok && cfg.rho > 0) {  // name the rho that fixes it
+                auto feasible = [&](double r) {
+                    return glf_design(cfg, a.glf_vertices, r).ok;
+                };
+                // the smallest level these vertices allow (minimise rho), checked by designing at it; the
+                // minimisation can fail numerically where a cap works, so decades above [filter] rho next
+                double fix = 0;
+                const GlfDesign least = glf_design(cfg, a.glf_vertices, 0.0);
+                if (least.ok && least.rho > cfg.rho && feasible(1.01 * least.rho)) fix = 1.01 * least.rho;
+                for (double r = 10 * cfg.rho; fix == 0 && r <= 1e12 * cfg.rho; r *= 10)
+                    if (feasible(r)) fix = r;
+                char line[240];
+                if (fix > 0)
+                    std::snprintf(line, sizeof line, "with [filter] rho = %.4g; these %d vertices allow rho = %.4g: pass "
+                                  "--set filter.rho=%.4g (or another --glf-vertices, or drop glf)",
+                                  cfg.rho, a.glf_vertices, fix, fix);
+                else
+                    std::snprintf(line, sizeof line, "at [filter] rho = %.4g nor at any rho up to 1e12 times it (%d "
+                                  "vertices): try another --glf-vertices, or drop glf", cfg.rho, a.glf_vertices);
+                HINF_FAIL("--filters glf: the LMI design found no gain " + std::string(line) + " (" + g.status + ")");
+            }
             HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
                                  " (try another --glf-vertices, or drop glf)");
             char note[160];

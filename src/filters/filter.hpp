@@ -42,7 +42,7 @@ struct FilterStart {
 };
 
 struct FilterInput {
-    const double* y = nullptr;       // [m] y(t_k)
+    const double* y = nullptr;       // [m] y(t_k); nullptr: no measurement at t_k (a dropout): predict only
     double t = 0;                    // t_k
     std::int64_t step = 0;           // k
     const double* x_true = nullptr;  // [n] x(t_k): read only by `oracle` DNN filters (the papers' protocol)
@@ -58,7 +58,9 @@ public:
     virtual ~OnlineFilter() = default;
     virtual std::string name() const = 0;
     virtual void reset(const FilterStart& start) = 0;
-    /// Consumes y(t_k); on FILTER_DIVERGED the estimate is left at its last finite value.
+    /// Consumes y(t_k), or with in.y == nullptr (a missing measurement) only predicts to t_{k+1} (every filter:
+    /// the correction term is dropped, the covariance grows by the process noise alone); on FILTER_DIVERGED the
+    /// estimate is left at its last finite value.
     virtual FilterStatus step(const FilterInput& in) = 0;
     /// [n] estimate of x(t_k) before step k.
     virtual const double* estimate() const = 0;

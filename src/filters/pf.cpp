@@ -49,60 +49,66 @@ public:
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
         const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
-        // weight update: log w += log N(y; C(x), sn^2 I), normalised with the max subtracted
-        std::vector<double> c(static_cast<std::size_t>(np_) * m), logw(np_);
-        sys.measurement(c.data(), X_.data(), in.t, np_);
-        const double inv_r = 1.0 / (model_.noise_std * model_.noise_std);
-        double top = -INFINITY;
-        for (std::int64_t p = 0; p < np_; ++p) {
-            double q = 0;
-            for (int j = 0; j < m; ++j) {
-                const double e = in.y[j] - c[p * m + j];
-                q += e * e;
-            }
-            logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
-            top = std::max(top, logw[p]);
-        }
-        if (!std::isfinite(top)) return FILTER_DIVERGED;
-        double total = 0;
-        for (std::int64_t p = 0; p < np_; ++p) total += (w_[p] = std::exp(logw[p] - top));
-        double sq = 0;
-        for (std::int64_t p = 0; p < np_; ++p) {
-            w_[p] /= total;
-            sq += w_[p] * w_[p];
-        }
-        // the filtered estimate x^_{k|k}: the weighted mean before resampling (resampling adds only noise)
-        mean(xf_);
-        // systematic (or stratified) resampling when ESS = 1 / sum w^2 < fraction * N
-        if (1.0 / sq < ess_fraction_ * double(np_)) {
-            std::vector<double> u0(stratified_ ? std::size_t(np_) : 1u);
-            kern::rng_uniform(u0.data(), std::int64_t(u0.size()), seed_, kern::RNG_STREAM_RESAMPLE, run_,
-                              std::uint64_t(in.step));
-            std::vector<double> Xr(X_.size());
-            double cum = w_[0];
-            std::int64_t src = 0;
+        // weight update: log w += log N(y; C(x), sn^2 I); a missing measurement (in.y == nullptr): weights
+        // unchanged, no resampling, the filtered estimate is the prediction
+        if (in.y != nullptr) {
+            // normalised with the max subtracted
+            std::vector<double> c(static_cast<std::size_t>(np_) * m), logw(np_);
+            sys.measurement(c.data(), X_.data(), in.t, np_);
+            const double inv_r = 1.0 / (model_.noise_std * model_.noise_std);
+            double top = -INFINITY;
             for (std::int64_t p = 0; p < np_; ++p) {
-                // u0 in (0, 1]: offset in [0, 1); one offset for all (systematic) or one per stratum (stratified)
-                const double u = (double(p) + (1.0 - u0[stratified_ ? std::size_t(p) : 0u])) / double(np_);
-                while (cum < u && src < np_ - 1) cum += w_[++src];
-                std::copy(X_.begin() + src * n, X_.begin() + (src + 1) * n, Xr.begin() + p * n);
+                double q = 0;
+                for (int j = 0; j < m; ++j) {
+                    const double e = in.y[j] - c[p * m + j];
+                    q += e * e;
+                }
+                logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
+                top = std::max(top, logw[p]);
             }
-            X_.swap(Xr);
-            std::fill(w_.begin(), w_.end(), 1.0 / double(np_));
-            ++resamples_;
-            if (roughening_ > 0) {
-                // roughening: sigma_i = K E_i N^(-1/n), E_i = max - min of the resampled cloud in state i
-                std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size());
-                for (std::int64_t p = 1; p < np_; ++p)
-                    for (int i = 0; i < n; ++i) {
-                        lo[i] = std::min(lo[i], X_[p * n + i]);
-                        hi[i] = std::max(hi[i], X_[p * n + i]);
-                    }
-                kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_ROUGHEN, run_, std::uint64_t(in.step));
-                const double shrink = roughening_ * std::pow(double(np_), -1.0 / n);
-                for (std::int64_t p = 0; p < np_; ++p)
-                    for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
+            if (!std::isfinite(top)) return FILTER_DIVERGED;
+            double total = 0;
+            for (std::int64_t p = 0; p < np_; ++p) total += (w_[p] = std::exp(logw[p] - top));
+            double sq = 0;
+            for (std::int64_t p = 0; p < np_; ++p) {
+                w_[p] /= total;
+                sq += w_[p] * w_[p];
             }
+            // the filtered estimate x^_{k|k}: the weighted mean before resampling (resampling adds only noise)
+            mean(xf_);
+            // systematic (or stratified) resampling when ESS = 1 / sum w^2 < fraction * N
+            if (1.0 / sq < ess_fraction_ * double(np_)) {
+                std::vector<double> u0(stratified_ ? std::size_t(np_) : 1u);
+                kern::rng_uniform(u0.data(), std::int64_t(u0.size()), seed_, kern::RNG_STREAM_RESAMPLE, run_,
+                                  std::uint64_t(in.step));
+                std::vector<double> Xr(X_.size());
+                double cum = w_[0];
+                std::int64_t src = 0;
+                for (std::int64_t p = 0; p < np_; ++p) {
+                    // u0 in (0, 1]: offset in [0, 1); one offset for all (systematic) or one per stratum (stratified)
+                    const double u = (double(p) + (1.0 - u0[stratified_ ? std::size_t(p) : 0u])) / double(np_);
+                    while (cum < u && src < np_ - 1) cum += w_[++src];
+                    std::copy(X_.begin() + src * n, X_.begin() + (src + 1) * n, Xr.begin() + p * n);
+                }
+                X_.swap(Xr);
+                std::fill(w_.begin(), w_.end(), 1.0 / double(np_));
+                ++resamples_;
+                if (roughening_ > 0) {
+                    // roughening: sigma_i = K E_i N^(-1/n), E_i = max - min of the resampled cloud in state i
+                    std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size());
+                    for (std::int64_t p = 1; p < np_; ++p)
+                        for (int i = 0; i < n; ++i) {
+                            lo[i] = std::min(lo[i], X_[p * n + i]);
+                            hi[i] = std::max(hi[i], X_[p * n + i]);
+                        }
+                    kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_ROUGHEN, run_, std::uint64_t(in.step));
+                    const double shrink = roughening_ * std::pow(double(np_), -1.0 / n);
+                    for (std::int64_t p = 0; p < np_; ++p)
+                        for (int i = 0; i < n; ++i) X_[p * n + i] += shrink * (hi[i] - lo[i]) * z[p * n + i];
+                }
+            }
+        } else {
+            mean(xf_);
         }
         // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
         std::vector<double> v(static_cast<std::size_t>(np_) * nv);

@@ -50,9 +50,13 @@ public:
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(Pxz.transpose()).transpose();
-        Vec xu = x_ + K * (Eigen::Map<const Vec>(in.y, m) - zbar);
-        Mat Pu = P_ - K * S * K.transpose();
-        Pu = 0.5 * (Pu + Pu.transpose()).eval();
+        Vec xu = x_;
+        Mat Pu = P_;
+        if (in.y != nullptr) {  // a missing measurement: the prediction alone
+            xu += K * (Eigen::Map<const Vec>(in.y, m) - zbar);
+            Pu = P_ - K * S * K.transpose();
+            Pu = 0.5 * (Pu + Pu.transpose()).eval();
+        }
         // predict: sigma points of (x^+, P^+) through the Euler step; additive process noise dt B v
         if (!sigma_points(&X, xu, Pu)) return FILTER_DIVERGED;
         RowMat Xn(ns, n), G(n, nv);

@@ -73,17 +73,34 @@ std::vector<T> read_typed(hid_t loc, const std::string& name, hid_t mem_type, st
     hsize_t total = 1;
     for (hsize_t x : d) total *= x;
     HINF_CHECK(total < (hsize_t(1) << 30), "HDF5: dataset '" + name + "' is implausibly large");
-    // hinf writes every element it declares: a dataset larger than its file comes from a damaged header
-    HINF_CHECK(total * sizeof(T) <= file_size(loc),
-               "HDF5: dataset '" + name + "' claims more data than its file holds (damaged file)");
     // the stored type and storage must match before HDF5 copies: libhdf5 1.10 trusts a damaged
-    // layout message and copies past its buffer (found by fuzz/fuzz_checkpoint.cpp)
+    // layout message and copies past its buffer (found by fuzz/fuzz_checkpoint.cpp). Doubles are read from
+    // any integer or floating-point type (records written by other tools: an integer time column), through
+    // libhdf5's own conversion; the other element types only from what hinf writes.
     Handle ftype(check(H5Dget_type(dset.get()), "read the type of '" + name + "'"));
-    const H5T_class_t want = std::is_floating_point_v<T> ? H5T_FLOAT : H5T_INTEGER;
+    const H5T_class_t fclass = H5Tget_class(ftype.get());
     const std::size_t fsize = H5Tget_size(ftype.get());
-    HINF_CHECK(H5Tget_class(ftype.get()) == want && (fsize == 4 || fsize == 8),
-               "HDF5: dataset '" + name + "' has an unexpected element type (damaged file?)");
+    const bool any_numeric = std::is_same_v<T, double>;
+    const bool type_ok = any_numeric ? ((fclass == H5T_FLOAT && (fsize == 2 || fsize == 4 || fsize == 8)) ||
+                                        (fclass == H5T_INTEGER && (fsize == 1 || fsize == 2 || fsize == 4 || fsize == 8)))
+                                     : (fclass == (std::is_floating_point_v<T> ? H5T_FLOAT : H5T_INTEGER) &&
+                                        (fsize == 4 || fsize == 8));
+    HINF_CHECK(type_ok, any_numeric ? "HDF5: dataset '" + name + "' is not numeric (an integer or floating-point type "
+                                          "is needed; damaged file?)"
+                                    : "HDF5: dataset '" + name + "' has an unexpected element type (damaged file?)");
     Handle dcpl(check(H5Dget_create_plist(dset.get()), "read the layout of '" + name + "'"));
+    // a dataset larger than its file comes from a damaged header; a compressed one (gzip, as h5py writes
+    // with compression="gzip") holds at most deflate's ratio of 1032 : 1
+    bool compressed = false;
+    const int nfilters = H5Pget_nfilters(dcpl.get());
+    for (int i = 0; i < nfilters; ++i) {
+        unsigned flags = 0;
+        std::size_t nelmts = 0;
+        const H5Z_filter_t id = H5Pget_filter2(dcpl.get(), unsigned(i), &flags, &nelmts, nullptr, 0, nullptr, nullptr);
+        if (id != H5Z_FILTER_FLETCHER32 && id != H5Z_FILTER_SHUFFLE) compressed = true;
+    }
+    HINF_CHECK(total * fsize <= (compressed ? 1032 : 1) * file_size(loc),
+               "HDF5: dataset '" + name + "' claims more data than its file holds (damaged file)");
     const H5D_layout_t layout = H5Pget_layout(dcpl.get());
     HINF_CHECK(layout == H5D_COMPACT || layout == H5D_CONTIGUOUS || layout == H5D_CHUNKED,
                "HDF5: dataset '" + name + "' has an unknown storage layout (damaged file)");
@@ -249,6 +266,19 @@ void set_attr(hid_t loc, const std::string& name, const std::string& value) {
                    "create attribute '" + name + "'"));
     std::string buf = value.empty() ? std::string(1, '\0') : value;
     check_status(H5Awrite(a.get(), type.get(), buf.data()), "write attribute '" + name + "'");
+}
+
+void set_text(hid_t loc, const std::string& name, const std::string& value) {
+    if (H5Aexists(loc, name.c_str()) > 0) check_status(H5Adelete(loc, name.c_str()), "replace '" + name + "'");
+    if (exists(loc, name)) check_status(H5Ldelete(loc, name.c_str(), H5P_DEFAULT), "replace '" + name + "'");
+    if (value.size() <= kAttrTextMax) set_attr(loc, name, value);
+    else write_string(loc, name, value, "text too long for an attribute");
+}
+
+bool has_text(hid_t loc, const std::string& name) { return has_attr(loc, name) || exists(loc, name); }
+
+std::string get_text(hid_t loc, const std::string& name) {
+    return has_attr(loc, name) ? get_attr_string(loc, name) : read_string(loc, name);
 }
 
 void set_attr(hid_t loc, const std::string& name, const char* value) { set_attr(loc, name, std::string(value)); }

@@ -3,7 +3,9 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -45,33 +47,78 @@ bool parse_number(const std::string& cell, double* v) {
     return end == cell.c_str() + cell.size();
 }
 
+template <typename Where>
+void resample_rows(Measurements& ms, const std::string& path, double tolerance, const std::string& resample,
+                   Where where);
+
 // The checks shared by both formats; `where(k)` names row k (0-based) for the message.
 template <typename Where>
-void check_rows(Measurements& ms, const std::string& path, Where where) {
+void check_rows(Measurements& ms, const std::string& path, double tolerance, const std::string& resample, Where where) {
     const std::int64_t K = ms.rows;
     HINF_CHECK(K >= 2, "measurements '" + path + "': " + std::to_string(K) +
                            " row(s); hinf filter needs at least 2 (a time column and the outputs per row)");
     for (std::int64_t k = 0; k < K; ++k) {
         HINF_CHECK(std::isfinite(ms.t[k]), "measurements '" + path + "' " + where(k) + ": time is not finite (" +
                                               std::to_string(ms.t[k]) + "); remove or repair the row");
-        for (int j = 0; j < ms.m; ++j)
-            HINF_CHECK(std::isfinite(ms.y[k * ms.m + j]),
+        for (int j = 0; j < ms.m; ++j)  // NaN: a missing measurement (a dropout); inf: a broken value
+            HINF_CHECK(!std::isinf(ms.y[k * ms.m + j]),
                        "measurements '" + path + "' " + where(k) + ": output " + std::to_string(j + 1) +
-                           " is not finite (" + std::to_string(ms.y[k * ms.m + j]) +
-                           "); hinf filter needs every sample (interpolate or cut the record)");
+                           " is infinite; mark a missing measurement with an empty or NaN cell");
         if (k > 0)
             HINF_CHECK(ms.t[k] > ms.t[k - 1], "measurements '" + path + "' " + where(k) + ": time " +
                                                   std::to_string(ms.t[k]) + " s is not after the previous row's " +
                                                   std::to_string(ms.t[k - 1]) + " s (time must increase strictly)");
     }
     ms.dt = (ms.t[K - 1] - ms.t[0]) / double(K - 1);
-    for (std::int64_t k = 1; k < K; ++k) {
-        const double step = ms.t[k] - ms.t[k - 1];
-        HINF_CHECK(std::fabs(step - ms.dt) <= kUniformTolerance * ms.dt,
-                   "measurements '" + path + "' " + where(k) + ": time step " + std::to_string(step) +
-                       " s differs from the record's mean step " + std::to_string(ms.dt) +
-                       " s; the filters run on a uniform grid (resample the record)");
+    HINF_CHECK(std::isfinite(ms.dt) && ms.dt > 0, "measurements '" + path + "': the time span is not finite");
+    resample_rows(ms, path, tolerance, resample, where);
+    ms.missing.assign(K, 0);
+    ms.missing_rows = 0;
+    for (std::int64_t k = 0; k < K; ++k) {
+        for (int j = 0; j < ms.m; ++j) ms.missing[k] = ms.missing[k] || std::isnan(ms.y[k * ms.m + j]);
+        ms.missing_rows += ms.missing[k];
     }
+    HINF_CHECK(ms.missing_rows < K, "measurements '" + path + "': every row has a missing (empty or NaN) output; "
+                                    "there is nothing to filter");
+}
+
+// The uniform-grid check, or the record put on the grid t_0 + k dt (resample = "linear" or "zoh").
+template <typename Where>
+void resample_rows(Measurements& ms, const std::string& path, double tolerance, const std::string& resample,
+                   Where where) {
+    const std::int64_t K = ms.rows;
+    if (resample.empty()) {
+        for (std::int64_t k = 1; k < K; ++k) {
+            const double step = ms.t[k] - ms.t[k - 1];
+            if (std::fabs(step - ms.dt) > tolerance * ms.dt) {
+                char buf[200];
+                std::snprintf(buf, sizeof buf, "time step %.6g s differs from the record's mean step %.6g s by %.3g%% "
+                              "(more than --time-tolerance %g)", step, ms.dt, 100 * std::fabs(step / ms.dt - 1), tolerance);
+                HINF_FAIL("measurements '" + path + "' " + where(k) + ": " + buf +
+                          "; the filters run on a uniform grid: pass --resample linear or --resample zoh, or a larger "
+                          "--time-tolerance");
+            }
+        }
+        return;
+    }
+    // onto the uniform grid t_0 + k dt, dt the mean step; the last grid time is t[K-1] (up to rounding)
+    std::vector<double> t(K), y(std::size_t(K) * ms.m);
+    std::int64_t j = 0;  // t[j] <= grid time < t[j + 1]
+    for (std::int64_t k = 0; k < K; ++k) {
+        const double tk = k + 1 == K ? ms.t[K - 1] : ms.t[0] + double(k) * ms.dt;
+        while (j + 1 < K && ms.t[j + 1] <= tk) ++j;
+        t[k] = tk;
+        const double* a = ms.y.data() + j * ms.m;
+        if (resample == "zoh" || j + 1 == K) {
+            std::copy(a, a + ms.m, y.begin() + k * ms.m);
+        } else {
+            const double* b = a + ms.m;
+            const double w = (tk - ms.t[j]) / (ms.t[j + 1] - ms.t[j]);
+            for (int i = 0; i < ms.m; ++i) y[k * ms.m + i] = w == 0 ? a[i] : a[i] + w * (b[i] - a[i]);
+        }
+    }
+    ms.t = std::move(t);
+    ms.y = std::move(y);
 }
 
 Measurements read_csv(const MeasurementSource& src) {
@@ -85,6 +132,7 @@ Measurements read_csv(const MeasurementSource& src) {
     bool seen_data = false;
     while (std::getline(in, line)) {
         ++lineno;
+        if (lineno == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
         const std::string s = trim(line);
         if (s.empty() || s[0] == '#') continue;
         const std::vector<std::string> cells = split_commas(s);
@@ -103,7 +151,11 @@ Measurements read_csv(const MeasurementSource& src) {
                        std::to_string(cells.size()) + " columns, expected " + std::to_string(1 + ms.m) + " (time + " +
                        std::to_string(ms.m) + " output(s) of the config's system)");
         for (std::size_t c = 0; c < cells.size(); ++c) {
-            double v = 0;
+            double v = NAN;  // an empty output cell: a missing measurement
+            if (c > 0 && cells[c].empty()) {
+                ms.y.push_back(v);
+                continue;
+            }
             HINF_CHECK(parse_number(cells[c], &v), "measurements '" + src.path + "' line " + std::to_string(lineno) +
                                                        ", column " + std::to_string(c + 1) + ": '" + cells[c] +
                                                        "' is not a number");
@@ -112,7 +164,7 @@ Measurements read_csv(const MeasurementSource& src) {
         line_of.push_back(lineno);
     }
     ms.rows = std::int64_t(ms.t.size());
-    check_rows(ms, src.path, [&](std::int64_t k) { return "line " + std::to_string(line_of[k]); });
+    check_rows(ms, src.path, src.time_tolerance, src.resample, [&](std::int64_t k) { return "line " + std::to_string(line_of[k]); });
     return ms;
 }
 
@@ -136,7 +188,7 @@ Measurements read_hdf5_here(const MeasurementSource& src) {
                              "], expected [" + std::to_string(td[0]) + " x " + std::to_string(ms.m) +
                              "] (one row per time in '" + src.time_dataset + "', one column per output)");
     ms.rows = std::int64_t(td[0]);
-    check_rows(ms, src.path, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
+    check_rows(ms, src.path, src.time_tolerance, src.resample, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
     return ms;
 }
 
@@ -144,6 +196,10 @@ Measurements read_hdf5_here(const MeasurementSource& src) {
 
 Measurements read_measurements(const MeasurementSource& src) {
     HINF_CHECK(src.outputs >= 1, "measurements: the system has no outputs");
+    HINF_CHECK(std::isfinite(src.time_tolerance) && src.time_tolerance >= 0 && src.time_tolerance < 1,
+               "--time-tolerance must be a number in [0, 1) (a fraction of the record's mean step)");
+    HINF_CHECK(src.resample.empty() || src.resample == "linear" || src.resample == "zoh",
+               "--resample '" + src.resample + "' is not one of: linear, zoh");
     const std::string& p = src.path;
     check_input_file(p, "measurements");
     if (ends_with(p, ".csv") || ends_with(p, ".txt")) return read_csv(src);

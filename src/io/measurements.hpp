@@ -13,24 +13,33 @@ struct MeasurementSource {
     int outputs = 0;                   // m: the config's system's measurement dimension
     std::string time_dataset = "t";    // HDF5 only: [K] seconds
     std::string values_dataset = "y";  // HDF5 only: [K x m] (or [K] when m = 1)
+    double time_tolerance = 0.05;      // |t[k] - t[k-1] - dt| <= time_tolerance * dt (relative to the step)
+    std::string resample;              // "" (the record must be uniform), "linear" or "zoh": onto t_0 + k dt
 };
 
 struct Measurements {
     std::vector<double> t;  // [K] s, strictly increasing, uniformly spaced
-    std::vector<double> y;  // [K x m] row-major
+    std::vector<double> y;  // [K x m] row-major; NaN in a missing row
+    std::vector<unsigned char> missing;  // [K] 1: the row's measurement is missing (an empty or NaN cell)
+    std::int64_t missing_rows = 0;
     int m = 0;
     std::int64_t rows = 0;
     double dt = 0;                      // the sampling interval (t[K-1] - t[0]) / (K - 1)
     std::vector<std::string> columns;   // CSV header names after the time column (empty if none)
 };
 
-/// Relative tolerance on the spacing: |t[k] - t[k-1] - dt| <= kUniformTolerance * dt for every row.
-constexpr double kUniformTolerance = 1e-6;
+/// Default relative tolerance on the spacing: |t[k] - t[k-1] - dt| <= tolerance * dt for every row, dt the mean
+/// step. Relative to the step, never to the absolute time (Unix-epoch time columns are common).
+constexpr double kUniformTolerance = 0.05;
 
 /// Reads and checks src.path: *.csv / *.txt as CSV (comma-separated; '#' lines and one header row
 /// allowed), *.h5 / *.hdf5 as HDF5 (read in a child process first, io/isolate.hpp). Throws hinf::Error
-/// naming the file and the row for: wrong column count, unparsable or non-finite values (NaN, inf),
-/// time not strictly increasing, non-uniform spacing, fewer than 2 rows.
+/// naming the file and the row for: wrong column count, unparsable or infinite values, a missing time,
+/// time not strictly increasing, non-uniform spacing (beyond src.time_tolerance, unless src.resample), fewer
+/// than 2 rows. With src.resample = "linear" or "zoh" the record is put on the uniform grid t_0 + k dt (dt the
+/// mean step) by linear interpolation or zero-order hold (the last sample at or before each grid time).
+/// An empty or NaN output cell marks the row's measurement as missing (a dropout: the filters predict only
+/// at that time); a grid time interpolated from or held at a missing row is missing too.
 Measurements read_measurements(const MeasurementSource& src);
 
 /// The same checks on arrays in memory (the library and the Python module): t [rows], y [rows x outputs];

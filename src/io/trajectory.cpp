@@ -44,7 +44,7 @@ TrajectoryWriter TrajectoryWriter::create(const std::string& path, const std::ve
     w.path_ = path;
     w.file_ = h5::create_file(path);
     w.columns_ = columns;
-    for (const auto& [k, v] : attrs) h5::set_attr(w.file_.get(), k, v);
+    for (const auto& [k, v] : attrs) h5::set_text(w.file_.get(), k, v);  // a large config becomes a dataset
     for (const auto& c : columns)
         w.writers_.push_back(h5::RowWriter::create(w.file_.get(), c.name, hsize_t(c.width), c.units, c.meaning));
     h5::flush(w.file_.get());
@@ -60,7 +60,7 @@ TrajectoryWriter TrajectoryWriter::reopen(const std::string& path, const std::ve
     w.file_ = h5::open_file(path, true);
     // bound to its checkpoint: another run's trajectory beside it must not be spliced and relabelled
     for (const auto& [k, v] : expect)
-        HINF_CHECK(h5::has_attr(w.file_.get(), k) && h5::get_attr_string(w.file_.get(), k) == v,
+        HINF_CHECK(h5::has_text(w.file_.get(), k) && h5::get_text(w.file_.get(), k) == v,
                    "trajectory '" + path + "' belongs to another run (its '" + k + "' differs from the checkpoint's): "
                    "keep each run's trajectory.h5 beside its own checkpoint.h5, or start afresh with hinf train --force");
     w.columns_ = columns;
@@ -70,6 +70,10 @@ TrajectoryWriter TrajectoryWriter::reopen(const std::string& path, const std::ve
                    "trajectory '" + path + "': column '" + c.name + "' has the wrong width");
     }
     return w;
+}
+
+void TrajectoryWriter::set_text(const std::string& name, const std::string& value) {
+    h5::set_text(file_.get(), name, value);
 }
 
 void TrajectoryWriter::append(const std::map<std::string, std::vector<double>>& values) {

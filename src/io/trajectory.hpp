@@ -29,6 +29,8 @@ public:
     /// Appends one row: values[name] must hold `width` numbers for every column.
     void append(const std::map<std::string, std::vector<double>>& values);
     void flush();
+    /// Replaces the root text `name` (an attribute, or a dataset when long: h5::set_text).
+    void set_text(const std::string& name, const std::string& value);
     /// Flushes, then copies the file to its snapshot name (temporary + rename): called at every
     /// checkpoint, before the checkpoint itself is renamed into place.
     void snapshot();

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <sstream>
 
 #include "adam.hpp"
 #include "hinf/error.hpp"
@@ -162,10 +163,16 @@ public:
                                           {"config", ck_.config_text}});
     }
 
-    void start_from(Checkpoint<T> ck) {
+    /// written_text: the config the checkpoint and trajectory were written with (differs from ck.config_text
+    /// after `resume --set`: the trajectory is checked against the old one, then carries the new one)
+    void start_from(Checkpoint<T> ck, const std::string& written_text) {
         ck_ = std::move(ck);
-        if (writer_) traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
-                                         {{"config", ck_.config_text}});
+        if (writer_) {
+            traj_ = TrajectoryWriter::reopen(dir_ + "/trajectory.h5", trajectory_columns(cfg_), hsize_t(ck_.state.step),
+                                             {{"config", written_text}});
+            if (written_text != ck_.config_text) traj_.set_text("config", ck_.config_text);
+        }
+        if (written_text != ck_.config_text) checkpoint();  // the change is recorded before the first step runs
     }
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
@@ -581,6 +588,13 @@ private:
         return true;
     }
 
+    // a tenth of the rate the run had, for the advice
+    std::string lower_rate() const {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.3g", 0.1 * cfg_.learning_rate * ck_.state.learning_rate_scale);
+        return b;
+    }
+
     // One line: the time step, the quantity, the last finite values, what is kept and what to do.
     void diagnose(std::int64_t step, const char* what, double value) {
         double err = 0;
@@ -588,10 +602,10 @@ private:
         const std::string ckpt = dir_ + "/checkpoint.h5";
         const std::string kept = std::filesystem::exists(ckpt)
                                      ? "The last good checkpoint " + ckpt + " is kept (for a run that gets past this "
-                                       "step, train again with a lower rate: hinf train CONFIG --force --set "
-                                       "training.learning_rate=... or training.on_divergence=\"rollback\")"
-                                     : "No checkpoint was written yet (train again with a lower rate: --set "
-                                       "training.learning_rate=...)";
+                                       "step, continue it with a lower rate: hinf resume " + ckpt + " --set training.learning_rate=" +
+                                       lower_rate() + ", or --set training.on_divergence=rollback)"
+                                     : "No checkpoint was written yet (train again with a lower rate: hinf train CONFIG --force "
+                                       "--set training.learning_rate=" + lower_rate() + ")";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         if (!writer_) return;  // every process of the run diverges alike; one says so
@@ -647,9 +661,40 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     return tr.run(cfg.steps_until(opt.until), opt.quiet);
 }
 
+// The checkpoint's config with `resume --set` applied; only kResumeKeys may change. The change is recorded in the
+// config itself (a comment line per resume, kept across later resumes), so the checkpoint and trajectory that
+// carry the config carry it too.
+std::string resume_config_text(const std::string& text, const std::vector<std::string>& sets, std::int64_t step,
+                               const std::string& path) {
+    ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+    std::string record;
+    for (const std::string& s : sets) {
+        std::string key = s.substr(0, s.find('='));
+        key.erase(key.find_last_not_of(" \t") + 1);
+        key.erase(0, key.find_first_not_of(" \t"));
+        bool allowed = false;
+        for (const std::string& k : kResumeKeys) allowed = allowed || key == k;
+        std::string list;
+        for (const std::string& k : kResumeKeys) list += (list.empty() ? "" : ", ") + k;
+        HINF_CHECK(allowed, "resume --set " + key + ": this key cannot change on resume (it fixes what the checkpoint "
+                            "means); keys that may: " + list + "; for any other, start afresh with hinf train --set");
+        doc.set(s);
+        record += (record.empty() ? "" : " ") + s;
+    }
+    std::string history;  // the earlier resumes' lines (a re-serialised config keeps no comments)
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind("# hinf resume", 0) == 0) history += line + "\n";
+    std::string out = doc.text();
+    if (!out.empty() && out.back() != '\n') out += '\n';
+    return out + history + "# hinf resume at step " + std::to_string(step) + ": --set " + record + "\n";
+}
+
 template <typename T>
 TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     Checkpoint<T> ck = ckpt_read<T>(path);
+    const std::string old_text = ck.config_text;
+    if (!opt.sets.empty()) ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
     train_check_time(cfg);
     std::int64_t last = cfg.steps_until(opt.until);
@@ -659,7 +704,7 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     std::string dir = std::filesystem::path(path).parent_path().string();
     if (dir.empty()) dir = ".";
     Trainer<T> tr(cfg, dir);
-    tr.start_from(std::move(ck));
+    tr.start_from(std::move(ck), old_text);
     tr.on_step_ = opt.on_step;
     return tr.run(last, opt.quiet);
 }

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "config/run_config.hpp"
 
@@ -24,7 +25,14 @@ struct TrainOptions {
     // called after each time step (after its checkpoint); an exception thrown here ends the run with the
     // last checkpoint in place
     std::function<void(const TrainStepInfo&)> on_step;
+    std::vector<std::string> sets;  // resume only: "section.key=value" for the keys of kResumeKeys
 };
+
+/// The config keys `hinf resume --set` may change: they steer how the run continues, never what a checkpoint's
+/// network, state or samples mean (the system, network shape, seed and sampling are fixed for a run).
+inline const std::vector<std::string> kResumeKeys = {
+    "training.learning_rate", "training.adam_steps",  "training.checkpoint_every", "training.loss_limit",
+    "training.on_divergence", "training.rollback_factor", "training.max_rollbacks", "filter.t_final"};
 
 struct TrainSummary {
     int status = 0;                 // 0 ok, 4 diverged (diagnostic already printed), 128 + signal: interrupted

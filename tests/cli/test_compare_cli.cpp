@@ -47,6 +47,12 @@ TEST_CASE("hinf compare writes the table, compare.h5 and compare.csv and rejects
     INFO(p.output);
     REQUIRE(p.status == 0);
     CHECK(p.output.find("PNGs in") != std::string::npos);
+    CHECK(p.output.find("RMSEpos5 ") != std::string::npos);  // the settled column named by settle_time (5 s)
+    auto st = run_hinf("compare " + cfg + " --filters ekf --runs 1 --quiet --set online.settle_time=0.02 --out " +
+                       (d / "settle"));
+    INFO(st.output);
+    CHECK(st.output.find("RMSEpos0.02") != std::string::npos);
+    CHECK(st.output.find("RMSEpos5") == std::string::npos);
     auto t2 = hinf::test::run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " +
                                       (d / "run/trajectory.h5") + " --out " + (d / "plot"));
     INFO(t2.output);

@@ -2,6 +2,7 @@
 // from operate.h5's measurements alone; CSV and HDF5 records give the same estimates; bad records are
 // one line naming the row.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -114,8 +115,8 @@ TEST_CASE("hinf filter names the row of a bad measurement record", "[cli][filter
                           "line 3: 4 columns, expected 7");
     expect_one_line_error(base + csv("time.csv", "0" + good_row + "0.02" + good_row + "0.01" + good_row),
                           "line 3: time 0.010000 s is not after");
-    expect_one_line_error(base + csv("nan.csv", "0" + good_row + "0.01,1,2,nan,4,5,6\n0.02" + good_row),
-                          "line 2: output 3 is not finite");
+    expect_one_line_error(base + csv("inf.csv", "0" + good_row + "0.01,1,2,-inf,4,5,6\n0.02" + good_row),
+                          "line 2: output 3 is infinite");  // NaN or empty: a missing measurement (a dropout)
     expect_one_line_error(base + csv("text.csv", "0" + good_row + "0.01,1,2,x3,4,5,6\n"),
                           "line 2, column 4: 'x3' is not a number");
     expect_one_line_error(base + csv("gap.csv", "0" + good_row + "0.01" + good_row + "0.03" + good_row),
@@ -133,4 +134,114 @@ TEST_CASE("hinf filter names the row of a bad measurement record", "[cli][filter
     expect_one_line_error(base + (d / "shape.h5") + " --dataset z", "no dataset 'z'");
     const std::string garbage = write_file(d, "garbage.h5", "this is not an HDF5 file\n");
     expect_one_line_error(base + garbage, "garbage.h5");
+}
+
+// Records as real clocks and other tools write them (issue 15): Unix-epoch times with jitter, a gap put on a
+// uniform grid, a byte-order mark without a header, an integer time column and gzip-compressed HDF5.
+TEST_CASE("hinf filter accepts records from real clocks and other tools", "[cli][filter][records]") {
+    TempDir d("cli-filter-clock");
+    const std::string cfg = write_file(d, "tiny.toml", hinf::test::tiny_missile_config());
+    const std::string base = "filter " + cfg + " --filters ekf --quiet --out " + (d / "o") + " --measurements ";
+    auto rows = [](const std::vector<double>& t, int digits) {
+        std::ostringstream out;
+        out.precision(digits);
+        for (double tk : t) out << tk << ',' << 100 * (tk - t[0]) << ",2,3,4,5,6\n";
+        return out.str();
+    };
+    auto est = [&](const std::string& name) {
+        hinf::h5::Handle f = hinf::h5::open_file(d / "o/estimates.h5", false);
+        return hinf::h5::read_doubles(f.get(), name);
+    };
+    // Unix-epoch seconds at 0.01 s with 1e-4 s of jitter: 1 % of the step, within the default tolerance
+    const double e0 = 1732550400.0;
+    const std::string epoch =
+        write_file(d, "epoch.csv", rows({e0, e0 + 0.0101, e0 + 0.0199, e0 + 0.0300, e0 + 0.0400}, 17));
+    auto r = run_hinf(base + epoch);
+    INFO(r.output);
+    CHECK(r.status == 0);
+    CHECK(est("t").size() == 5u);
+    expect_one_line_error(base + epoch + " --time-tolerance 0.001", "more than --time-tolerance 0.001");
+    expect_one_line_error(base + epoch + " --time-tolerance 2", "--time-tolerance must be a number in [0, 1)");
+    expect_one_line_error(base + epoch + " --resample cubic", "--resample 'cubic' is not one of: linear, zoh");
+
+    // a gap, put on the uniform grid 0, 0.015, 0.03 (the mean step of 0, 0.01, 0.03): linear or zero-order hold
+    const std::string gap = write_file(d, "gap.csv", rows({0, 0.01, 0.03}, 17));
+    expect_one_line_error(base + gap, "pass --resample linear or --resample zoh");
+    auto lin = run_hinf(base + gap + " --resample linear");
+    INFO(lin.output);
+    REQUIRE(lin.status == 0);
+    CHECK(lin.output.find("resampled, linear") != std::string::npos);
+    std::vector<double> t = est("t"), y = est("y");
+    REQUIRE(t.size() == 3u);
+    CHECK(t[1] == Approx(0.015));
+    CHECK(y[6] == Approx(1.5));  // 100 t, halfway between the rows at 0.01 and 0.03
+    REQUIRE(run_hinf(base + gap + " --resample zoh").status == 0);
+    y = est("y");
+    CHECK(y[6] == Approx(1.0));  // the sample at 0.01 s held
+    CHECK(y[12] == Approx(3.0));
+
+    // a UTF-8 byte-order mark and no header: the first row is data, not a header
+    const std::string bom = write_file(d, "bom.csv", "\xEF\xBB\xBF" + rows({0, 0.01, 0.02}, 17));
+    REQUIRE(run_hinf(base + bom).status == 0);
+    CHECK(est("t").size() == 3u);
+
+    // HDF5 from another tool: an integer time column (here in ms, so the step is far from the config's dt:
+    // one warning line naming both) and gzip-compressed outputs
+    {
+        hinf::h5::Handle f = hinf::h5::create_file(d / "ms.h5");
+        std::vector<std::int64_t> tms = {0, 10, 20, 30};
+        hinf::h5::write_int64s(f.get(), "t", tms.data(), {4});
+        std::vector<double> yv(4 * 6, 1.0);
+        hsize_t dims[2] = {4, 6}, chunk[2] = {2, 6};
+        hid_t space = H5Screate_simple(2, dims, nullptr), dcpl = H5Pcreate(H5P_DATASET_CREATE);
+        H5Pset_chunk(dcpl, 2, chunk);
+        H5Pset_deflate(dcpl, 6);
+        hid_t ds = H5Dcreate2(f.get(), "y", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+        REQUIRE(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, yv.data()) >= 0);
+        H5Dclose(ds);
+        H5Pclose(dcpl);
+        H5Sclose(space);
+    }
+    auto h = run_hinf(base + (d / "ms.h5"));
+    INFO(h.output);
+    CHECK(h.status == 0);
+    CHECK(h.output.find("warning: the record's time step 10 s is far from the config's dt 0.01 s") != std::string::npos);
+    CHECK(est("t") == std::vector<double>{0, 10, 20, 30});
+    CHECK(est("y") == std::vector<double>(24, 1.0));
+}
+
+// Dropouts: an empty or NaN cell marks the row's measurement as missing; every filter predicts only there.
+TEST_CASE("hinf filter predicts only where a measurement is missing", "[cli][filter][records]") {
+    TempDir d("cli-filter-dropout");
+    const std::string cfg = write_file(d, "tiny.toml", hinf::test::tiny_missile_config());
+    const std::string row = ",1000,2000,3000,4000,5000,6000\n";
+    // every row but the last missing (an empty cell, a NaN, both): EKF's estimates before the last row are the
+    // open-loop prediction, bit for bit
+    const std::string rec = write_file(d, "drop.csv", "t,a,b,c,d,e,f\n0,,2000,3000,4000,5000,6000\n0.01,nan,2,3,4,5,6\n"
+                                                      "0.02,1,,3,4,5,nan\n0.03" + row);
+    auto r = run_hinf("filter " + cfg + " --filters ekf,ukf,pf,open_loop --particles 50 --quiet --out " + (d / "o") +
+                      " --measurements " + rec);
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("3 row(s) without a measurement") != std::string::npos);
+    const std::string est = d / "o/estimates.h5";
+    {
+        hinf::h5::Handle f = hinf::h5::open_file(est, false);
+        CHECK(hinf::h5::get_attr_int(f.get(), "missing_rows") == 3);
+    }
+    std::vector<double> ekf = read_group_doubles(est, "ekf", "xhat"), ol = read_group_doubles(est, "open_loop", "xhat");
+    REQUIRE(ekf.size() == 24u);
+    CHECK(hinf::test::bitwise_equal(ekf, ol));  // rows 0..3: estimates before the one measurement at t = 0.03
+    std::vector<double> fin_ekf = read_group_doubles(est, "ekf", "xhat_final"),
+                        fin_ol = read_group_doubles(est, "open_loop", "xhat_final");
+    CHECK_FALSE(hinf::test::bitwise_equal(fin_ekf, fin_ol));  // ... which the EKF then uses
+    for (const char* g : {"ukf", "pf"})
+        for (double v : read_group_doubles(est, g, "xhat")) CHECK(std::isfinite(v));
+    std::vector<double> innov = read_group_doubles(est, "ekf", "innovation");
+    CHECK(std::isnan(innov[0]));   // no measurement, no innovation
+    CHECK(std::isfinite(innov[18]));
+    // infinity is not a dropout
+    expect_one_line_error("filter " + cfg + " --filters ekf --quiet --out " + (d / "o2") + " --measurements " +
+                              write_file(d, "inf.csv", "0" + row + "0.01,inf,2,3,4,5,6\n"),
+                          "line 2: output 1 is infinite");
 }

@@ -172,6 +172,60 @@ TEST_CASE("compare counts a diverging filter and keeps it in the results", "[eva
     }
 }
 
+namespace {
+// A filter that never reports trouble while its estimate runs away (x^ multiplied by 10 each step): what an
+// unstable model or a record on the wrong time base does. Only the plausible range can catch it.
+class RunawayFilter final : public OnlineFilter {
+public:
+    explicit RunawayFilter(int n) : n_(n) {}
+    std::string name() const override { return "runaway"; }
+    void reset(const FilterStart& s) override {
+        xhat_ = s.xhat0;
+        for (double& v : xhat_) v = v == 0 ? 1 : v;
+    }
+    FilterStatus step(const FilterInput&) override {
+        for (double& v : xhat_) v *= 10;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<RunawayFilter>(*this); }
+
+private:
+    int n_;
+    std::vector<double> xhat_;
+};
+}  // namespace
+
+TEST_CASE("an estimate that leaves the plausible range is reported as diverged", "[eval][compare][divergence]") {
+    RunConfig cfg = missile_config();
+    TempDir d("compare-runaway");
+    SpyFilter ok("steady", cfg.n, cfg.m);
+    RunawayFilter away(cfg.n);
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 2;
+    opt.until = 0.1;
+    opt.quiet = true;
+    CompareSummary s = compare_run(cfg, {&ok, &away}, opt);
+    REQUIRE(s.filters.size() == 2);
+    CHECK(s.filters[0].diverged_runs == 0);  // an estimate that stays at x^0 is plausible
+    CHECK(s.filters[1].diverged_runs == 2);
+    // the range is 1000 x the system's own scale: |x^| grows 10x per step from x^0, so it leaves by step 3 or 4
+    h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+    h5::Handle g = h5::open_group(f.get(), "runaway");
+    for (double t : h5::read_doubles(g.get(), "diverged_at")) CHECK(t <= 4 * cfg.dt + 1e-12);
+    // the bound itself: 1000 x max(|x0|, |x^0|, sd0, |truth|) per state; the largest |y| for recorded data
+    FilterStart start = engine_filter_start(cfg, 0);
+    std::vector<double> b = plausible_bound(cfg, start, nullptr, nullptr, 0);
+    for (int i = 0; i < cfg.n; ++i)
+        CHECK(b[i] == Approx(kPlausibleFactor * std::max({std::fabs(cfg.x0[i]), std::fabs(cfg.xhat0[i]),
+                                                          std::sqrt(start.P0[i * cfg.n + i])})));
+    std::vector<double> y(cfg.m, 0.0);
+    y[0] = 1e9;
+    std::vector<double> by = plausible_bound(cfg, start, nullptr, y.data(), 1);
+    for (int i = 0; i < cfg.n; ++i) CHECK(by[i] == Approx(kPlausibleFactor * 1e9));
+}
+
 TEST_CASE("compare scenarios: Student-t and biased measurement noise have the stated law", "[eval][compare]") {
     // n = y - C(x) from compare.h5 (run 0, 2000 steps x 6 channels). Median |n| / sigma_n: Gaussian 0.6745;
     // t_3 scaled to unit variance 0.7649 / sqrt(3) = 0.4416. With 12000 draws the sample median's standard

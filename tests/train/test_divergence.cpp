@@ -7,6 +7,8 @@
 
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
+#include "config/run_config.hpp"
+#include "hinf/config.hpp"
 #include "io/checkpoint.hpp"
 
 using namespace hinf;
@@ -53,6 +55,32 @@ TEST_CASE("a diverging run stops with a diagnostic and keeps its last good check
     CHECK(r.output.find("The last good checkpoint " + (d / "run/checkpoint.h5") + " is kept") != std::string::npos);
     ckpt_verify(d / "run/checkpoint.h5");
     CHECK(ckpt_read<float>(d / "run/checkpoint.h5").state.step == step);  // the state before the bad step
+
+    // the advice is a command the user can run as printed: resume with a tenth of the rate
+    const std::string key = "continue it with a lower rate: hinf resume ";
+    const std::size_t at = r.output.find(key), end = r.output.find(", or --set", at);
+    REQUIRE(at != std::string::npos);
+    REQUIRE(end != std::string::npos);
+    const std::string advised = r.output.substr(at + key.size() - 7, end - at - key.size() + 7);  // "resume ..."
+    CHECK(advised == "resume " + (d / "run/checkpoint.h5") + " --set training.learning_rate=0.03");
+    auto c = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " " + advised + " --quiet");
+    INFO(c.output);
+    CHECK((c.status == 0 || diverged_step(c.output) > step));  // it gets past the step it diverged at
+    // the change is recorded where the run's config lives: the checkpoint's and the trajectory's
+    const std::string text = ckpt_read<float>(d / "run/checkpoint.h5").config_text;
+    CHECK(load_run_config(ConfigDoc::from_text(text, "ckpt")).learning_rate == Approx(0.03).epsilon(1e-12));
+    CHECK(text.find("# hinf resume at step " + std::to_string(step) + ": --set training.learning_rate=0.03") !=
+          std::string::npos);
+    {
+        h5::Handle f = h5::open_file(d / "run/trajectory.h5", false);
+        CHECK(h5::get_text(f.get(), "config") == text);
+    }
+    // a key that fixes what the checkpoint means is refused in one line
+    auto k = test::run_command(std::string(HINF_CLI_PATH) + " resume " + (d / "run/checkpoint.h5") +
+                               " --set training.seed=3 2>&1");
+    CHECK(k.status == 2);
+    CHECK(k.output.find("resume --set training.seed: this key cannot change on resume") != std::string::npos);
+    CHECK(ckpt_read<float>(d / "run/checkpoint.h5").config_text == text);  // nothing changed
 }
 
 TEST_CASE("on_divergence = rollback: back to the checkpoint, rate x factor each time, then stop", "[train][divergence]") {
