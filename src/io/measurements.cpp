@@ -221,7 +221,7 @@ Measurements measurements_from_arrays(const double* t, const double* y, std::int
     ms.rows = rows;
     ms.t.assign(t, t + rows);
     ms.y.assign(y, y + rows * outputs);
-    check_rows(ms, name, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
+    check_rows(ms, name, MeasurementSource().time_tolerance, "", [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
     return ms;
 }
 
