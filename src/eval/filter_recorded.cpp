@@ -80,7 +80,23 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         paths.push_back(std::move(p));
     }
 
+    // The set of outputs is committed by estimates.h5, written last: first the previous run's estimates.h5 goes
+    // (from then on the directory says "no complete result"), then its CSVs, then the new CSVs are written and
+    // estimates.h5 lists them. A kill anywhere leaves either no estimates.h5 beside some new CSVs, or the whole
+    // new set; never new files beside old ones (docs/reliability.md).
     const std::string h5path = opt.out_dir + "/estimates.h5";
+    std::filesystem::remove(h5path);
+    std::vector<std::filesystem::path> stale;
+    for (const auto& e : std::filesystem::directory_iterator(opt.out_dir))
+        if (e.path().filename().string().rfind("estimates_", 0) == 0 && e.path().extension() == ".csv")
+            stale.push_back(e.path());
+    for (const auto& f : stale) std::filesystem::remove(f);
+    std::string csv_files;
+    for (std::size_t i = 0; i < results.size(); ++i) {
+        const std::string csv = "estimates_" + results[i].name + ".csv";
+        write_csv(opt.out_dir + "/" + csv, cfg, ms, paths[i]);
+        csv_files += (csv_files.empty() ? "" : ",") + csv;
+    }
     {
         AtomicH5 file(h5path);
         hid_t root = file.get();
@@ -93,6 +109,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
         h5::set_attr(root, "missing_rows", ms.missing_rows);  // rows without a measurement: predicted only
         h5::set_attr(root, "mode", "measured");
+        h5::set_attr(root, "csv_files", csv_files);  // the CSVs of this run, written before this file
         h5::set_attr(root, "meaning",
                      "estimates of recorded measurements, no true state used (mode measured); per filter group: xhat[k] "
                      "estimates x(t_k) from y(t_0..t_{k-1}) (one-step prediction), innovation[k] = y_k - C(xhat[k], t_k)");
@@ -129,8 +146,6 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         }
         file.commit();
     }
-    for (std::size_t i = 0; i < results.size(); ++i)
-        write_csv(opt.out_dir + "/estimates_" + results[i].name + ".csv", cfg, ms, paths[i]);
     return results;
 }
 
