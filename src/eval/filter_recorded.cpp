@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -80,22 +81,17 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         paths.push_back(std::move(p));
     }
 
-    // The set of outputs is committed by estimates.h5, written last: first the previous run's estimates.h5 goes
-    // (from then on the directory says "no complete result"), then its CSVs, then the new CSVs are written and
-    // estimates.h5 lists them. A kill anywhere leaves either no estimates.h5 beside some new CSVs, or the whole
-    // new set; never new files beside old ones (docs/reliability.md).
+    // The set of outputs: every file is first written whole beside its place (CSVs as .csv.new, estimates.h5 as its
+    // .tmp); only then are they renamed into place, estimates.h5 last (it lists its CSVs), and the previous run's
+    // CSVs of filters not in this run are removed. A kill before the renames leaves the previous set whole; the
+    // renames take microseconds (docs/reliability.md).
     const std::string h5path = opt.out_dir + "/estimates.h5";
-    std::filesystem::remove(h5path);
-    std::vector<std::filesystem::path> stale;
-    for (const auto& e : std::filesystem::directory_iterator(opt.out_dir))
-        if (e.path().filename().string().rfind("estimates_", 0) == 0 && e.path().extension() == ".csv")
-            stale.push_back(e.path());
-    for (const auto& f : stale) std::filesystem::remove(f);
+    std::vector<std::string> csv_names;
     std::string csv_files;
     for (std::size_t i = 0; i < results.size(); ++i) {
-        const std::string csv = "estimates_" + results[i].name + ".csv";
-        write_csv(opt.out_dir + "/" + csv, cfg, ms, paths[i]);
-        csv_files += (csv_files.empty() ? "" : ",") + csv;
+        csv_names.push_back("estimates_" + results[i].name + ".csv");
+        write_csv(opt.out_dir + "/" + csv_names.back() + ".new", cfg, ms, paths[i]);
+        csv_files += (csv_files.empty() ? "" : ",") + csv_names.back();
     }
     {
         AtomicH5 file(h5path);
@@ -144,8 +140,18 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
                 h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
                                   "the filter's error covariance of xhat[k]");
         }
+        for (const std::string& csv : csv_names) commit_rename(opt.out_dir + "/" + csv + ".new", opt.out_dir + "/" + csv);
         file.commit();
     }
+    std::vector<std::filesystem::path> stale;  // an earlier run's CSVs of other filters, and leftovers of a kill
+    for (const auto& e : std::filesystem::directory_iterator(opt.out_dir)) {
+        const std::string name = e.path().filename().string();
+        const bool ours = std::find(csv_names.begin(), csv_names.end(), name) != csv_names.end();
+        if (name.rfind("estimates_", 0) == 0 && !ours &&
+            (e.path().extension() == ".csv" || (name.size() > 8 && name.compare(name.size() - 8, 8, ".csv.new") == 0)))
+            stale.push_back(e.path());
+    }
+    for (const auto& f : stale) std::filesystem::remove(f);
     return results;
 }
 
