@@ -71,6 +71,7 @@ struct ParBytesIn {
     explicit ParBytesIn(const std::vector<char>& b) : p(b.data()), end(b.data() + b.size()) {}
     void get(void* dst, std::size_t n) {
         HINF_CHECK(std::size_t(end - p) >= n, "a process sent a truncated result (bug)");
+        if (n == 0) return;  // an empty vector's data() may be null, which memcpy must not see
         std::memcpy(dst, p, n);
         p += n;
     }

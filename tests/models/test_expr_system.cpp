@@ -399,7 +399,8 @@ TEST_CASE("expression programs are printed in hinf's order: the same text howeve
     // the order: operands of sums and products sorted by their text, a sum's number last, x^n as x*...*x;
     // a sum's sign is ours too: 1/(a - b) and -1/(b - a) print alike
     ConfigDoc vdp = ConfigDoc::from_text(vdp_config("", kStart), "vdp.toml");
-    const auto* es = dynamic_cast<const ExprSystem*>(make_system(vdp).get());
+    const auto vdp_sys = make_system(vdp);  // kept alive: es points into it
+    const auto* es = dynamic_cast<const ExprSystem*>(vdp_sys.get());
     REQUIRE(es);
     CHECK(es->compiled("h") == std::vector<std::string>{"(p*p*p)*c+p"});
     struct Case {

@@ -1,6 +1,7 @@
 // The MPI layer (src/par) and what runs over it: one process without mpirun; under `mpirun -np R` (when
 // built with MPI) compare.h5 holds the same bits for R = 1, 2, 3 as a plain single-process run.
 #include <catch2/catch.hpp>
+#include <cstdlib>
 #include <filesystem>
 
 #include "eval/engine.hpp"
@@ -14,9 +15,15 @@ using hinf::test::TempDir;
 
 namespace {
 
-// mpirun as root on a 2-core CI box: oversubscription allowed, root allowed, no network probing needed
+// mpirun as root on a 2-core CI box: oversubscription allowed, root allowed, no network probing needed.
+// Under the sanitizer stage (ASAN_OPTIONS set by scripts/sanitize) leak checking is off for the processes mpirun
+// starts: OpenMPI's plugins (dlopened MCA components) leak at exit and are unloaded before LeakSanitizer can name
+// them, so no suppression can match them; every other sanitizer check stays on, and hinf's own leaks are checked
+// by the rest of the suite, which runs the same code without mpirun.
 std::string mpirun(int np) {
-    return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 " +
+    const char* asan = std::getenv("ASAN_OPTIONS");
+    const std::string leaks = asan != nullptr ? "ASAN_OPTIONS=" + std::string(asan) + ":detect_leaks=0 " : "";
+    return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 " + leaks +
            std::string(HINF_MPIEXEC) + " --oversubscribe -np " + std::to_string(np) + " ";
 }
 
