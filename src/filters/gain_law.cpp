@@ -7,44 +7,58 @@
 
 namespace hinf {
 
-void hjie_point_terms(double* terms, const double* p, const System& sys, const double* x, const double* xhat,
-                      double t, const double* Q, double rho) {
+namespace {
+
+// The per-point constants of the HJIE at (x, x^) (seed 000 eq. (16)): x~ = x - x^, dA = A(x) - A(x^), B(x),
+// dC = C(x) - C(x^), q = x~'Q x~; the one place both point residuals below take them from.
+struct PointTerms {
+    std::vector<double> xt, dA, B, dc;
+    double q = 0;
+    kern::HjieSystemView view(int n, int nv, int m) const {
+        return kern::HjieSystemView{n, nv, m, xt.data(), dA.data(), B.data(), dc.data(), &q};
+    }
+};
+
+PointTerms point_terms(const System& sys, const double* x, const double* xhat, double t, const double* Q) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
-    std::vector<double> xt(n), a_x(n), a_h(n), dA(n), B(static_cast<std::size_t>(n) * nv), c_x(m), c_h(m), dc(m);
-    for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+    PointTerms p;
+    std::vector<double> a_x(n), a_h(n), c_x(m), c_h(m);
+    p.xt.resize(n);
+    p.dA.resize(n);
+    p.B.resize(static_cast<std::size_t>(n) * nv);
+    p.dc.resize(m);
+    for (int i = 0; i < n; ++i) p.xt[i] = x[i] - xhat[i];
     sys.drift(a_x.data(), x, t, 1);
     sys.drift(a_h.data(), xhat, t, 1);
-    sys.disturbance_gain(B.data(), x, t, 1);
+    sys.disturbance_gain(p.B.data(), x, t, 1);
     sys.measurement(c_x.data(), x, t, 1);
     sys.measurement(c_h.data(), xhat, t, 1);
-    for (int i = 0; i < n; ++i) dA[i] = a_x[i] - a_h[i];
-    for (int j = 0; j < m; ++j) dc[j] = c_x[j] - c_h[j];
-    const double q = quadratic_form(Q, xt.data(), n);
-    kern::HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dc.data(), &q};
-    kern::hjie_terms(terms, p, view, 0, rho);
+    for (int i = 0; i < n; ++i) p.dA[i] = a_x[i] - a_h[i];
+    for (int j = 0; j < m; ++j) p.dc[j] = c_x[j] - c_h[j];
+    p.q = quadratic_form(Q, p.xt.data(), n);
+    return p;
+}
+
+}  // namespace
+
+void hjie_point_terms(double* terms, const double* p, const System& sys, const double* x, const double* xhat,
+                      double t, const double* Q, double rho) {
+    const PointTerms pt = point_terms(sys, x, xhat, t, Q);
+    kern::hjie_terms(terms, p, pt.view(sys.state_dim(), sys.disturbance_dim(), sys.output_dim()), 0, rho);
 }
 
 double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
                            const double* xhat, double t, const double* Q, double rho) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
-    std::vector<double> xt(n), a_x(n), a_h(n), dA(n), B(static_cast<std::size_t>(n) * nv), c_x(m), c_h(m), dc(m),
-        K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n);
-    for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+    std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n);
     net.gain(K.data(), S.data(), xhat, 1);
-    sys.drift(a_x.data(), x, t, 1);
-    sys.drift(a_h.data(), xhat, t, 1);
-    sys.disturbance_gain(B.data(), x, t, 1);
-    sys.measurement(c_x.data(), x, t, 1);
-    sys.measurement(c_h.data(), xhat, t, 1);
-    for (int i = 0; i < n; ++i) dA[i] = a_x[i] - a_h[i];
-    for (int j = 0; j < m; ++j) dc[j] = c_x[j] - c_h[j];
-    const double q = quadratic_form(Q, xt.data(), n);
-    kern::HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dc.data(), &q};
+    const PointTerms pt = point_terms(sys, x, xhat, t, Q);
+    const kern::HjieSystemView view = pt.view(n, nv, m);
     kern::GainLossParams lp;
     lp.rho = rho;
     kern::GainSampleValue val = kern::gain_sample_forward(K.data(), S.data(), view, 0, lp);
     if (abs_sum != nullptr) *abs_sum = val.abs_sum;
-    if (v != nullptr) *v = quadratic_form(S.data(), xt.data(), n);
+    if (v != nullptr) *v = quadratic_form(S.data(), pt.xt.data(), n);
     return val.residual;
 }
 

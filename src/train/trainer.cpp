@@ -294,31 +294,11 @@ private:
         const kern::GainSpec& g = ck_.net.step.gain;
         gain_samples_build(&gsm_, cfg_, pool_, g, cfg_.samples, std::uint64_t(step));
         const kern::HjieSystemView view = gsm_.view();
-        kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
-        if (cfg_.reset_adam) {
-            std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
-            std::fill(ck_.adam_v.begin(), ck_.adam_v.end(), T(0));
-            ck_.state.adam_step = 0;
-        }
-        for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
-            kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
-                                   perm_.data());
-            kern::StepLoss L = kern::gain_step_gradient(grad_.data(), ck_.net.theta.data(), view, gsm_.z.data(),
-                                                        idx_.data(), int(cfg_.batch), ck_.net.step, ws_);
-            if (k == 1) rec->loss_first = L.loss;
-            if (k == cfg_.adam_steps) rec->loss_last = L.loss;
-            if (!std::isfinite(L.loss) || (k > 1 && L.loss > cfg_.loss_limit)) {
-                diagnose(step, "training loss", L.loss);
-                return false;
-            }
-            ++ck_.state.adam_step;
-            kern::adam_update(ck_.net.theta.data(), ck_.adam_m.data(), ck_.adam_v.data(), grad_.data(),
-                              std::int64_t(grad_.size()), ck_.state.adam_step, ap);
-        }
-        if (!all_finite_t(ck_.net.theta)) {
-            diagnose(step, "network weights", NAN);
-            return false;
-        }
+        const bool ok = adam_steps(rec, step, [&](T* grad) {
+            return kern::gain_step_gradient(grad, ck_.net.theta.data(), view, gsm_.z.data(), idx_.data(),
+                                            int(cfg_.batch), ck_.net.step, ws_);
+        });
+        if (!ok) return false;
         // statistics over all N samples after the K steps
         const int n = cfg_.n, m = cfg_.m, nv = cfg_.nv;
         const std::int64_t N = cfg_.samples;
@@ -409,6 +389,17 @@ private:
 
     bool adam_phase(StepRecord* rec, std::int64_t step) {
         const kern::HjieSystemView view = smp_.view();
+        return adam_steps(rec, step, [&](T* grad) {
+            return kern::step_gradient(grad, ck_.net.theta.data(), view, idx_.data(), int(cfg_.batch), ck_.net.step,
+                                       ws_, split_.ranks > 1 ? &split_ : nullptr);
+        });
+    }
+
+    // The K Adam steps of one time step, shared by every variant: minibatch k (Philox keyed by step, k), the
+    // variant's gradient (seed 000 eqs. (14)-(15)), the loss checks, the update; false (after a diagnostic) on
+    // numerical trouble. gradient(grad) fills grad for the minibatch in idx_ and returns its loss.
+    template <class Gradient>
+    bool adam_steps(StepRecord* rec, std::int64_t step, Gradient&& gradient) {
         kern::AdamParams ap{cfg_.learning_rate * ck_.state.learning_rate_scale, cfg_.beta1, cfg_.beta2, cfg_.tau};
         if (cfg_.reset_adam) {
             std::fill(ck_.adam_m.begin(), ck_.adam_m.end(), T(0));
@@ -418,8 +409,7 @@ private:
         for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
             kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
                                    perm_.data());
-            kern::StepLoss L = kern::step_gradient(grad_.data(), ck_.net.theta.data(), view, idx_.data(),
-                                                   int(cfg_.batch), ck_.net.step, ws_, split_.ranks > 1 ? &split_ : nullptr);
+            kern::StepLoss L = gradient(grad_.data());
             if (k == 1) rec->loss_first = L.loss;
             if (k == cfg_.adam_steps) rec->loss_last = L.loss;
             // the limit applies once this step's updates have acted: the first loss of a time step
