@@ -9,7 +9,7 @@
 namespace hinf::kern {
 
 namespace {
-constexpr int kMax = 32;
+constexpr int kMax = kGainMaxDim;  // gain.hpp; the config refuses larger systems
 
 // The sample's intermediate quantities: s = S x~, b = B's, u = K's, a = s'dA, kc = u'dC.
 struct GainParts {
@@ -320,17 +320,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
-    constexpr std::int64_t kBlock = 2048;
-    const std::int64_t blocks = (P + kBlock - 1) / kBlock;
-#pragma omp parallel for schedule(static)
-    for (std::int64_t b = 0; b < blocks; ++b) {
-        const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
-        for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
-        for (int c = 0; c < chunks; ++c) {
-            const T* part = ws.partial.data() + std::int64_t(c) * Ps;
-            for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
-        }
-    }
+    sum_chunk_partials(grad, ws.partial.data(), chunks, Ps, P);  // chunk order (train_step.hpp)
     // the storage's gradient: dL/dS summed in sample order, then through S = c D^-1 (M M' + eps I) D^-1
     double gS[kMax * kMax] = {};
     for (int s = 0; s < M; ++s) {

@@ -14,6 +14,10 @@
 
 namespace hinf::kern {
 
+/// Largest state, output and disturbance count of the gain variant's per-sample stack scratch (n, m, nv <= 32);
+/// the config refuses larger systems for this variant in one line (src/config/run_config.cpp).
+constexpr int kGainMaxDim = 32;
+
 /// Loss pieces of one sample (x^_i, x~_i):
 ///   H_i   = x~'Qx~ + 2 s'(dA - K dC) + |B's|^2/rho + |K's|^2/rho,  s = S x~
 ///           (= sup over v, n of x~'Qx~ + dV/dt - rho |v|^2 - rho |n|^2 for x~' = dA - K dC + B v - K n)

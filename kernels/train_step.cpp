@@ -142,17 +142,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     if (ranks > 1) split->allgather(ws.partial.data(), Ps * std::int64_t(sizeof(T)), chunk_begin.data());
     // partial gradients summed in chunk order: 0 + part_0 + part_1 + ... for every component, in
     // blocks of components so that the inner loop runs along contiguous memory (vectorised)
-    constexpr std::int64_t kBlock = 2048;
-    const std::int64_t blocks = (P + kBlock - 1) / kBlock;
-#pragma omp parallel for schedule(static)
-    for (std::int64_t b = 0; b < blocks; ++b) {
-        const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
-        for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
-        for (int c = 0; c < chunks; ++c) {
-            const T* part = ws.partial.data() + std::int64_t(c) * Ps;
-            for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
-        }
-    }
+    sum_chunk_partials(grad, ws.partial.data(), chunks, Ps, P);
     return loss;
 }
 
@@ -195,5 +185,24 @@ template void network_eval<float>(double*, double*, const float*, const double*,
                                   StepWorkspace<float>&);
 template void network_eval<double>(double*, double*, const double*, const double*, std::int64_t, const StepConfig&,
                                    StepWorkspace<double>&);
+
+template <typename T>
+void sum_chunk_partials(T* grad, const T* partial, int chunks, std::int64_t stride, std::int64_t P) {
+    // in blocks of components so that the inner loop runs along contiguous memory (vectorised)
+    constexpr std::int64_t kBlock = 2048;
+    const std::int64_t blocks = (P + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t b = 0; b < blocks; ++b) {
+        const std::int64_t j0 = b * kBlock, j1 = std::min(P, j0 + kBlock);
+        for (std::int64_t j = j0; j < j1; ++j) grad[j] = T(0);
+        for (int c = 0; c < chunks; ++c) {
+            const T* part = partial + std::int64_t(c) * stride;
+            for (std::int64_t j = j0; j < j1; ++j) grad[j] += part[j];
+        }
+    }
+}
+
+template void sum_chunk_partials<float>(float*, const float*, int, std::int64_t, std::int64_t);
+template void sum_chunk_partials<double>(double*, const double*, int, std::int64_t, std::int64_t);
 
 }  // namespace hinf::kern

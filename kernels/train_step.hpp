@@ -91,6 +91,12 @@ template <typename T>
 StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const std::int64_t* idx, int M,
                        const StepConfig& cfg, StepWorkspace<T>& ws, const StepSplit* split = nullptr);
 
+/// grad [P] = 0 + partial_0 + partial_1 + ... (partial [chunks x stride], each chunk's first P entries), summed
+/// in chunk order for every component, whatever the thread count. The one deterministic reduction of every
+/// variant's gradient.
+template <typename T>
+void sum_chunk_partials(T* grad, const T* partial, int chunks, std::int64_t stride, std::int64_t P);
+
 /// Forward only: p [count x n] = dV/dx~ at xt [count x n]; P [count x n x n] for the quadratic head
 /// (may be null). count <= ws.capacity.
 template <typename T>

@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 
+#include "gain.hpp"
 #include "hinf/error.hpp"
 
 #include <toml++/toml.h>
@@ -131,6 +132,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.variant = f.get_string("variant", c.variant, {"dissipative", "paper", "gain"});
     if (c.variant == "gain" && c.type != "hinf")
         f.reject("variant", "\"gain\" is an H-infinity filter: use it with type = \"hinf\"");
+    if (c.variant == "gain" && std::max({c.n, c.m, c.nv}) > kern::kGainMaxDim)
+        f.reject("variant", "\"gain\" supports systems of at most " + std::to_string(kern::kGainMaxDim) +
+                                " states, outputs and disturbances (this one: " + std::to_string(c.n) + ", " +
+                                std::to_string(c.m) + ", " + std::to_string(c.nv) +
+                                "); use variant = \"dissipative\", which has no such limit");
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
     std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
