@@ -74,6 +74,17 @@ double step_correction_excess(const double* K, const HjieSystemView& sv, std::in
     return r - gp.kappa;
 }
 
+// x' A x
+double xqx(const double* A, const double* x, int n) {
+    double r = 0;
+    for (int a = 0; a < n; ++a) {
+        double t = 0;
+        for (int c = 0; c < n; ++c) t += A[a * n + c] * x[c];
+        r += x[a] * t;
+    }
+    return r;
+}
+
 // tr(B'S B) and tr(K'S K)
 double trace_form(const double* S, const double* X, int n, int cols) {
     double tr = 0;
@@ -88,15 +99,16 @@ double trace_form(const double* S, const double* X, int n, int cols) {
 }  // namespace
 
 GainSampleValue gain_sample_forward(const double* K, const double* S, const HjieSystemView& sv, std::int64_t i,
-                                    const GainLossParams& gp) {
+                                    const GainLossParams& gp, const double* Sdot) {
     const int n = sv.n, nv = sv.nv, m = sv.m;
     GainParts g;
     gain_parts(&g, K, S, sv, i);
     const double q = sv.q[i], rho = gp.rho;
+    const double sd = Sdot != nullptr ? xqx(Sdot, sv.xt + i * n, n) : 0.0;
     GainSampleValue v;
     // sup over v, n: v* = B's/rho, n* = -K's/rho (completing the squares in 2s'(Bv - Kn) - rho|v|^2 - rho|n|^2)
-    v.residual = q + 2.0 * g.a - 2.0 * g.kc + g.bb / rho + g.uu / rho;
-    v.abs_sum = std::fabs(q) + 2.0 * std::fabs(g.a) + 2.0 * std::fabs(g.kc) + g.bb / rho + g.uu / rho;
+    v.residual = q + sd + 2.0 * g.a - 2.0 * g.kc + g.bb / rho + g.uu / rho;
+    v.abs_sum = std::fabs(q) + std::fabs(sd) + 2.0 * std::fabs(g.a) + 2.0 * std::fabs(g.kc) + g.bb / rho + g.uu / rho;
     const double r = v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
     const double h = std::max(0.0, r + gp.margin);
     v.hinge = h * h;
@@ -114,7 +126,8 @@ GainSampleValue gain_sample_forward(const double* K, const double* S, const Hjie
 }
 
 void gain_sample_backward(double* gK, double* gS, const double* K, const double* S, const HjieSystemView& sv,
-                          std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2) {
+                          std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2, const double* Sdot,
+                          double* gSd) {
     const int n = sv.n, nv = sv.nv, m = sv.m;
     const double* xt = sv.xt + i * n;
     const double* dA = sv.dA + i * n;
@@ -123,8 +136,9 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
     GainParts g;
     gain_parts(&g, K, S, sv, i);
     const double q = sv.q[i], rho = gp.rho;
-    const double H = q + 2.0 * g.a - 2.0 * g.kc + g.bb / rho + g.uu / rho;
-    const double Sc = std::fabs(q) + 2.0 * std::fabs(g.a) + 2.0 * std::fabs(g.kc) + g.bb / rho + g.uu / rho;
+    const double sd = Sdot != nullptr ? xqx(Sdot, xt, n) : 0.0;
+    const double H = q + sd + 2.0 * g.a - 2.0 * g.kc + g.bb / rho + g.uu / rho;
+    const double Sc = std::fabs(q) + std::fabs(sd) + 2.0 * std::fabs(g.a) + 2.0 * std::fabs(g.kc) + g.bb / rho + g.uu / rho;
     for (int k = 0; k < n * m; ++k) gK[k] = 0.0;
     // hinge: d relu(r + margin)^2 / dr, r = H / Sc
     double g_r = 0;
@@ -138,6 +152,11 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
         const double g_a = 2.0 * gH + 2.0 * sa * gSc;
         const double g_kc = -2.0 * gH + 2.0 * skc * gSc;
         const double g_quad = (gH + gSc) / rho;  // d/d(|b|^2) and d/d(|u|^2)
+        if (Sdot != nullptr && gSd != nullptr) {    // x~'Sdot x~
+            const double ssd = sd > 0 ? 1.0 : (sd < 0 ? -1.0 : 0.0), g_sd = gH + ssd * gSc;
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c) gSd[a * n + c] += g_sd * xt[a] * xt[c];
+        }
         double gs[kMax], gu[kMax];
         for (int a = 0; a < n; ++a) gs[a] = g_a * dA[a];
         for (int j = 0; j < nv; ++j) {
@@ -238,6 +257,163 @@ void gain_head_backward(T* d_o, const double* gK, const double* dx, const double
 }
 
 namespace {
+// Knot interval of time t: knots j and j + 1, weight w of knot j + 1, slope 1/h (0 after the span: S constant).
+struct KnotAt {
+    int j = 0;
+    double w = 0, slope = 0;
+};
+KnotAt knot_at(double t, const GainSpec& g) {
+    KnotAt k;
+    const int J = g.knots;
+    const double h = g.knot_span / J;
+    if (!(t > 0)) return {0, 0.0, 1.0 / h};
+    if (t >= g.knot_span) return {J - 1, 1.0, 0.0};
+    const double u = t / h;
+    k.j = std::min(J - 1, int(u));
+    k.w = u - k.j;
+    k.slope = 1.0 / h;
+    return k;
+}
+
+// M = diag(exp(v_aa)) + strict tril(v) and Md = dM/dt from the packed interpolated v and its rate vd
+void unpack_tv(double* M, double* Md, const double* v, const double* vd, int n) {
+    int k = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) M[a * n + b] = Md[a * n + b] = 0.0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b, ++k) {
+            if (a == b) {
+                M[a * n + a] = std::exp(v[k]);
+                Md[a * n + a] = M[a * n + a] * vd[k];
+            } else {
+                M[a * n + b] = v[k];
+                Md[a * n + b] = vd[k];
+            }
+        }
+}
+
+template <typename T>
+void knot_values(double* v, double* vd, const T* s, const KnotAt& k, int np) {
+    const T* s0 = s + std::int64_t(k.j) * np;
+    const T* s1 = s0 + np;
+    for (int e = 0; e < np; ++e) {
+        v[e] = (1.0 - k.w) * double(s0[e]) + k.w * double(s1[e]);
+        vd[e] = (double(s1[e]) - double(s0[e])) * k.slope;
+    }
+}
+
+// Cholesky S = L L' (S positive definite by construction) and X <- S^-1 X for X [n x cols]
+void chol(double* L, const double* S, int n) {
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b) {
+            double t = S[a * n + b];
+            for (int k = 0; k < b; ++k) t -= L[a * n + k] * L[b * n + k];
+            L[a * n + b] = a == b ? std::sqrt(std::max(t, 1e-300)) : t / L[b * n + b];
+        }
+}
+void chol_solve(double* X, const double* L, int n, int cols) {
+    for (int c = 0; c < cols; ++c) {
+        for (int a = 0; a < n; ++a) {
+            double t = X[a * cols + c];
+            for (int k = 0; k < a; ++k) t -= L[a * n + k] * X[k * cols + c];
+            X[a * cols + c] = t / L[a * n + a];
+        }
+        for (int a = n - 1; a >= 0; --a) {
+            double t = X[a * cols + c];
+            for (int k = a + 1; k < n; ++k) t -= L[k * n + a] * X[k * cols + c];
+            X[a * cols + c] = t / L[a * n + a];
+        }
+    }
+}
+}  // namespace
+
+template <typename T>
+void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const GainSpec& g, int n) {
+    const int np = n * (n + 1) / 2;
+    double v[kMax * (kMax + 1) / 2], vd[kMax * (kMax + 1) / 2], M[kMax * kMax], Md[kMax * kMax];
+    knot_values(v, vd, s, knot_at(t, g), np);
+    unpack_tv(M, Md, v, vd, n);
+    const double c = g.storage_scale, eps = g.eps;
+    const double* d = g.dx.data();
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b) {
+            double mm = 0, md = 0;
+            for (int k = 0; k <= b; ++k) {
+                mm += M[a * n + k] * M[b * n + k];
+                md += Md[a * n + k] * M[b * n + k] + M[a * n + k] * Md[b * n + k];
+            }
+            const double sc = c / (d[a] * d[b]);
+            if (S != nullptr) S[a * n + b] = S[b * n + a] = sc * (mm + (a == b ? eps : 0.0));
+            if (Sdot != nullptr) Sdot[a * n + b] = Sdot[b * n + a] = sc * md;
+        }
+}
+
+template <typename T>
+void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const double* gSd, const T* s, double t,
+                         const GainSpec& g, int n) {
+    // S = c D^-1 (M M' + eps I) D^-1, Sdot = c D^-1 (Md M' + M Md') D^-1:
+    // dL/dM = c (G + G') M + c (Gd + Gd') Md, dL/dMd = c (Gd + Gd') M  (G = D^-1 gS D^-1, Gd = D^-1 gSd D^-1)
+    const int np = n * (n + 1) / 2;
+    const KnotAt k = knot_at(t, g);
+    double v[kMax * (kMax + 1) / 2], vd[kMax * (kMax + 1) / 2], M[kMax * kMax], Md[kMax * kMax];
+    knot_values(v, vd, s, k, np);
+    unpack_tv(M, Md, v, vd, n);
+    const double c = g.storage_scale;
+    const double* d = g.dx.data();
+    int e = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b, ++e) {
+            double gm = 0, gmd = 0;
+            for (int q = 0; q < n; ++q) {
+                const double dd = d[a] * d[q];
+                const double gs = gS != nullptr ? (gS[a * n + q] + gS[q * n + a]) / dd : 0.0;
+                const double gd = gSd != nullptr ? (gSd[a * n + q] + gSd[q * n + a]) / dd : 0.0;
+                gm += gs * M[q * n + b] + gd * Md[q * n + b];
+                gmd += gd * M[q * n + b];
+            }
+            gm *= c;
+            gmd *= c;
+            // M_ab = exp(v) on the diagonal (Md_aa = exp(v) vd), v itself below it
+            double gv = gm, gvd = gmd;
+            if (a == b) {
+                gv = gm * M[a * n + a] + gmd * Md[a * n + a];
+                gvd = gmd * M[a * n + a];
+            }
+            d0[e] = (1.0 - k.w) * gv - k.slope * gvd;
+            d1[e] = k.w * gv + k.slope * gvd;
+        }
+    *j = k.j;
+}
+
+template <typename T>
+void gain_riccati_forward(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,
+                          double rho) {
+    double L[kMax * kMax];
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q)
+            K[a * m + q] = rho * (Hx[q * n + a] + double(o[a * m + q]) / (g.dx[a] * g.dy[q]));
+    chol(L, S, n);
+    chol_solve(K, L, n, m);
+}
+
+template <typename T>
+void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K, const double* S, const GainSpec& g,
+                           int n, int m, double rho) {
+    double L[kMax * kMax], G[kMax * kMax];
+    for (int e = 0; e < n * m; ++e) G[e] = gK[e];
+    chol(L, S, n);
+    chol_solve(G, L, n, m);  // dL/d(rho (Hx' + ...)) = S^-1 gK
+    for (int a = 0; a < n; ++a)
+        for (int c = 0; c < n; ++c) {
+            double t = 0;
+            for (int q = 0; q < m; ++q) t += G[a * m + q] * K[c * m + q];
+            gS[a * n + c] -= t;
+        }
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q) d_o[a * m + q] = T(rho * G[a * m + q] / (g.dx[a] * g.dy[q]));
+}
+
+namespace {
 template <typename T>
 void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int n) {
     for (int s = 0; s < B; ++s) {
@@ -262,6 +438,9 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     const int n = sys.n, m = sys.m, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     const int chunks = (M + C - 1) / C;
     const std::int64_t P = sh.param_count(), Ps = step_partial_stride(sh), As = step_acts_stride(cfg);
+    const bool tv = gs.knots > 0;  // time-varying storage and the Riccati-form head (section 16.7)
+    const int np = n * (n + 1) / 2;
+    assert(!tv || (sys.t != nullptr && sys.Hx != nullptr));
     ws.reserve(cfg, M);
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare(sh.gemm);
@@ -269,9 +448,11 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     GainLossParams lp = gs.loss;
     lp.xt0 = gs.xt0.data();
     lp.dx = gs.dx.data();
+    const double initial_weight = lp.initial_weight;
+    if (tv) lp.initial_weight = 0.0;  // the V(x~(0), 0) term is one per step, below, not per sample
     const T* sparams = theta + P;
     double S[kMax * kMax];
-    storage_forward(S, sparams, gs.dx.data(), n, gs.storage_scale, gs.eps);
+    if (!tv) storage_forward(S, sparams, gs.dx.data(), n, gs.storage_scale, gs.eps);
     std::vector<GainSampleValue> vals(static_cast<std::size_t>(M));
 
     // pass 1: forward, gain head, per-sample loss pieces
@@ -283,10 +464,18 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         load_z(in, z, idx, b0, B, n);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
+        double Si[kMax * kMax], Sd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
+            const std::int64_t i = idx[b0 + s];
             double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
-            gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
-            vals[b0 + s] = gain_sample_forward(K, S, sys, idx[b0 + s], lp);
+            if (tv) {
+                storage_tv_forward(Si, Sd, sparams, sys.t[i], gs, n);
+                gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i * m * n, gs, n, m, lp.rho);
+                vals[b0 + s] = gain_sample_forward(K, Si, sys, i, lp, Sd);
+            } else {
+                gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+                vals[b0 + s] = gain_sample_forward(K, S, sys, i, lp);
+            }
         }
     }
     double sum_hinge = 0, sum_h2 = 0;
@@ -297,30 +486,72 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     StepLoss loss;
     loss.hinge = std::sqrt(sum_hinge / M);
     loss.h2 = sum_h2 / M;
+    double S0[kMax * kMax];
+    const bool initial = tv && initial_weight > 0;
+    if (initial) {  // E V(x~(0), 0) / T = tr(S(0) P0) / T, P0 = D^2: the initial error's share of the H2 bound
+        storage_tv_forward(S0, static_cast<double*>(nullptr), sparams, 0.0, gs, n);
+        double v0 = 0;
+        for (int a = 0; a < n; ++a) v0 += S0[a * n + a] * gs.dx[a] * gs.dx[a];
+        loss.h2 += initial_weight * v0 / (lp.horizon * lp.h2_reference);
+    }
     loss.loss = loss.hinge + gs.h2_weight * loss.h2;
     const double d_hinge = loss.hinge > 0 ? 1.0 / (2.0 * M * loss.hinge) : 0.0;
     const double d_h2 = gs.h2_weight / M;
+    std::vector<double> knot_part(tv ? static_cast<std::size_t>(M) * 2 * np : 0);
+    std::vector<int> knot_j(tv ? M : 0);
 
-    // pass 2: dL/dK -> dL/do -> partial dL/dtheta per chunk; dL/dS per sample (ws.P)
+    // pass 2: dL/dK -> dL/do -> partial dL/dtheta per chunk; dL/dS per sample (ws.P, or the knots' shares)
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < chunks; ++c) {
         const int b0 = c * C, B = std::min(C, M - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
-        double gK[kMax * kMax];
+        double gK[kMax * kMax], Si[kMax * kMax], Sd[kMax * kMax], gSd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
+            const std::int64_t i = idx[b0 + s];
             const double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
             double* gSs = ws.P.data() + std::int64_t(b0 + s) * n * n;
             for (int e = 0; e < n * n; ++e) gSs[e] = 0.0;
-            gain_sample_backward(gK, gSs, K, S, sys, idx[b0 + s], lp, d_hinge, d_h2);
-            gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+            if (tv) {
+                for (int e = 0; e < n * n; ++e) gSd[e] = 0.0;
+                storage_tv_forward(Si, Sd, sparams, sys.t[i], gs, n);
+                gain_sample_backward(gK, gSs, K, Si, sys, i, lp, d_hinge, d_h2, Sd, gSd);
+                gain_riccati_backward(dout + std::int64_t(s) * O, gSs, gK, K, Si, gs, n, m, lp.rho);
+                double* kp = knot_part.data() + std::int64_t(b0 + s) * 2 * np;
+                storage_tv_backward(kp, kp + np, &knot_j[b0 + s], gSs, gSd, sparams, sys.t[i], gs, n);
+            } else {
+                gain_sample_backward(gK, gSs, K, S, sys, i, lp, d_hinge, d_h2);
+                gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+            }
         }
         T* part = ws.partial.data() + std::int64_t(c) * Ps;
         T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
     }
     sum_chunk_partials(grad, ws.partial.data(), chunks, Ps, P);  // chunk order (train_step.hpp)
+    if (tv) {  // the knots' gradients, summed in sample order (bits independent of the thread count)
+        std::vector<double> gk(static_cast<std::size_t>(gs.knots + 1) * np, 0.0);
+        for (int s = 0; s < M; ++s) {
+            const double* kp = knot_part.data() + std::int64_t(s) * 2 * np;
+            double* g0 = gk.data() + std::int64_t(knot_j[s]) * np;
+            for (int e = 0; e < 2 * np; ++e) g0[e] += kp[e];
+        }
+        if (initial) {
+            double gS0[kMax * kMax], d0[kMax * (kMax + 1) / 2], d1[kMax * (kMax + 1) / 2];
+            const double w = gs.h2_weight * initial_weight / (lp.horizon * lp.h2_reference);
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b < n; ++b) gS0[a * n + b] = a == b ? w * gs.dx[a] * gs.dx[a] : 0.0;
+            int j0 = 0;
+            storage_tv_backward(d0, d1, &j0, gS0, static_cast<const double*>(nullptr), sparams, 0.0, gs, n);
+            for (int e = 0; e < np; ++e) {
+                gk[std::int64_t(j0) * np + e] += d0[e];
+                gk[std::int64_t(j0 + 1) * np + e] += d1[e];
+            }
+        }
+        for (std::size_t e = 0; e < gk.size(); ++e) grad[P + std::int64_t(e)] = T(gk[e]);
+        return loss;
+    }
     // the storage's gradient: dL/dS summed in sample order, then through S = c D^-1 (M M' + eps I) D^-1
     double gS[kMax * kMax] = {};
     for (int s = 0; s < M; ++s) {
@@ -332,13 +563,14 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
 }
 
 template <typename T>
-void gain_network_eval(double* K, double* S, const T* theta, const double* z, std::int64_t count,
-                       const StepConfig& cfg, StepWorkspace<T>& ws) {
+void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
+                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws) {
     const MlpShape& sh = cfg.shape;
     const GainSpec& gs = cfg.gain;
     const int n = cfg.head.n, m = gs.m, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
-    if (S != nullptr) storage_forward(S, theta + sh.param_count(), gs.dx.data(), n, gs.storage_scale, gs.eps);
     if (count <= 0) return;
+    const bool tv = gs.knots > 0;
+    assert(!tv || (t != nullptr && Hx != nullptr));
     ws.reserve(cfg, static_cast<int>(count));
     gemm_prepare(sh.gemm);
     const T* wt = pack_weights(ws, theta, sh);
@@ -352,10 +584,31 @@ void gain_network_eval(double* K, double* S, const T* theta, const double* z, st
         load_z<T>(in, z, nullptr, b0, B, n);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
-        for (int s = 0; s < B; ++s)
-            gain_head_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m,
-                              gs.rate);
+        double S[kMax * kMax];
+        for (int s = 0; s < B; ++s) {
+            if (tv) {
+                storage_tv_forward(S, static_cast<double*>(nullptr), theta + sh.param_count(), t[b0 + s], gs, n);
+                gain_riccati_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, S, Hx + (b0 + s) * m * n, gs,
+                                     n, m, gs.loss.rho);
+            } else
+                gain_head_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m,
+                                  gs.rate);
+        }
     }
+}
+
+template <typename T>
+void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const StepConfig& cfg) {
+    const GainSpec& gs = cfg.gain;
+    const int n = cfg.head.n;
+    const T* sp = theta + cfg.shape.param_count();
+    if (gs.knots > 0) {
+        storage_tv_forward(S, Sdot, sp, t, gs, n);
+        return;
+    }
+    if (S != nullptr) storage_forward(S, sp, gs.dx.data(), n, gs.storage_scale, gs.eps);
+    if (Sdot != nullptr)
+        for (int e = 0; e < n * n; ++e) Sdot[e] = 0.0;
 }
 
 #define HINF_GAIN_INST(T)                                                                                        \
@@ -365,8 +618,17 @@ void gain_network_eval(double* K, double* S, const T* theta, const double* z, st
     template void gain_head_backward<T>(T*, const double*, const double*, const double*, int, int, double);      \
     template StepLoss gain_step_gradient<T>(T*, const T*, const HjieSystemView&, const double*,                  \
                                             const std::int64_t*, int, const StepConfig&, StepWorkspace<T>&);     \
-    template void gain_network_eval<T>(double*, double*, const T*, const double*, std::int64_t,                  \
-                                       const StepConfig&, StepWorkspace<T>&);
+    template void gain_network_eval<T>(double*, const T*, const double*, const double*, const double*,            \
+                                       std::int64_t,                                                             \
+                                       const StepConfig&, StepWorkspace<T>&);                                    \
+    template void gain_storage_eval<T>(double*, double*, const T*, double, const StepConfig&);                    \
+    template void storage_tv_forward<T>(double*, double*, const T*, double, const GainSpec&, int);                \
+    template void storage_tv_backward<T>(double*, double*, int*, const double*, const double*, const T*, double,  \
+                                         const GainSpec&, int);                                                    \
+    template void gain_riccati_forward<T>(double*, const T*, const double*, const double*, const GainSpec&, int,  \
+                                          int, double);                                                            \
+    template void gain_riccati_backward<T>(T*, double*, const double*, const double*, const double*,              \
+                                           const GainSpec&, int, int, double);
 HINF_GAIN_INST(float)
 HINF_GAIN_INST(double)
 #undef HINF_GAIN_INST

@@ -23,17 +23,42 @@ constexpr int kGainMaxDim = 32;
 ///           (= sup over v, n of x~'Qx~ + dV/dt - rho |v|^2 - rho |n|^2 for x~' = dA - K dC + B v - K n)
 ///   S_i   = |x~'Qx~| + 2|s'dA| + 2|s'K dC| + |B's|^2/rho + |K's|^2/rho   (its scale)
 ///   hinge = relu(H_i / S_i + margin)^2
-///   h2    = (x~0'S x~0 / T + sv2 tr(B'S B) + sn2 tr(K'S K)) / h2_reference   (the H2 bound per unit time)
+///   h2    = (x~0'S x~0 / T + sv2 tr(B'S B) + sn2 tr(K'S K)) / h2_reference   (the H2 bound per unit time;
+///           with a time-varying storage the initial part is tr(S(0) D^2) / T, once per step, not per sample)
 
 struct GainSampleValue {
     double residual = 0, abs_sum = 0, hinge = 0, h2 = 0;
 };
 
+/// With a time-varying storage, Sdot = dS/dt at the sample's time (null: constant S) adds x~'Sdot x~ to H_i and
+/// |x~'Sdot x~| to S_i (dV/dt = x~'Sdot x~ + 2 s'x~').
 GainSampleValue gain_sample_forward(const double* K, const double* S, const HjieSystemView& s, std::int64_t i,
-                                    const GainLossParams& gp);
-/// gK [n x m] = dL/dK (overwritten); gS [n x n] += dL/dS (accumulated), for dL/dhinge_i = d_hinge, dL/dh2_i = d_h2.
+                                    const GainLossParams& gp, const double* Sdot = nullptr);
+/// gK [n x m] = dL/dK (overwritten); gS [n x n] += dL/dS (accumulated), for dL/dhinge_i = d_hinge, dL/dh2_i = d_h2;
+/// gSd [n x n] += dL/dSdot when Sdot is given.
 void gain_sample_backward(double* gK, double* gS, const double* K, const double* S, const HjieSystemView& s,
-                          std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2);
+                          std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2,
+                          const double* Sdot = nullptr, double* gSd = nullptr);
+
+/// Time-varying storage (g.knots > 0): S(t) = c D^-1 (M M' + eps I) D^-1 and Sdot = dS/dt, M(t) = diag(exp(.)) +
+/// strict tril(.) of the knot vectors interpolated linearly in t (knot j at j span / J; clamped: Sdot = 0 after span).
+template <typename T>
+void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const GainSpec& g, int n);
+/// The two knots' shares of dL/ds for dL/dS = gS, dL/dSdot = gSd (either may be null): d0, d1 [n(n+1)/2]
+/// (overwritten) belong to knots *j and *j + 1.
+template <typename T>
+void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const double* gSd, const T* s, double t,
+                         const GainSpec& g, int n);
+
+/// The Riccati-form head (g.knots > 0): K = rho S^-1 (Hx' + D^-1 o diag(dy)^-1), Hx [m x n] the output Jacobian at
+/// the estimate.
+template <typename T>
+void gain_riccati_forward(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,
+                          double rho);
+/// d_o = dL/do; gS [n x n] += dL/dS through K (= -S^-1 gK K').
+template <typename T>
+void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K, const double* S, const GainSpec& g,
+                           int n, int m, double rho);
 
 /// S = c D^-1 (M M' + eps I) D^-1, M = I + tril(s) (row-major lower-triangular packing), D = diag(d).
 template <typename T>
@@ -55,9 +80,13 @@ template <typename T>
 StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
                             const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws);
 
-/// K [count x n x m] at standardised inputs z [count x n] and S [n x n] (may be null).
+/// K [count x n x m] at standardised inputs z [count x n] (the Riccati-form head needs the times t [count] and Hx
+/// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0).
 template <typename T>
-void gain_network_eval(double* K, double* S, const T* theta, const double* z, std::int64_t count,
-                       const StepConfig& cfg, StepWorkspace<T>& ws);
+void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
+                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws);
+/// S [n x n] and Sdot [n x n] (either may be null) at time t: constant S and Sdot = 0 when knots = 0.
+template <typename T>
+void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const StepConfig& cfg);
 
 }  // namespace hinf::kern

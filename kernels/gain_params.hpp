@@ -31,7 +31,13 @@ struct GainSpec {
     double eps = 1e-3;
     double h2_weight = 0.1;          // eta
     GainLossParams loss;             // xt0 points into this spec's xt0 at call time
-    int storage_params(int n) const { return enabled ? n * (n + 1) / 2 : 0; }
+    // Time-varying storage (knots > 0, docs/method.md section 16.7): S(t) from knot vectors s_0..s_J at
+    // t_j = j span / J (linear between knots, constant after span), M = diag(exp(.)) + strict tril(.), and the gain
+    // head K = rho S(t)^-1 (H(x^)' + D^-1 o diag(dy)^-1) (the game's minimiser for the linearised output plus the
+    // network's correction). knots = 0: the constant S and K = rate D o diag(dy)^-1 of sections 16.1-16.4.
+    int knots = 0;
+    double knot_span = 1.0;          // [s]
+    int storage_params(int n) const { return enabled ? (knots > 0 ? knots + 1 : 1) * (n * (n + 1) / 2) : 0; }
 };
 
 }  // namespace hinf::kern

@@ -36,6 +36,8 @@ struct HjieSystemView {
     const double* Bm = nullptr;
     const double* dC = nullptr;
     const double* q = nullptr;
+    const double* t = nullptr;   // [N] sample times (variant gain with a time-varying storage)
+    const double* Hx = nullptr;  // [N x m x n] output Jacobian at each sample's estimate (same)
 };
 
 struct HjieParams {

@@ -190,6 +190,9 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.input_scale = net.get_double("input_scale", c.input_scale, 0.0, big);
     c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
     c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
+    c.storage_knots = net.get_int("storage_knots", c.storage_knots, 0, 4096);
+    if (c.storage_knots > 0 && c.variant != "gain")
+        net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
     c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();
@@ -253,7 +256,8 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
     c.noise_intensity = o.get_double("noise_intensity", c.noise_intensity, 0.0, 1e12);
     c.horizon = o.get_double("horizon", c.horizon, 0.0, 1e12);
-    c.initial_weight = o.get_double("initial_weight", c.initial_weight, 0.0, 1e12);
+    // the initial error's share of the H2 bound: on by default with a time-varying storage (method.md §16.7)
+    c.initial_weight = o.get_double("initial_weight", c.storage_knots > 0 ? 1.0 : c.initial_weight, 0.0, 1e12);
     c.max_step_correction = o.get_double("max_step_correction", c.max_step_correction, 0.0, 2.0);
     if (c.max_step_correction <= 0) o.reject("max_step_correction", "must be in (0, 2]");
     o.finish();

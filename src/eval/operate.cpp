@@ -43,13 +43,13 @@ public:
         const kern::GainSpec& g = net_->step_config().gain;
         gain_samples_at(&smp_, cfg_, g, xhat, t, kCheck, (std::uint64_t(1) << 40) + (run_ << 24) + std::uint64_t(k));
         const int n = cfg_.n, m = cfg_.m;
-        std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n);
-        net_->gain(K.data(), S.data(), xhat, 1);
+        std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
+        net_->gain(K.data(), S.data(), Sd.data(), xhat, t, *cfg_.system, 1);
         kern::GainLossParams lp;
         lp.rho = cfg_.rho;
         const kern::HjieSystemView view = smp_.view();
         for (std::int64_t i = 0; i < kCheck; ++i) {
-            const kern::GainSampleValue v = kern::gain_sample_forward(K.data(), S.data(), view, i, lp);
+            const kern::GainSampleValue v = kern::gain_sample_forward(K.data(), S.data(), view, i, lp, Sd.data());
             sampled_violations_ += v.residual > 0.01 * v.abs_sum ? 1 : 0;
             sampled_ += 1;
         }
@@ -147,7 +147,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     if (gain) {
         std::vector<double> S(static_cast<std::size_t>(n) * n), K(static_cast<std::size_t>(n) * cfg.m);
         std::unique_ptr<FrozenNetwork> net = network.clone();
-        net->gain(K.data(), S.data(), cfg.xhat0.data(), 1);
+        net->gain(K.data(), S.data(), nullptr, cfg.xhat0.data(), 0.0, *cfg.system, 1);  // V(x~(0), 0)
         sum.v0 = quadratic_form(S.data(), xt0.data(), n);
     } else {
         sum.v0 = network.value(xt0.data(), n);

@@ -93,7 +93,7 @@ public:
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
         for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - ch[j] : 0.0;  // missing: no correction
-        net_->gain(k.data(), nullptr, xhat_.data(), 1);
+        net_->gain(k.data(), nullptr, nullptr, xhat_.data(), in.t, sys, 1);
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;

@@ -50,13 +50,13 @@ void hjie_point_terms(double* terms, const double* p, const System& sys, const d
 double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
                            const double* xhat, double t, const double* Q, double rho) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
-    std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n);
-    net.gain(K.data(), S.data(), xhat, 1);
+    std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
+    net.gain(K.data(), S.data(), Sd.data(), xhat, t, sys, 1);
     const PointTerms pt = point_terms(sys, x, xhat, t, Q);
     const kern::HjieSystemView view = pt.view(n, nv, m);
     kern::GainLossParams lp;
     lp.rho = rho;
-    kern::GainSampleValue val = kern::gain_sample_forward(K.data(), S.data(), view, 0, lp);
+    kern::GainSampleValue val = kern::gain_sample_forward(K.data(), S.data(), view, 0, lp, Sd.data());
     if (abs_sum != nullptr) *abs_sum = val.abs_sum;
     if (v != nullptr) *v = quadratic_form(S.data(), pt.xt.data(), n);
     return val.residual;

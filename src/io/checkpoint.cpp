@@ -157,7 +157,11 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             const std::int64_t P = sc.shape.param_count(), ns = sc.gain.storage_params(cfg.n);
             std::vector<T> sp(ck.net.theta.begin() + P, ck.net.theta.begin() + P + ns);
             write_array(net.get(), "storage", sp, {hsize_t(ns)},
-                        "storage V = x~'S x~: S = c D^-1 (M M' + eps I) D^-1, M = I + tril(storage) (docs/method.md §16)");
+                        sc.gain.knots > 0
+                            ? "storage V = x~'S(t)x~ on storage_knots + 1 knots of n(n+1)/2: S = c D^-1 (M M' + eps I) "
+                              "D^-1, M = diag(exp) + strict tril, linear in t between knots (docs/method.md §16.7)"
+                            : "storage V = x~'S x~: S = c D^-1 (M M' + eps I) D^-1, M = I + tril(storage) (docs/method.md §16)");
+            h5::set_attr(net.get(), "storage_knots", std::int64_t(sc.gain.knots));
             h5::set_attr(net.get(), "input_shift", sc.gain.shift);
             h5::set_attr(net.get(), "input_spread", sc.gain.spread);
             h5::set_attr(net.get(), "error_scale", sc.gain.dx);

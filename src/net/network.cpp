@@ -68,6 +68,13 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     double qd = 0;
     for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
     g.storage_scale = qd > 0 ? qd / n * T / 10.0 : 1.0;
+    if (cfg.storage_knots > 0) {  // section 16.6: S(t) on knots; the scale makes the initial head's gain ~ rate
+        g.knots = static_cast<int>(cfg.storage_knots);
+        g.knot_span = T;
+        double dy2 = 0;
+        for (int j = 0; j < m; ++j) dy2 += g.dy[j] * g.dy[j] / m;
+        g.storage_scale = cfg.rho * dy2 / g.rate;
+    }
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;
     g.loss.rho = cfg.rho;
@@ -157,7 +164,7 @@ Network<T> network_create(const RunConfig& cfg) {
     return net;
 }
 
-void FrozenNetwork::gain(double*, double*, const double*, std::int64_t) {
+void FrozenNetwork::gain(double*, double*, double*, const double*, double, const System&, std::int64_t) {
     HINF_FAIL("this network is not of variant \"gain\": it has no gain K(x^) (train with [filter] variant = \"gain\")");
 }
 
@@ -192,13 +199,21 @@ public:
     void gradient(double* p, const double* xt, std::int64_t count) override {
         kern::network_eval(p, nullptr, net_.theta.data(), xt, count, net_.step, ws_);
     }
-    void gain(double* K, double* S, const double* xhat, std::int64_t count) override {
+    void gain(double* K, double* S, double* Sdot, const double* xhat, double t, const System& sys,
+              std::int64_t count) override {
         const int n = net_.step.head.n;
         const kern::GainSpec& g = net_.step.gain;
-        z_.resize(static_cast<std::size_t>(std::max<std::int64_t>(count, 0) * n));
+        const std::int64_t c = std::max<std::int64_t>(count, 0);
+        z_.resize(static_cast<std::size_t>(c * n));
         for (std::int64_t i = 0; i < count; ++i)
             for (int a = 0; a < n; ++a) z_[i * n + a] = (xhat[i * n + a] - g.shift[a]) / g.spread[a];
-        kern::gain_network_eval(K, S, net_.theta.data(), z_.data(), count, net_.step, ws_);
+        if (g.knots > 0) {  // the Riccati-form head: the output Jacobian at each estimate
+            hx_.resize(static_cast<std::size_t>(c * g.m * n));
+            tt_.assign(static_cast<std::size_t>(c), t);
+            for (std::int64_t i = 0; i < count; ++i) sys.measurement_jacobian(hx_.data() + i * g.m * n, xhat + i * n, t);
+        }
+        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), tt_.data(), count, net_.step, ws_);
+        kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
     const kern::StepConfig& step_config() const override { return net_.step; }
     std::unique_ptr<FrozenNetwork> clone() const override { return std::make_unique<FrozenImpl<T>>(net_); }
@@ -206,7 +221,7 @@ public:
 private:
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
-    std::vector<double> z_;
+    std::vector<double> z_, hx_, tt_;
 };
 }  // namespace
 

@@ -39,9 +39,11 @@ public:
     /// V(x~) by Gauss-Legendre quadrature of p along the segment 0 -> x~ (exact for the gradient of a
     /// quadratic V; for the `paper` head p need not be a gradient, so V is path-dependent).
     double value(const double* xt, int n);
-    /// Variant `gain`: K [count x n x m] = K(x^) at estimates xhat [count x n], and S [n x n] (may be null).
-    /// Other variants throw (a network of another variant has no K(x^)).
-    virtual void gain(double* K, double* S, const double* xhat, std::int64_t count);
+    /// Variant `gain`: K [count x n x m] = K(x^, t) at estimates xhat [count x n], all at time t, and the storage
+    /// S(t), dS/dt [n x n] (either may be null; dS/dt = 0 for a constant storage). The Riccati-form head of a
+    /// time-varying storage needs sys's output Jacobian at each estimate. Other variants throw.
+    virtual void gain(double* K, double* S, double* Sdot, const double* xhat, double t, const System& sys,
+                      std::int64_t count);
     virtual const kern::StepConfig& step_config() const = 0;
     /// An independent copy (own workspace), for use from another thread.
     virtual std::unique_ptr<FrozenNetwork> clone() const = 0;

@@ -10,7 +10,7 @@
 namespace hinf {
 
 kern::HjieSystemView GainSamples::view() const {
-    return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data()};
+    return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(), Hx.empty() ? nullptr : Hx.data()};
 }
 
 GainPool gain_pool_build(const RunConfig& cfg) {
@@ -30,7 +30,7 @@ GainPool gain_pool_build(const RunConfig& cfg) {
 
 namespace {
 
-void resize(GainSamples* s, const RunConfig& cfg, std::int64_t N) {
+void resize(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::int64_t N) {
     const int n = cfg.n, nv = cfg.nv, m = cfg.m;
     s->n = n;
     s->nv = nv;
@@ -44,6 +44,7 @@ void resize(GainSamples* s, const RunConfig& cfg, std::int64_t N) {
     s->xhat.resize(N * n);
     s->x.resize(N * n);
     s->t.resize(N);
+    s->Hx.resize(g.knots > 0 ? N * m * n : 0);
 }
 
 // the per-sample constants from s->x, s->xhat, s->t (per sample: each has its own time)
@@ -64,6 +65,7 @@ void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, st
         for (int j = 0; j < m; ++j) s->dC[i * m + j] -= ch[j];
         s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
         for (int j = 0; j < n; ++j) s->z[i * n + j] = (xh[j] - g.shift[j]) / g.spread[j];
+        if (g.knots > 0) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);
     }
 }
 
@@ -85,7 +87,7 @@ void draw_errors(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, 
 void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
                         std::int64_t N, std::uint64_t a) {
     const int n = cfg.n;
-    resize(s, cfg, N);
+    resize(s, cfg, g, N);
     std::vector<double> u;
     draw_errors(s, cfg, g, N, a, &u);
     const std::int64_t R = std::int64_t(pool.runs.size());
@@ -105,7 +107,7 @@ void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& po
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
                      std::int64_t N, std::uint64_t a) {
     const int n = cfg.n;
-    resize(s, cfg, N);
+    resize(s, cfg, g, N);
     std::vector<double> u;
     draw_errors(s, cfg, g, N, a, &u);
     for (std::int64_t i = 0; i < N; ++i) {

@@ -23,6 +23,7 @@ GainPool gain_pool_build(const RunConfig& cfg);
 struct GainSamples {
     int n = 0, nv = 0, m = 0;
     std::vector<double> xt, dA, Bm, dC, q, z, xhat, x, t;  // [N x n] ... z: standardised x^ (network input)
+    std::vector<double> Hx;  // [N x m x n] output Jacobian at x^ (time-varying storage's Riccati-form head only)
     kern::HjieSystemView view() const;
 };
 

@@ -302,15 +302,19 @@ private:
         // statistics over all N samples after the K steps
         const int n = cfg_.n, m = cfg_.m, nv = cfg_.nv;
         const std::int64_t N = cfg_.samples;
-        std::vector<double> S(n * n);
-        kern::gain_network_eval(K_all_.data(), S.data(), ck_.net.theta.data(), gsm_.z.data(), N, ck_.net.step, ws_);
+        std::vector<double> S(n * n), Sd(n * n);
+        kern::gain_network_eval(K_all_.data(), ck_.net.theta.data(), gsm_.z.data(), view.Hx, gsm_.t.data(), N,
+                                ck_.net.step, ws_);
+        kern::gain_storage_eval(S.data(), Sd.data(), ck_.net.theta.data(), 0.0, ck_.net.step);
         kern::GainLossParams lp = g.loss;
         lp.xt0 = g.xt0.data();
         lp.dx = g.dx.data();
         std::vector<double> rel(N);
         double viol = 0, pos = 0;
         for (std::int64_t i = 0; i < N; ++i) {
-            kern::GainSampleValue v = kern::gain_sample_forward(K_all_.data() + i * n * m, S.data(), view, i, lp);
+            if (g.knots > 0) kern::gain_storage_eval(S.data(), Sd.data(), ck_.net.theta.data(), gsm_.t[i], ck_.net.step);
+            kern::GainSampleValue v =
+                kern::gain_sample_forward(K_all_.data() + i * n * m, S.data(), view, i, lp, Sd.data());
             rel[i] = v.abs_sum > 0 ? std::fabs(v.residual) / v.abs_sum : 0.0;
             viol += v.residual > 0.01 * v.abs_sum ? 1 : 0;
             pos += v.residual > 0 ? 1 : 0;
@@ -333,7 +337,10 @@ private:
             z[j] = (xhat[j] - g.shift[j]) / g.spread[j];
             xt[j] = x[j] - xhat[j];
         }
-        kern::gain_network_eval(K.data(), nullptr, ck_.net.theta.data(), z.data(), 1, ck_.net.step, ws_);
+        std::vector<double> Hx(static_cast<std::size_t>(m) * n);
+        if (g.knots > 0) sys.measurement_jacobian(Hx.data(), xhat.data(), t);
+        kern::gain_network_eval(K.data(), ck_.net.theta.data(), z.data(), Hx.data(), &t, 1, ck_.net.step, ws_);
+        kern::gain_storage_eval(S.data(), Sd.data(), ck_.net.theta.data(), t, ck_.net.step);
         sys.drift(ah.data(), xhat.data(), t, 1);
         sys.measurement(ch.data(), xhat.data(), t, 1);
         sys.disturbance_gain(B.data(), x.data(), t, 1);
@@ -366,7 +373,7 @@ private:
             sys.measurement(one.dC.data(), x.data(), t, 1);
             for (int j = 0; j < m; ++j) one.dC[j] -= ch[j];
             one.q = {quadratic_form(cfg_.Q.data(), xt.data(), n)};
-            rec->residual = kern::gain_sample_forward(K.data(), S.data(), one.view(), 0, lp).residual;
+            rec->residual = kern::gain_sample_forward(K.data(), S.data(), one.view(), 0, lp, Sd.data()).residual;
         }
         rec->x = x;
         rec->xhat = xhat;

@@ -214,8 +214,14 @@ StepConfig small_gain_config(int n, int m) {
 
 TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 threads bit-identical",
           "[kernel][gain][grad][determinism]") {
+  // knots = 0: constant storage and the rate head; knots = 3: S(t) on knots (samples before, between, on and after
+  // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o dy^-1)
+  for (int knots : {0, 3}) {
+    INFO("knots " << knots);
     const int n = 3, nv = 2, m = 2, N = 11;
     StepConfig sc = small_gain_config(n, m);
+    sc.gain.knots = knots;
+    sc.gain.knot_span = 2.0;
     const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
     std::vector<double> theta(P), xt(N * n), dA(N * n), B(N * n * nv), dC(N * m), q(N), z(N * n);
     rng_normal(theta.data(), P, 5, RNG_STREAM_INIT, 0, 0);
@@ -226,7 +232,10 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
     rng_normal(dC.data(), N * m, 5, RNG_STREAM_SAMPLES, 3, 0);
     rng_normal(z.data(), N * n, 5, RNG_STREAM_SAMPLES, 4, 0);
     for (int i = 0; i < N; ++i) q[i] = 0.2 * (xt[i * n] * xt[i * n] + xt[i * n + 1] * xt[i * n + 1]);
-    HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dC.data(), q.data()};
+    std::vector<double> t(N), Hx(N * m * n);
+    for (int i = 0; i < N; ++i) t[i] = 0.23 * i;  // 0 ... 2.3: the first knot, between knots, after the span
+    rng_normal(Hx.data(), N * m * n, 5, RNG_STREAM_SAMPLES, 5, 0);
+    HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dC.data(), q.data(), t.data(), Hx.data()};
     std::vector<std::int64_t> idx = {3, 0, 7, 1, 9, 10, 4, 2, 5};
     const int M = int(idx.size());
     StepWorkspace<double> ws;
@@ -252,10 +261,65 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
     }
     CHECK(checked > 20);
     // the evaluation path gives the same K as the training path's head
-    std::vector<double> K(N * n * m), S(n * n);
-    gain_network_eval(K.data(), S.data(), theta.data(), z.data(), N, sc, ws);
-    std::vector<double> S2(n * n);
-    storage_forward(S2.data(), theta.data() + sc.shape.param_count(), sc.gain.dx.data(), n, sc.gain.storage_scale,
-                    sc.gain.eps);
-    CHECK(S == S2);
+    std::vector<double> K(N * n * m), S(n * n), Sd(n * n), S2(n * n);
+    const std::vector<double> Ktrain(ws.K.begin(), ws.K.begin() + M * n * m);  // K of minibatch row s = sample idx[s]
+    gain_network_eval(K.data(), theta.data(), z.data(), Hx.data(), t.data(), N, sc, ws);
+    for (int s = 0; s < M; ++s)
+        for (int e = 0; e < n * m; ++e) CHECK(K[idx[s] * n * m + e] == Approx(Ktrain[s * n * m + e]).epsilon(1e-12));
+    if (knots == 0) {
+        gain_storage_eval(S.data(), Sd.data(), theta.data(), 0.0, sc);
+        storage_forward(S2.data(), theta.data() + sc.shape.param_count(), sc.gain.dx.data(), n, sc.gain.storage_scale,
+                        sc.gain.eps);
+        CHECK(S == S2);
+    } else {  // S(t) positive definite, dS/dt its time derivative
+        for (int i = 0; i < N; ++i) {
+            gain_storage_eval(S.data(), Sd.data(), theta.data(), t[i], sc);
+            // dS/dt by central differences of S(t) away from knots
+            if (t[i] > 0.01 && std::fabs(t[i] / (2.0 / 3) - std::round(t[i] / (2.0 / 3))) > 0.01 && t[i] < 1.99) {
+                std::vector<double> Sp(n * n), Sm(n * n);
+                gain_storage_eval(Sp.data(), static_cast<double*>(nullptr), theta.data(), t[i] + 1e-6, sc);
+                gain_storage_eval(Sm.data(), static_cast<double*>(nullptr), theta.data(), t[i] - 1e-6, sc);
+                for (int e = 0; e < n * n; ++e) CHECK(Sd[e] == Approx((Sp[e] - Sm[e]) / 2e-6).epsilon(1e-5).margin(1e-8));
+            }
+            Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>> Se(S.data(), n, n);
+            CHECK(Se.llt().info() == Eigen::Success);
+        }
+    }
+  }
+}
+
+TEST_CASE("gain variant, time-varying storage: on a linear system the Riccati head and the H-infinity Riccati "
+          "equation make the inequality an equality (method.md section 16.7)",
+          "[kernel][gain]") {
+    // x' = A x + B v, y = H x + n: with K = rho S^-1 H' and dS/dt = -(S A + A'S + Q + S B B'S / rho - rho H'H),
+    // x~'Q x~ + x~'Sdot x~ + 2 s'(A - K H) x~ + |B's|^2/rho + |K's|^2/rho = 0 for every x~ (s = S x~)
+    using Mat = Eigen::Matrix<double, -1, -1, Eigen::RowMajor>;
+    const int n = 3, nv = 2, m = 2;
+    const double rho = 0.7;
+    Mat A(n, n), B(n, nv), Hm(m, n), Q = Mat::Identity(n, n) * 0.4, L(n, n);
+    A << -0.5, 1.0, 0.0, -2.0, -0.3, 0.4, 0.1, 0.0, -1.0;
+    B << 1.0, 0.0, 0.3, 1.0, 0.0, 0.5;
+    Hm << 1.0, 0.0, 0.2, 0.0, 0.0, 1.0;
+    L << 1.2, 0.0, 0.0, 0.3, 0.8, 0.0, -0.4, 0.2, 1.5;
+    const Mat S = L * L.transpose();
+    const Mat K = rho * S.llt().solve(Hm.transpose());
+    const Mat Sdot = -(S * A + A.transpose() * S + Q + S * B * B.transpose() * S / rho - rho * Hm.transpose() * Hm);
+    std::mt19937 g(3);
+    std::normal_distribution<double> N(0.0, 1.0);
+    for (int trial = 0; trial < 20; ++trial) {
+        Eigen::VectorXd xt(n);
+        for (int a = 0; a < n; ++a) xt[a] = N(g);
+        const Eigen::VectorXd dA = A * xt, dC = Hm * xt;
+        const double q = xt.dot(Q * xt);
+        Mat Bc = B;
+        HjieSystemView v{n, nv, m, xt.data(), dA.data(), Bc.data(), dC.data(), &q};
+        GainLossParams lp;
+        lp.rho = rho;
+        const GainSampleValue val = gain_sample_forward(K.data(), S.data(), v, 0, lp, Sdot.data());
+        CHECK(std::fabs(val.residual) < 1e-10 * val.abs_sum);
+        // and any other gain does worse: the Riccati head is the minimiser over K for the linearised output
+        Mat K2 = K;
+        K2(trial % n, trial % m) += 0.05;
+        CHECK(gain_sample_forward(K2.data(), S.data(), v, 0, lp, Sdot.data()).residual >= val.residual - 1e-12);
+    }
 }
