@@ -68,7 +68,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     double qd = 0;
     for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
     g.storage_scale = qd > 0 ? qd / n * T / 10.0 : 1.0;
-    if (cfg.storage_knots > 0) {  // section 16.6: S(t) on knots; the scale makes the initial head's gain ~ rate
+    if (cfg.storage_knots > 0) {  // section 16.7: S(t) on knots; the scale makes the initial head's gain ~ rate
         g.knots = static_cast<int>(cfg.storage_knots);
         g.knot_span = T;
         double dy2 = 0;
