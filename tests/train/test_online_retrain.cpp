@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "eval/engine.hpp"
+#include "eval/operate.hpp"
 #include "filters/dnn.hpp"
 #include "helpers.hpp"
 #include "io/checkpoint.hpp"
@@ -148,6 +149,20 @@ TEST_CASE("on-line retraining with a huge delta never triggers and equals the fr
     std::unique_ptr<OnlineFilter> plain = make_gain_filter(model, *net, "dnn");
     plain->reset(engine_filter_start(cfg, 1));
     CHECK(same_bits(step_over(*plain, cfg, tr, 0, K).xhat, s.xhat));
+    // operate: the filter's own check (retraining on, never triggering) reports what the observer's check reports
+    // with retraining off, and the estimates are the same bits
+    OperateOptions oo;
+    oo.runs = 2;
+    oo.quiet = true;
+    oo.out_dir = d / "op_off";
+    const OperateSummary off = operate_run(vdp_config(), *net, ckpt, oo);
+    oo.out_dir = d / "op_on";
+    const OperateSummary on = operate_run(cfg, *net, ckpt, oo);
+    CHECK(off.online_check_violation_fraction > 0);
+    CHECK(on.online_check_violation_fraction == off.online_check_violation_fraction);
+    CHECK(on.retrain_triggers == 0);
+    CHECK(same_bits(on.error_std, off.error_std));
+    CHECK(on.online_checkpoint == d / "op_on/online_checkpoint.h5");
 }
 
 TEST_CASE("on-line retraining is deterministic: repeated, 1 vs 2 threads, each run on its own network", "[train][online][retrain][determinism]") {
