@@ -80,10 +80,19 @@ void add_operate_command(CLI::App& app) {
         std::printf("\nerror after t = %g s (mean, std):", cfg.settle_time);
         for (int i = 0; i < cfg.n; ++i)
             std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean_settled[i], s.error_std_settled[i]);
-        std::printf("\nHJI inequality violated (> 1%% of S) at %.2f%% of the on-line steps", 100 * s.online_hji_violation_fraction);
+        if (std::isfinite(s.online_hji_violation_fraction))
+            std::printf("\nHJI inequality violated (> 1%% of S) at %.2f%% of the on-line steps", 100 * s.online_hji_violation_fraction);
+        else
+            std::printf("\nHJI inequality at the true x~: not evaluated (the network changes along each run)");
         if (std::isfinite(s.online_check_violation_fraction))
             std::printf("\non-line check from x^ alone (16 sampled errors per step): %.2f%% of them violate the dissipation "
                         "inequality", 100 * s.online_check_violation_fraction);
+        if (s.retrain)
+            std::printf("\non-line retraining (delta %g): %.0f trigger(s), %.0f Adam step(s) over %lld run(s) (%.0f undone); "
+                        "violation max H/S at the triggers %.3g -> %.3g; run 0's network: %s", cfg.retrain_delta,
+                        s.retrain_triggers, s.retrain_adam_steps, static_cast<long long>(s.runs), s.retrain_rejected,
+                        s.retrain_eps_before, s.retrain_eps_after,
+                        s.online_checkpoint.empty() ? "not written (run 0 diverged)" : s.online_checkpoint.c_str());
         std::printf("\nposition RMSE %.4g m (open loop %.4g m); file: %s/operate.h5\n", s.rmse_position,
                     s.rmse_position_open_loop, opt.out_dir.c_str());
     });

@@ -68,7 +68,9 @@ bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) 
     oo.runs = cfg.acceptance_runs;
     oo.quiet = quiet;
     std::filesystem::create_directories(oo.out_dir);
-    OperateSummary s = operate_run(cfg, *net, path, oo);
+    RunConfig plain = cfg;
+    plain.retrain = false;  // the network as trained is what is accepted (on-line retraining: hinf operate)
+    OperateSummary s = operate_run(plain, *net, path, oo);
     // the H-infinity bound is int x~'Qx~ <= V(x~(0)) + rho int (v'v + n'n): the ratio less V(x~(0)) where V is defined
     const double ratio = std::isfinite(s.attenuation_ratio_minus_v0) ? s.attenuation_ratio_minus_v0 : s.attenuation_ratio;
     const bool pass = s.diverged_runs == 0 && ratio <= cfg.rho;

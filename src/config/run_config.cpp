@@ -269,6 +269,17 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.runs = on.get_int("runs", c.runs, 1, 1000000);
     c.online_seed = static_cast<std::uint64_t>(on.get_int("seed", 7, 0, std::numeric_limits<std::int64_t>::max()));
     c.settle_time = on.get_double("settle_time", c.settle_time, 0.0, 1e12);
+    c.retrain = on.get_bool("retrain", c.retrain);
+    c.retrain_delta = on.get_double("retrain_delta", c.retrain_delta, 0.0, 1e12);
+    c.retrain_steps = on.get_int("retrain_steps", c.retrain_steps, 1, 100000);
+    c.retrain_samples = on.get_int("retrain_samples", c.retrain_samples, 1, 1000000);
+    c.retrain_learning_rate = on.get_double("retrain_learning_rate", c.retrain_learning_rate, 0.0, 1e3);
+    if (on.has("retrain_learning_rate") && c.retrain_learning_rate <= 0)
+        on.reject("retrain_learning_rate", "must be > 0 (leave it out for the training's final rate)");
+    if (c.retrain && c.variant != "gain")
+        on.reject("retrain", "true needs [filter] variant = \"gain\" (its check of the dissipation inequality at x^ "
+                             "alone is what triggers retraining); this config's variant is \"" + c.variant +
+                             "\": set online.retrain = false");
     if (own) {
         // intensity = std^2 * dt (white noise of the sampled system): one of each pair is required, the other
         // follows; hinf's defaults (20 and 4) are the missile's

@@ -78,6 +78,12 @@ struct OnlineConfig {
     std::int64_t runs = 1;
     std::uint64_t online_seed = 7;
     double settle_time = 5.0;  // error statistics are also reported over t >= settle_time [s]
+    // on-line retraining of the `gain` variant (issue 14 item 2, docs/method.md section 16.6; hinf operate only)
+    bool retrain = false;
+    double retrain_delta = 0.05;             // delta: retrain when max_j H_j/S_j over the check's errors > delta
+    std::int64_t retrain_steps = 5;          // Adam steps per trigger
+    std::int64_t retrain_samples = 64;       // errors drawn around the current x^ per trigger (one full batch)
+    double retrain_learning_rate = 0;        // 0: the training's final rate (from the checkpoint)
 
     // [baseline]: what EKF, UKF and PF are told (their model) and how they are tuned; defaults: the truth
     std::shared_ptr<System> told_system;        // the filters' system ([baseline] parameters), else the true one

@@ -112,6 +112,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     r.diverged_at = sr.diverged_at;
     r.seconds = sr.seconds;
     if (obs != nullptr) r.observed = obs->end();
+    r.reported = f.run_report();
     return r;
 }
 
@@ -121,7 +122,7 @@ void put_stats(ParBytesOut& w, const FilterRunStats& s) {
         w.put(v);
     w.put(s.stream_hash);
     for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
-                          &s.err_sq_filtered})
+                          &s.err_sq_filtered, &s.reported})
         w.put(*v);
 }
 
@@ -132,7 +133,7 @@ FilterRunStats get_stats(ParBytesIn& rd) {
         *v = rd.get_double();
     s.stream_hash = rd.get_u64();
     for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
-                    &s.err_sq_filtered})
+                    &s.err_sq_filtered, &s.reported})
         *v = rd.get_vector();
     return s;
 }

@@ -103,6 +103,7 @@ struct FilterRunStats {
     std::vector<double> err_sub;    // [ceil(K / stride) x n] error every `stride` steps
     std::vector<double> xhat;       // run 0 only: [K x n]
     std::vector<double> observed;   // StepObserver::end() of this (filter, run)
+    std::vector<double> reported;   // OnlineFilter::run_report() after the run
 };
 
 struct EngineOptions {

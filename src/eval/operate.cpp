@@ -20,6 +20,7 @@
 #include "filters/open_loop.hpp"
 #include "gain.hpp"
 #include "train/gain_samples.hpp"
+#include "train/online_retrain.hpp"
 
 namespace hinf {
 
@@ -29,7 +30,9 @@ namespace {
 // (filter 0), with the true x~ and x: HJIE(p(x~)) > 0.01 S counts as a violation (seed 000 eq. (16) terms).
 class HjiCheck final : public StepObserver {
 public:
-    HjiCheck(const RunConfig& cfg, const FrozenNetwork& net) : cfg_(cfg), net_(net.clone()) {}
+    /// sampled = false: the filter checks itself (on-line retraining: its network changes, the observer's would not)
+    HjiCheck(const RunConfig& cfg, const FrozenNetwork& net, bool sampled = true)
+        : cfg_(cfg), net_(net.clone()), check_here_(sampled) {}
     void begin(int filter, std::uint64_t run) override {
         active_ = filter == 0;
         violations_ = steps_ = sampled_violations_ = sampled_ = 0;
@@ -39,9 +42,9 @@ public:
     // inequality (14.1) over kCheck errors drawn as in training (Philox stream RNG_STREAM_GAIN, counter
     // 2^40 + run * 2^24 + step: deterministic, disjoint from training's time-step counters).
     void check_sampled(std::int64_t k, double t, const double* xhat) {
-        constexpr std::int64_t kCheck = 16;
+        constexpr std::int64_t kCheck = kOnlineCheckErrors;
         const kern::GainSpec& g = net_->step_config().gain;
-        gain_samples_at(&smp_, cfg_, g, xhat, t, kCheck, (std::uint64_t(1) << 40) + (run_ << 24) + std::uint64_t(k));
+        gain_samples_at(&smp_, cfg_, g, xhat, t, kCheck, online_check_counter(run_, k));
         const int n = cfg_.n, m = cfg_.m;
         std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
         net_->gain(K.data(), S.data(), Sd.data(), xhat, t, *cfg_.system, 1);
@@ -64,7 +67,7 @@ public:
             const double H = gain_point_residual(&S, nullptr, *net_, *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
             violations_ += H > 0.01 * S ? 1 : 0;
             steps_ += 1;
-            check_sampled(k, t, xhat);
+            if (check_here_) check_sampled(k, t, xhat);
             return;
         }
         net_->gradient(pt.data(), xt.data(), 1);
@@ -78,16 +81,36 @@ public:
         if (sampled_ > 0) return {violations_, steps_, sampled_violations_, sampled_};
         return {violations_, steps_};
     }
-    std::unique_ptr<StepObserver> clone() const override { return std::make_unique<HjiCheck>(cfg_, *net_); }
+    std::unique_ptr<StepObserver> clone() const override { return std::make_unique<HjiCheck>(cfg_, *net_, check_here_); }
 
 private:
     const RunConfig& cfg_;
     std::unique_ptr<FrozenNetwork> net_;
-    bool active_ = false;
+    bool check_here_ = true, active_ = false;
     double violations_ = 0, steps_ = 0, sampled_violations_ = 0, sampled_ = 0;
     std::uint64_t run_ = 0;
     GainSamples smp_;
 };
+
+// Run 0 of the retraining filter once more, alone, on the engine's truth of run 0: its final network is what the
+// on-line checkpoint keeps. The estimates must equal the engine's run 0 bit for bit (deterministic retraining).
+std::unique_ptr<OnlineFilter> online_retrain_run0(const RunConfig& cfg, const OnlineFilter& proto, const EngineResult& er,
+                                                 const FilterRunStats& d0) {
+    const int n = cfg.n;
+    const std::int64_t K = std::int64_t(er.t.size());
+    std::unique_ptr<OnlineFilter> f = proto.clone();
+    const FilterStart start = engine_filter_start(cfg, 0);
+    f->reset(start);
+    const std::vector<double> bound = plausible_bound(cfg, start, er.truth0.x.data(), nullptr, K);
+    bool same = true;
+    filter_stream(*f, er.truth0.y.data(), cfg.m, er.t.data(), K, er.truth0.x.data(), n, bound.data(), nullptr,
+                  [&](std::int64_t k, const double* xh, bool) {
+                      for (int i = 0; i < n; ++i) same = same && xh[i] == d0.xhat[std::size_t(k) * n + i];
+                  });
+    HINF_CHECK(same, "on-line retraining: run 0 repeated alone did not reproduce the Monte Carlo's run 0 bit for bit "
+                     "(a determinism bug: please report it with the config)");
+    return f;
+}
 
 void mean_std(std::vector<double>* mean, std::vector<double>* sd, const std::vector<double>& sum,
               const std::vector<double>& sq, double count) {
@@ -126,8 +149,13 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     const bool gain = network.step_config().gain.enabled;
     HINF_CHECK(!gain || measured, "network '" + network_path + "' is variant \"gain\": its gain K(x^) never sees the "
                                   "true error, so --mode oracle is meaningless for it (use --mode measured)");
-    std::unique_ptr<OnlineFilter> dnn = gain ? make_gain_filter(model, network, "dnn")
-                                             : make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
+    HINF_CHECK(!cfg.retrain || gain, "online.retrain = true needs a network of variant \"gain\" and '" + network_path +
+                                         "' is not one (train with [filter] variant = \"gain\", or set online.retrain = false)");
+    // on-line retraining (docs/method.md section 16.6): the filter reads the checkpoint itself (weights and Adam state)
+    std::unique_ptr<OnlineFilter> dnn =
+        cfg.retrain ? make_retrain_gain_filter(model, cfg, network_path, online_retrain_settings(cfg, network_path), "dnn")
+        : gain      ? make_gain_filter(model, network, "dnn")
+                    : make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
     std::unique_ptr<OnlineFilter> open_loop = make_open_loop_filter(model);
     EngineOptions eo;
     eo.runs = sum.runs;
@@ -135,7 +163,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     eo.stride = steps;  // no error subsampling needed
     eo.label = "operate";
     eo.quiet = opt.quiet;
-    HjiCheck hji(cfg, network);
+    HjiCheck hji(cfg, network, !cfg.retrain);
     EngineResult er = engine_run(cfg, {dnn.get(), open_loop.get()}, eo, &hji);
     const std::vector<FilterRunStats>& D = er.runs[0];
     const std::vector<FilterRunStats>& O = er.runs[1];
@@ -162,7 +190,9 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         }
     }
     std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0), ss(n, 0), sq(n, 0);
-    double set_count = 0, hji_v = 0, hji_n = 0, chk_v = 0, chk_n = 0;
+    double set_count = 0, hji_v = 0, hji_n = 0, chk_v = 0, chk_n = 0, eps_before = 0, eps_after = 0;
+    std::vector<double> triggers(sum.runs, 0.0), adam_steps(sum.runs, 0.0);
+    sum.retrain = cfg.retrain;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         // a diverged filter's error energy counts as infinite (its estimate is frozen)
         const double num = D[r].diverged_at >= 0 ? INFINITY : D[r].error_energy, den = D[r].signal_energy;
@@ -185,12 +215,30 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         hji_n += D[r].observed[1];
         chk_v += D[r].observed.size() > 3 ? D[r].observed[2] : 0.0;
         chk_n += D[r].observed.size() > 3 ? D[r].observed[3] : 0.0;
+        if (cfg.retrain) {  // the retraining filter's own check, with its network of the moment
+            const OnlineRetrainCounts c = OnlineRetrainCounts::from_vector(D[r].reported);
+            chk_v += c.check_violations;
+            chk_n += c.check_samples;
+            triggers[r] = c.triggers;
+            adam_steps[r] = c.adam_steps;
+            sum.retrain_triggers += c.triggers;
+            sum.retrain_adam_steps += c.adam_steps;
+            sum.retrain_rejected += c.rejected;
+            eps_before += c.eps_before;
+            eps_after += c.eps_after;
+        }
+    }
+    if (sum.retrain_triggers > 0) {
+        sum.retrain_eps_before = eps_before / sum.retrain_triggers;
+        sum.retrain_eps_after = eps_after / sum.retrain_triggers;
     }
     if (!v_defined) sum.attenuation_ratio_minus_v0 = NAN;
     const double count = double(steps) * double(sum.runs);
     mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
     mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
     sum.online_hji_violation_fraction = hji_n > 0 ? hji_v / hji_n : 0.0;
+    // with retraining the network changes along each run and the observer holds the checkpoint's: no such figure
+    if (cfg.retrain) sum.online_hji_violation_fraction = NAN;
     sum.online_check_violation_fraction = chk_n > 0 ? chk_v / chk_n : NAN;
     if (set_count > 0) mean_std(&sum.error_mean_settled, &sum.error_std_settled, ss, sq, set_count);
     else sum.error_mean_settled = sum.error_std_settled = std::vector<double>(n, NAN);
@@ -200,9 +248,16 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     }
     sum.rmse_position = std::sqrt(sum.rmse_position);
     sum.rmse_position_open_loop = std::sqrt(sum.rmse_position_open_loop);
+    // the retrained network of run 0 is kept: run 0 once more by itself (the same bits as in the engine, checked)
+    std::unique_ptr<OnlineFilter> run0;
+    if (cfg.retrain && par_root()) run0 = online_retrain_run0(cfg, *dnn, er, D[0]);
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     const RunDirLock lock(opt.out_dir, "hinf operate");  // before anything there is opened for writing
+    if (run0 != nullptr && D[0].diverged_at < 0) {
+        sum.online_checkpoint = opt.out_dir + "/online_checkpoint.h5";
+        online_retrain_write(*run0, sum.online_checkpoint);
+    }
     const std::string path = opt.out_dir + "/operate.h5";
     AtomicH5 f(path);
     hid_t root = f.get();
@@ -225,6 +280,23 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "online_hji_violation_fraction", sum.online_hji_violation_fraction);
     h5::set_attr(root, "online_check_violation_fraction", sum.online_check_violation_fraction);
+    h5::set_attr(root, "online_retrain", std::int64_t(cfg.retrain ? 1 : 0));
+    if (cfg.retrain) {
+        h5::set_attr(root, "retrain_delta", cfg.retrain_delta);
+        h5::set_attr(root, "retrain_steps", cfg.retrain_steps);
+        h5::set_attr(root, "retrain_samples", cfg.retrain_samples);
+        h5::set_attr(root, "retrain_triggers", sum.retrain_triggers);
+        h5::set_attr(root, "retrain_adam_steps", sum.retrain_adam_steps);
+        h5::set_attr(root, "retrain_rejected", sum.retrain_rejected);
+        h5::set_attr(root, "retrain_violation_before", sum.retrain_eps_before);
+        h5::set_attr(root, "retrain_violation_after", sum.retrain_eps_after);
+        h5::set_attr(root, "online_checkpoint", sum.online_checkpoint);
+        h5::write_doubles(root, "retrain_triggers_per_run", triggers.data(), {hsize_t(sum.runs)}, "1",
+                          "steps whose on-line check violation max_j H_j/S_j exceeded retrain_delta (each: retrain_steps "
+                          "Adam steps), per Monte Carlo run");
+        h5::write_doubles(root, "retrain_adam_steps_per_run", adam_steps.data(), {hsize_t(sum.runs)}, "1",
+                          "on-line Adam steps taken, per Monte Carlo run");
+    }
     h5::set_attr(root, "error_mean_settled", sum.error_mean_settled);
     h5::set_attr(root, "error_std_settled", sum.error_std_settled);
     h5::set_attr(root, "error_mean_open_loop", sum.error_mean_open_loop);

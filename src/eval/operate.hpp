@@ -35,6 +35,11 @@ struct OperateSummary {
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none
     double wall_seconds = 0;
+    // on-line retraining ([online] retrain, docs/method.md section 16.6)
+    bool retrain = false;
+    double retrain_triggers = 0, retrain_adam_steps = 0, retrain_rejected = 0;  // totals over runs
+    double retrain_eps_before = NAN, retrain_eps_after = NAN;  // mean over triggers of max_j H_j/S_j before/after
+    std::string online_checkpoint;  // run 0's final on-line network ("" when not written)
 };
 
 /// Runs the frozen network of `network` on the system of `cfg`; writes out_dir/operate.h5.

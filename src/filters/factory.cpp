@@ -112,6 +112,9 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             set.notes.push_back(line + note + g.status);
             owned.push_back(make_glf_filter(exact, g));
         } else if (name == "dnn") {            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+            HINF_CHECK(!cfg.retrain, "[online] retrain = true: on-line retraining runs in hinf operate only; here the "
+                                     "DNN filter would run its checkpoint as trained (set online.retrain = false, or use "
+                                     "hinf operate)");
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
                 std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);

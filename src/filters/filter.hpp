@@ -71,6 +71,9 @@ public:
     virtual const double* covariance() const { return nullptr; }
     /// Whether step() reads x_true (the comparison says so next to every figure).
     virtual bool uses_true_state() const { return false; }
+    /// Figures a filter keeps about its own run since reset() (e.g. the retraining gain filter's check and trigger
+    /// counts, train/online_retrain.hpp); the Monte Carlo engine keeps them in FilterRunStats::reported. Most: none.
+    virtual std::vector<double> run_report() const { return {}; }
     /// An independent copy (own workspace) for another thread.
     virtual std::unique_ptr<OnlineFilter> clone() const = 0;
 };
