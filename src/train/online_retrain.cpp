@@ -27,15 +27,15 @@ OnlineRetrainCounts OnlineRetrainCounts::from_vector(const std::vector<double>& 
     return c;
 }
 
-double online_check_violation(const GainSamples& check, const double* K, const double* S, double rho,
-                              double* violations) {
+double online_check_violation(const GainSamples& check, const double* K, const double* S, const double* Sdot,
+                              double rho, double* violations) {
     kern::GainLossParams lp;
     lp.rho = rho;
     const kern::HjieSystemView view = check.view();
     const std::int64_t N = std::int64_t(check.q.size());
     double eps = -1;
     for (std::int64_t i = 0; i < N; ++i) {
-        const kern::GainSampleValue v = kern::gain_sample_forward(K, S, view, i, lp);
+        const kern::GainSampleValue v = kern::gain_sample_forward(K, S, view, i, lp, Sdot);
         const double rel = v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
         eps = std::max(eps, rel);
         if (violations != nullptr) *violations += v.residual > 0.01 * v.abs_sum ? 1 : 0;
@@ -91,6 +91,7 @@ public:
         e_.resize(m);
         K_.resize(std::size_t(n) * m);
         S_.resize(std::size_t(n) * n);
+        Sd_.resize(std::size_t(n) * n);
         sys.drift(a_.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch_.data(), xhat_.data(), in.t, 1);
         for (int j = 0; j < m; ++j) e_[j] = in.y != nullptr ? in.y[j] - ch_[j] : 0.0;  // missing: no correction
@@ -99,16 +100,17 @@ public:
         // 1. the on-line check (docs/method.md section 16.5): kOnlineCheckErrors errors around x^, current network
         const kern::GainSpec& g = net_.step.gain;
         gain_samples_at(&check_, *cfg_, g, xhat_.data(), in.t, kOnlineCheckErrors, online_check_counter(run_, in.step));
-        eval(K_.data(), S_.data());
-        const double eps = online_check_violation(check_, K_.data(), S_.data(), cfg_->rho, &counts_.check_violations);
+        eval(K_.data(), S_.data(), Sd_.data(), in.t);
+        const double eps =
+            online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho, &counts_.check_violations);
         counts_.check_samples += double(kOnlineCheckErrors);
         // 2. retrain when the violation exceeds delta (seed 000 Fig. 3), then go on with the updated network
         if (st_.retrain && eps > st_.delta) {
             retrain(in.t, in.step);
             counts_.triggers += 1;
             counts_.eps_before += eps;
-            eval(K_.data(), S_.data());
-            counts_.eps_after += online_check_violation(check_, K_.data(), S_.data(), cfg_->rho, nullptr);
+            eval(K_.data(), S_.data(), Sd_.data(), in.t);
+            counts_.eps_after += online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho, nullptr);
         }
         for (double k : K_)
             if (!std::isfinite(k)) return FILTER_DIVERGED;
@@ -143,13 +145,17 @@ private:
         adam_step_ = origin_->state.adam_step;
     }
 
-    // K(x^) [n x m] and S [n x n] of the current network at the current estimate (FrozenNetwork::gain's arithmetic)
-    void eval(double* K, double* S) {
-        const int n = cfg_->n;
+    // K(x^, t) [n x m], S(t) and dS/dt [n x n] of the current network at the current estimate (FrozenNetwork::gain's
+    // arithmetic)
+    void eval(double* K, double* S, double* Sdot, double t) {
+        const int n = cfg_->n, m = cfg_->m;
         const kern::GainSpec& g = net_.step.gain;
         z_.resize(n);
         for (int a = 0; a < n; ++a) z_[a] = (xhat_[a] - g.shift[a]) / g.spread[a];
-        kern::gain_network_eval(K, S, net_.theta.data(), z_.data(), 1, net_.step, ws_);
+        hx_.resize(std::size_t(m) * n);
+        if (g.knots > 0) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
+        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_);
+        kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
 
     // retrain_steps Adam steps (seed 000 eqs. (14)-(15)) on retrain_samples errors drawn around x^ as training
@@ -201,7 +207,7 @@ private:
     kern::StepWorkspace<T> ws_;
     GainSamples check_, train_;
     std::vector<std::int64_t> idx_;
-    std::vector<double> xhat_, a_, ch_, e_, K_, S_, z_;
+    std::vector<double> xhat_, a_, ch_, e_, K_, S_, Sd_, z_, hx_;
     std::uint64_t run_ = 0;
     std::int64_t next_step_ = 0;
     OnlineRetrainCounts counts_;
