@@ -391,7 +391,7 @@ void gain_riccati_forward(double* K, const T* o, const double* S, const double* 
     double L[kMax * kMax];
     for (int a = 0; a < n; ++a)
         for (int q = 0; q < m; ++q)
-            K[a * m + q] = rho * (Hx[q * n + a] + double(o[a * m + q]) / (g.dx[a] * g.dy[q]));
+            K[a * m + q] = rho * (Hx[q * n + a] + double(o[a * m + q]) * g.dy[q] / g.dx[a]);
     chol(L, S, n);
     chol_solve(K, L, n, m);
 }
@@ -410,7 +410,7 @@ void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K
             gS[a * n + c] -= t;
         }
     for (int a = 0; a < n; ++a)
-        for (int q = 0; q < m; ++q) d_o[a * m + q] = T(rho * G[a * m + q] / (g.dx[a] * g.dy[q]));
+        for (int q = 0; q < m; ++q) d_o[a * m + q] = T(rho * G[a * m + q] * g.dy[q] / g.dx[a]);
 }
 
 namespace {

@@ -50,7 +50,7 @@ template <typename T>
 void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const double* gSd, const T* s, double t,
                          const GainSpec& g, int n);
 
-/// The Riccati-form head (g.knots > 0): K = rho S^-1 (Hx' + D^-1 o diag(dy)^-1), Hx [m x n] the output Jacobian at
+/// The Riccati-form head (g.knots > 0): K = rho S^-1 (Hx' + D^-1 o diag(dy)), Hx [m x n] the output Jacobian at
 /// the estimate.
 template <typename T>
 void gain_riccati_forward(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,

@@ -33,7 +33,7 @@ struct GainSpec {
     GainLossParams loss;             // xt0 points into this spec's xt0 at call time
     // Time-varying storage (knots > 0, docs/method.md section 16.7): S(t) from knot vectors s_0..s_J at
     // t_j = j span / J (linear between knots, constant after span), M = diag(exp(.)) + strict tril(.), and the gain
-    // head K = rho S(t)^-1 (H(x^)' + D^-1 o diag(dy)^-1) (the game's minimiser for the linearised output plus the
+    // head K = rho S(t)^-1 (H(x^)' + D^-1 o diag(dy)) (the game's minimiser for the linearised output plus the
     // network's correction). knots = 0: the constant S and K = rate D o diag(dy)^-1 of sections 16.1-16.4.
     int knots = 0;
     double knot_span = 1.0;          // [s]

@@ -215,7 +215,7 @@ StepConfig small_gain_config(int n, int m) {
 TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 threads bit-identical",
           "[kernel][gain][grad][determinism]") {
   // knots = 0: constant storage and the rate head; knots = 3: S(t) on knots (samples before, between, on and after
-  // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o dy^-1)
+  // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o diag(dy))
   for (int knots : {0, 3}) {
     INFO("knots " << knots);
     const int n = 3, nv = 2, m = 2, N = 11;
