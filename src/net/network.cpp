@@ -64,19 +64,23 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
         }
     }
     const double T = cfg.t_final;
-    g.rate = cfg.output_scale > 0 ? cfg.output_scale : 10.0 / T;
+    // a discrete system (docs/method.md section 16.6): K is per step (rate 1: K H ~ I corrects a whole error in one
+    // step) and S ~ 2 Q (between the one-step floor S >= Q and the concavity ceiling G'S G < rho)
+    const bool discrete = sys.discrete_time();
+    g.rate = cfg.output_scale > 0 ? cfg.output_scale : discrete ? 1.0 : 10.0 / T;
     double qd = 0;
     for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
-    g.storage_scale = qd > 0 ? qd / n * T / 10.0 : 1.0;
+    g.storage_scale = qd > 0 ? qd / n * (discrete ? 2.0 : T / 10.0) : 1.0;
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;
     g.loss.rho = cfg.rho;
     g.loss.margin = cfg.margin;
     g.loss.disturbance_intensity = cfg.disturbance_intensity;
     g.loss.noise_intensity = cfg.noise_intensity;
-    g.loss.horizon = cfg.resolved_horizon();
+    g.loss.horizon = cfg.resolved_horizon() / (discrete ? cfg.dt : 1.0);  // in steps for a discrete system
     g.loss.initial_weight = cfg.initial_weight;
-    g.loss.dt = cfg.dt;
+    g.loss.dt = discrete ? 0.0 : cfg.dt;  // the sampled-data cap: continuous time only
+    g.loss.discrete = discrete;
     g.loss.kappa = cfg.max_step_correction;
     // h2 at S = c D^-2, o = all ones: x~0'S x~0 / T + sv2 tr(B'S B) + sn2 rate^2 c n sum_j dy_j^-2
     std::vector<double> B(static_cast<std::size_t>(n) * cfg.nv);
