@@ -4,11 +4,25 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "gain.hpp"
 #include "hinf/error.hpp"
 #include "random.hpp"
 
 namespace hinf {
+
+double gain_discrete_rho_floor(const RunConfig& cfg) {
+    const int n = cfg.n, nv = cfg.nv;
+    std::vector<double> B(static_cast<std::size_t>(n) * nv);
+    cfg.system->disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);
+    Eigen::MatrixXd BQB = Eigen::MatrixXd::Zero(nv, nv);
+    for (int j = 0; j < nv; ++j)
+        for (int l = 0; l < nv; ++l)
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c) BQB(j, l) += B[a * nv + j] * cfg.Q[a * n + c] * B[c * nv + l];
+    return nv > 0 ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(BQB).eigenvalues().maxCoeff() : 0.0;
+}
 
 namespace {
 
@@ -65,12 +79,15 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     }
     const double T = cfg.t_final;
     // a discrete system (docs/method.md section 16.6): K is per step (rate 1: K H ~ I corrects a whole error in one
-    // step) and S ~ 2 Q (between the one-step floor S >= Q and the concavity ceiling G'S G < rho)
+    // step) and S starts at s Q with s = sqrt(rho / floor), the geometric middle between the one-step floor S >= Q
+    // and the concavity ceiling B'S B < rho (floor = lambda_max(B'Q B))
     const bool discrete = sys.discrete_time();
     g.rate = cfg.output_scale > 0 ? cfg.output_scale : discrete ? 1.0 : 10.0 / T;
     double qd = 0;
     for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
-    g.storage_scale = qd > 0 ? qd / n * (discrete ? 2.0 : T / 10.0) : 1.0;
+    const double floor = discrete ? gain_discrete_rho_floor(cfg) : 0.0;
+    const double s_mid = floor > 0 && cfg.rho > floor ? std::sqrt(cfg.rho / floor) : 2.0;
+    g.storage_scale = qd > 0 ? qd / n * (discrete ? s_mid : T / 10.0) : 1.0;
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;
     g.loss.rho = cfg.rho;

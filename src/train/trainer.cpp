@@ -14,8 +14,6 @@
 #include <filesystem>
 #include <sstream>
 
-#include <Eigen/Dense>
-
 #include "adam.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
@@ -644,15 +642,7 @@ void train_check_time(const RunConfig& cfg) {
                cfg.doc.source() + ": [system] time = \"discrete\": variant \"" + cfg.variant + "\" trains the "
                "continuous-time game; for a discrete-time system use [filter] variant = \"gain\" (the one-step "
                "inequality), or run compare, filter or worst with ekf, ukf, pf, open_loop on it");
-    const int n = cfg.n, nv = cfg.nv;
-    std::vector<double> B(static_cast<std::size_t>(n) * nv);
-    cfg.system->disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);
-    Eigen::MatrixXd BQB = Eigen::MatrixXd::Zero(nv, nv);
-    for (int j = 0; j < nv; ++j)
-        for (int l = 0; l < nv; ++l)
-            for (int a = 0; a < n; ++a)
-                for (int c = 0; c < n; ++c) BQB(j, l) += B[a * nv + j] * cfg.Q[a * n + c] * B[c * nv + l];
-    const double floor = nv > 0 ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(BQB).eigenvalues().maxCoeff() : 0.0;
+    const double floor = gain_discrete_rho_floor(cfg);
     char line[320];
     std::snprintf(line, sizeof line, "%s: [filter] rho = %g is at or below the discrete one-step game's floor "
                   "lambda_max(B'Q B) = %g at x0 (the error takes each step's disturbance whole): no storage satisfies "

@@ -44,7 +44,9 @@ disturbances = 1
 measurements = 1
 f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
 g = [["0.5"], ["1"]]
-h = ["a + 0.5*b"]
+h = ["a + c*b"]
+[system.parameters]
+c = 0.5
 [filter]
 variant = "gain"
 Q = [1.0, 1.0]
@@ -138,6 +140,25 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
         CHECK(std::isfinite(hinf::h5::get_attr_double(g.get(), "mse_filtered")));
         CHECK(hinf::h5::get_attr_double(g.get(), "mse_filtered") != hinf::h5::get_attr_double(g.get(), "mse"));
     }
+    // the gain network filters with the model in its checkpoint (c = 0.5), whatever the config's parameters say
+    std::ostringstream grec;
+    grec << "t,y\n";
+    for (int k = 0; k < 30; ++k) grec << k << ',' << std::sin(0.3 * k) << '\n';
+    const std::string gcsv = write_file(d, "grec.csv", grec.str());
+    std::vector<double> xh[2];
+    for (int i = 0; i < 2; ++i) {
+        const std::string out = d / ("gflt" + std::to_string(i));
+        auto gf = run_hinf("filter " + gcfg + " --measurements " + gcsv + " --filters dnn --network " +
+                           (d / "gnet/checkpoint.h5") + (i == 1 ? " --set system.parameters.c=0.9" : "") +
+                           " --quiet --out " + out);
+        INFO(gf.output);
+        REQUIRE(gf.status == 0);
+        hinf::h5::Handle e = hinf::h5::open_file(out + "/estimates.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(e.get(), "dnn_gain_measured");
+        xh[i] = hinf::h5::read_doubles(g.get(), "xhat");
+    }
+    REQUIRE(xh[0].size() == 60u);
+    CHECK(hinf::test::bitwise_equal(xh[0], xh[1]));
     std::ostringstream fast;
     fast << "t,y\n";
     for (int k = 0; k < 5; ++k) fast << 0.5 * k << ",1\n";
