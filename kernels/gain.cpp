@@ -1,6 +1,7 @@
 // The gain variant's per-sample loss, its storage and gain head, and the chunked minibatch gradient (see gain.hpp).
 // Small dense loops over n, m <= 32, one sample per call; the MLP is kernels/mlp.
 #include "gain.hpp"
+#include "gain_discrete.hpp"
 
 #include <algorithm>
 #include <cassert>
@@ -100,6 +101,7 @@ double trace_form(const double* S, const double* X, int n, int cols) {
 
 GainSampleValue gain_sample_forward(const double* K, const double* S, const HjieSystemView& sv, std::int64_t i,
                                     const GainLossParams& gp, const double* Sdot) {
+    if (gp.discrete) return gain_discrete_sample_forward(K, S, sv, i, gp);  // the one-step game (gain_discrete.hpp)
     const int n = sv.n, nv = sv.nv, m = sv.m;
     GainParts g;
     gain_parts(&g, K, S, sv, i);
@@ -128,6 +130,7 @@ GainSampleValue gain_sample_forward(const double* K, const double* S, const Hjie
 void gain_sample_backward(double* gK, double* gS, const double* K, const double* S, const HjieSystemView& sv,
                           std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2, const double* Sdot,
                           double* gSd) {
+    if (gp.discrete) return gain_discrete_sample_backward(gK, gS, K, S, sv, i, gp, d_hinge, d_h2);
     const int n = sv.n, nv = sv.nv, m = sv.m;
     const double* xt = sv.xt + i * n;
     const double* dA = sv.dA + i * n;

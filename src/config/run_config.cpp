@@ -292,10 +292,12 @@ RunConfig load_run_config(ConfigDoc doc) {
         if (!has_noise_std && !has_noise_intensity)
             on.require("noise_std", why + "noise_intensity is given: the measurement noise's standard deviation in "
                                    "output units (hinf's default 20 is the missile's)");
-        if (!has_dist_intensity) c.disturbance_intensity = c.disturbance_std * c.disturbance_std * c.dt;
-        if (!has_noise_intensity) c.noise_intensity = c.noise_std * c.noise_std * c.dt;
-        if (!has_dist_std) c.disturbance_std = std::sqrt(c.disturbance_intensity / c.dt);
-        if (!has_noise_std) c.noise_std = std::sqrt(c.noise_intensity / c.dt);
+        // (a discrete system's std is per step: its "intensity" is the per-step variance, docs/method.md 16.8)
+        const double per = c.system->discrete_time() ? 1.0 : c.dt;
+        if (!has_dist_intensity) c.disturbance_intensity = c.disturbance_std * c.disturbance_std * per;
+        if (!has_noise_intensity) c.noise_intensity = c.noise_std * c.noise_std * per;
+        if (!has_dist_std) c.disturbance_std = std::sqrt(c.disturbance_intensity / per);
+        if (!has_noise_std) c.noise_std = std::sqrt(c.noise_intensity / per);
     }
     on.finish();
 

@@ -50,6 +50,7 @@ public:
         net_->gain(K.data(), S.data(), Sd.data(), xhat, t, *cfg_.system, 1);
         kern::GainLossParams lp;
         lp.rho = cfg_.rho;
+        lp.discrete = cfg_.system->discrete_time();
         const kern::HjieSystemView view = smp_.view();
         for (std::int64_t i = 0; i < kCheck; ++i) {
             const kern::GainSampleValue v = kern::gain_sample_forward(K.data(), S.data(), view, i, lp, Sd.data());
@@ -181,6 +182,8 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         sum.v0 = network.value(xt0.data(), n);
     }
 
+    // the energies are dt-weighted sums; a discrete system's inequality sums per step, so V(x~(0)) counts dt times
+    const double v0_weight = cfg.system->discrete_time() ? cfg.dt : 1.0;
     std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         diverged_at[r] = D[r].diverged_at;
@@ -198,7 +201,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         const double num = D[r].diverged_at >= 0 ? INFINITY : D[r].error_energy, den = D[r].signal_energy;
         ratio[r] = num / den;
         ratio_open[r] = O[r].error_energy / den;
-        ratio_v0[r] = (num - sum.v0) / den;
+        ratio_v0[r] = (num - v0_weight * sum.v0) / den;
         sum.attenuation_ratio += ratio[r] / double(sum.runs);
         sum.attenuation_ratio_open_loop += ratio_open[r] / double(sum.runs);
         sum.attenuation_ratio_minus_v0 += ratio_v0[r] / double(sum.runs);

@@ -97,10 +97,15 @@ public:
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;
-        luenberger_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt);
+        xf_.resize(n);
+        gain_filter_correct(xf_.data(), sys, xhat_.data(), in.t, k.data(), e.data(), model_.dt);
+        // continuous time Euler-sampled, discrete time the one-step predictor f(x^) + K e (method.md 16.8)
+        gain_filter_advance(xhat_.data(), xhat_.data(), a.data(), k.data(), e.data(), n, m, model_.dt,
+                            sys.discrete_time());
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
+    const double* filtered() const override { return xf_.empty() ? nullptr : xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override {
         return std::make_unique<GainFilter>(model_, net_->clone(), name_);
     }
@@ -109,7 +114,7 @@ private:
     FilterModel model_;
     std::unique_ptr<FrozenNetwork> net_;
     std::string name_;
-    std::vector<double> xhat_;
+    std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
 };
 
 }  // namespace

@@ -139,7 +139,12 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                     for (const auto& o : owned)
                         HINF_CHECK(o->name() != label,
                                    "two --network files give the filter name '" + label + "' (same variant twice)");
-                    owned.push_back(make_gain_filter(exact, *net, label));
+                    // it filters with the model it was trained on (its checkpoint's [system], e.g. a mismatched H),
+                    // which the check above ties to this config's system by kind, states and outputs
+                    set.models.push_back(ncfg.system);
+                    FilterModel trained = exact;
+                    trained.system = ncfg.system.get();
+                    owned.push_back(make_gain_filter(trained, *net, label));
                     set.networks.push_back(std::move(net));
                     continue;
                 }

@@ -25,6 +25,7 @@ struct FilterSet {
     std::vector<std::unique_ptr<OnlineFilter>> filters;
     std::vector<std::unique_ptr<FrozenNetwork>> networks;  // owned here: the dnn filters hold clones
     std::vector<std::string> notes;                         // what a design step found (GLF vertices), to print
+    std::vector<std::shared_ptr<System>> models;            // the systems gain networks were trained on (their filters')
 };
 
 /// The names build_filter_set knows, comma-separated.
@@ -32,7 +33,8 @@ std::string filter_names();
 
 std::vector<std::string> split_list(const std::string& s);
 
-/// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters.
+/// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters but the
+/// `gain` variant's, which filters with the system in its checkpoint (the model it was trained on, docs/compare.md).
 /// Throws hinf::Error naming the option for an unknown filter or mode, a missing --network, or a network
 /// trained for another state dimension.
 FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told,

@@ -1,6 +1,8 @@
 // See gain_law.hpp: the HJIE at one point, evaluated through the kernels' term function.
 #include "filters/gain_law.hpp"
 
+#include <Eigen/Dense>
+
 #include "gain.hpp"
 #include "hjie.hpp"
 #include "net/network.hpp"
@@ -47,6 +49,19 @@ void hjie_point_terms(double* terms, const double* p, const System& sys, const d
     kern::hjie_terms(terms, p, pt.view(sys.state_dim(), sys.disturbance_dim(), sys.output_dim()), 0, rho);
 }
 
+void gain_filter_correct(double* xhat_filtered, const System& sys, const double* xhat, double t, const double* k,
+                         const double* e, double dt) {
+    const int n = sys.state_dim(), m = sys.output_dim();
+    if (!sys.discrete_time()) return luenberger_correct(xhat_filtered, xhat, k, e, n, m, dt);
+    Eigen::VectorXd ke = Eigen::VectorXd::Zero(n);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < m; ++j) ke[i] += k[i * m + j] * e[j];
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> F(n, n);
+    sys.drift_jacobian(F.data(), xhat, t);  // a discrete system's drift is its map f
+    const Eigen::VectorXd dx = F.completeOrthogonalDecomposition().solve(ke);
+    for (int i = 0; i < n; ++i) xhat_filtered[i] = xhat[i] + dx[i];
+}
+
 double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
                            const double* xhat, double t, const double* Q, double rho) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
@@ -56,6 +71,7 @@ double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const
     const kern::HjieSystemView view = pt.view(n, nv, m);
     kern::GainLossParams lp;
     lp.rho = rho;
+    lp.discrete = sys.discrete_time();
     kern::GainSampleValue val = kern::gain_sample_forward(K.data(), S.data(), view, 0, lp, Sd.data());
     if (abs_sum != nullptr) *abs_sum = val.abs_sum;
     if (v != nullptr) *v = quadratic_form(S.data(), pt.xt.data(), n);

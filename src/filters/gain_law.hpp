@@ -81,6 +81,24 @@ inline void luenberger_correct(double* xhat_filtered, const double* xhat, const 
     }
 }
 
+/// The `gain` variant's filter step for either kind of time (docs/method.md section 16.8): continuous time the
+/// sampled-data law above; discrete time the one-step predictor x^_next = f(x^) + k e, a_hat = f(x^, t_k) (the map).
+inline void gain_filter_advance(double* xhat_next, const double* xhat, const double* a_hat, const double* k,
+                                const double* e, int n, int m, double dt, bool discrete) {
+    if (!discrete) return luenberger_advance(xhat_next, xhat, a_hat, k, e, n, m, dt);
+    for (int i = 0; i < n; ++i) {
+        double ke = 0;
+        for (int j = 0; j < m; ++j) ke += k[i * m + j] * e[j];
+        xhat_next[i] = a_hat[i] + ke;
+    }
+}
+
+/// Its filtered estimate x^_{k|k} (docs/compare.md): continuous time luenberger_correct; discrete time
+/// x^ + F^-1 k e with F = df/dx at x^ (the estimate of x_k whose linearised one-step prediction is the filter's
+/// x^_{k+1}; a least-squares solve where F is singular).
+void gain_filter_correct(double* xhat_filtered, const System& sys, const double* xhat, double t, const double* k,
+                         const double* e, double dt);
+
 /// The four terms of the HJIE (seed 000 eq. (16)) at one point: p = dV/dx~ at x~ = x - x^, with dA = A(x) - A(x^),
 /// B(x), dC = C(x) - C(x^), x~'Q x~ (kern::hjie_terms). Their sum is the residual; the sum of their absolute
 /// values is its scale S. Used by the trainer's record and the on-line HJI check.

@@ -4,11 +4,25 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "gain.hpp"
 #include "hinf/error.hpp"
 #include "random.hpp"
 
 namespace hinf {
+
+double gain_discrete_rho_floor(const RunConfig& cfg) {
+    const int n = cfg.n, nv = cfg.nv;
+    std::vector<double> B(static_cast<std::size_t>(n) * nv);
+    cfg.system->disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);
+    Eigen::MatrixXd BQB = Eigen::MatrixXd::Zero(nv, nv);
+    for (int j = 0; j < nv; ++j)
+        for (int l = 0; l < nv; ++l)
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c) BQB(j, l) += B[a * nv + j] * cfg.Q[a * n + c] * B[c * nv + l];
+    return nv > 0 ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(BQB).eigenvalues().maxCoeff() : 0.0;
+}
 
 namespace {
 
@@ -64,10 +78,16 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
         }
     }
     const double T = cfg.t_final;
-    g.rate = cfg.output_scale > 0 ? cfg.output_scale : 10.0 / T;
+    // a discrete system (docs/method.md section 16.8): K is per step (rate 1: K H ~ I corrects a whole error in one
+    // step) and S starts at s Q with s = sqrt(rho / floor), the geometric middle between the one-step floor S >= Q
+    // and the concavity ceiling B'S B < rho (floor = lambda_max(B'Q B))
+    const bool discrete = sys.discrete_time();
+    g.rate = cfg.output_scale > 0 ? cfg.output_scale : discrete ? 1.0 : 10.0 / T;
     double qd = 0;
     for (int j = 0; j < n; ++j) qd += cfg.Q[j * n + j] * g.dx[j] * g.dx[j];
-    g.storage_scale = qd > 0 ? qd / n * T / 10.0 : 1.0;
+    const double floor = discrete ? gain_discrete_rho_floor(cfg) : 0.0;
+    const double s_mid = floor > 0 && cfg.rho > floor ? std::sqrt(cfg.rho / floor) : 2.0;
+    g.storage_scale = qd > 0 ? qd / n * (discrete ? s_mid : T / 10.0) : 1.0;
     if (cfg.storage_knots > 0) {  // section 16.7: S(t) on knots; the scale makes the initial head's gain ~ rate
         g.knots = static_cast<int>(cfg.storage_knots);
         g.knot_span = T;
@@ -81,9 +101,10 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     g.loss.margin = cfg.margin;
     g.loss.disturbance_intensity = cfg.disturbance_intensity;
     g.loss.noise_intensity = cfg.noise_intensity;
-    g.loss.horizon = cfg.resolved_horizon();
+    g.loss.horizon = cfg.resolved_horizon() / (discrete ? cfg.dt : 1.0);  // in steps for a discrete system
     g.loss.initial_weight = cfg.initial_weight;
-    g.loss.dt = cfg.dt;
+    g.loss.dt = discrete ? 0.0 : cfg.dt;  // the sampled-data cap: continuous time only
+    g.loss.discrete = discrete;
     g.loss.kappa = cfg.max_step_correction;
     // h2 at S = c D^-2, o = all ones: x~0'S x~0 / T + sv2 tr(B'S B) + sn2 rate^2 c n sum_j dy_j^-2
     std::vector<double> B(static_cast<std::size_t>(n) * cfg.nv);

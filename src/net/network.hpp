@@ -30,6 +30,10 @@ Network<T> network_shell(const RunConfig& cfg);
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);
 
+/// Variant gain on a discrete system: lambda_max(B(x0)'Q B(x0)), the floor rho must exceed (S >= Q from the one-step
+/// inequality, B'S B <= G'S G < rho from its concavity; docs/method.md section 16.8).
+double gain_discrete_rho_floor(const RunConfig& cfg);
+
 /// A frozen network as a function, whatever its precision: for the on-line phase.
 class FrozenNetwork {
 public:

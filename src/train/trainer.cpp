@@ -382,7 +382,8 @@ private:
         rec->gain = K;
         if (writer_) traj_.append(record_row(*rec, cfg_));
         std::vector<double> xhat_next(n);
-        luenberger_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt);
+        gain_filter_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt,
+                            sys.discrete_time());
         if (!all_finite(xhat_next) || !all_finite(K)) {
             diagnose(step, !all_finite(K) ? "gain" : "diagnostic filter estimate", NAN);
             return false;
@@ -638,14 +639,23 @@ public:
     std::function<void(const TrainStepInfo&)> on_step_;  // TrainOptions::on_step
 };
 
-// THE refusal of discrete-time systems for training (issue 13): every variant here trains the continuous-time
-// game (the HJI inequality with Euler-sampled steps, seed 000 eqs. (18)-(20)). A variant that trains the one-step
-// dissipation inequality of a discrete system (issue 14) lifts it here, for its variant, and nowhere else.
+// THE refusal of discrete-time systems for training (issue 13): every variant but `gain` trains the continuous-time
+// game (the HJI inequality with Euler-sampled steps, seed 000 eqs. (18)-(20)). Variant gain trains the one-step
+// dissipation inequality of a discrete system (kernels/gain_discrete.hpp, docs/method.md section 16.8); its game
+// needs rho > lambda_max(B'Q B) (S >= Q and G'S G < rho), checked here at x0.
 void train_check_time(const RunConfig& cfg) {
-    HINF_CHECK(!cfg.system->discrete_time(),
-               cfg.doc.source() + ": [system] time = \"discrete\": hinf train has no variant for discrete-time systems "
-               "yet (variant \"" + cfg.variant + "\" trains the continuous-time game); run compare, filter or worst "
-               "with ekf, ukf, pf, open_loop on it, or write the system in continuous time");
+    if (!cfg.system->discrete_time()) return;
+    HINF_CHECK(cfg.variant == "gain",
+               cfg.doc.source() + ": [system] time = \"discrete\": variant \"" + cfg.variant + "\" trains the "
+               "continuous-time game; for a discrete-time system use [filter] variant = \"gain\" (the one-step "
+               "inequality), or run compare, filter or worst with ekf, ukf, pf, open_loop on it");
+    const double floor = gain_discrete_rho_floor(cfg);
+    char line[320];
+    std::snprintf(line, sizeof line, "%s: [filter] rho = %g is at or below the discrete one-step game's floor "
+                  "lambda_max(B'Q B) = %g at x0 (the error takes each step's disturbance whole): no storage satisfies "
+                  "the inequality; set [filter] rho above it (e.g. --set filter.rho=%g)",
+                  cfg.doc.source().c_str(), cfg.rho, floor, 4.0 * floor);
+    HINF_CHECK(cfg.rho > floor, line);
 }
 
 template <typename T>

@@ -1,5 +1,7 @@
-// Discrete-time systems end to end: compare, filter (recorded data) and worst run a small discrete config;
-// train, the DNN filter and the GLF refuse it in one line (they are continuous-time only).
+// Discrete-time systems end to end: compare, filter (recorded data) and worst run a small discrete config; the
+// `gain` variant trains on it and its filter runs in compare with a filtered estimate; the other variants, their
+// DNN filter and the GLF refuse it in one line (they are continuous-time only), as does a rho below the one-step
+// game's floor.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <fstream>
@@ -31,6 +33,37 @@ t_final = 40
 [online]
 disturbance_std = 1
 noise_std = 1
+)toml";
+
+// a linear discrete system for variant gain (tests/train/test_gain_discrete.cpp trains it longer)
+const char* kLinearGain = R"toml([system]
+kind = "expr"
+time = "discrete"
+states = ["a", "b"]
+disturbances = 1
+measurements = 1
+f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
+g = [["0.5"], ["1"]]
+h = ["a + c*b"]
+[system.parameters]
+c = 0.5
+[filter]
+variant = "gain"
+Q = [1.0, 1.0]
+x0 = [1, -1]
+xhat0 = [0, 0]
+dt = 1
+t_final = 40
+[online]
+disturbance_std = 0.3
+noise_std = 0.3
+[network]
+hidden = [8]
+[training]
+samples = 64
+batch = 32
+adam_steps = 2
+acceptance_runs = 1
 )toml";
 
 }  // namespace
@@ -88,8 +121,44 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
     INFO(w.output);
     REQUIRE(w.status == 0);
 
-    // refusals: training, a record sampled at another rate, the GLF, the DNN filter
-    expect_one_line_error("train " + cfg + " --out " + (d / "t") + " --quiet", "no variant for discrete-time systems");
+    // refusals: training but variant gain, a record sampled at another rate, the GLF, the DNN filter
+    expect_one_line_error("train " + cfg + " --out " + (d / "t") + " --quiet",
+                          "trains the continuous-time game; for a discrete-time system use [filter] variant");
+    // variant gain trains the one-step inequality (rho above the floor lambda_max(B'QB) = 1.25) and filters
+    const std::string gcfg = write_file(d, "linear_gain.toml", kLinearGain);
+    expect_one_line_error("train " + gcfg + " --out " + (d / "t") + " --quiet", "the discrete one-step game's floor");
+    auto tg = run_hinf("train " + gcfg + " --set filter.rho=6 --out " + (d / "gnet") + " --quiet");
+    INFO(tg.output);
+    REQUIRE(tg.status == 0);
+    auto cg = run_hinf("compare " + gcfg + " --filters dnn,ekf --network " + (d / "gnet/checkpoint.h5") +
+                       " --runs 2 --quiet --out " + (d / "gcmp"));
+    INFO(cg.output);
+    REQUIRE(cg.status == 0);
+    {
+        hinf::h5::Handle f = hinf::h5::open_file(d / "gcmp/compare.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), "dnn_gain_measured");
+        CHECK(std::isfinite(hinf::h5::get_attr_double(g.get(), "mse_filtered")));
+        CHECK(hinf::h5::get_attr_double(g.get(), "mse_filtered") != hinf::h5::get_attr_double(g.get(), "mse"));
+    }
+    // the gain network filters with the model in its checkpoint (c = 0.5), whatever the config's parameters say
+    std::ostringstream grec;
+    grec << "t,y\n";
+    for (int k = 0; k < 30; ++k) grec << k << ',' << std::sin(0.3 * k) << '\n';
+    const std::string gcsv = write_file(d, "grec.csv", grec.str());
+    std::vector<double> xh[2];
+    for (int i = 0; i < 2; ++i) {
+        const std::string out = d / ("gflt" + std::to_string(i));
+        auto gf = run_hinf("filter " + gcfg + " --measurements " + gcsv + " --filters dnn --network " +
+                           (d / "gnet/checkpoint.h5") + (i == 1 ? " --set system.parameters.c=0.9" : "") +
+                           " --quiet --out " + out);
+        INFO(gf.output);
+        REQUIRE(gf.status == 0);
+        hinf::h5::Handle e = hinf::h5::open_file(out + "/estimates.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(e.get(), "dnn_gain_measured");
+        xh[i] = hinf::h5::read_doubles(g.get(), "xhat");
+    }
+    REQUIRE(xh[0].size() == 60u);
+    CHECK(hinf::test::bitwise_equal(xh[0], xh[1]));
     std::ostringstream fast;
     fast << "t,y\n";
     for (int k = 0; k < 5; ++k) fast << 0.5 * k << ",1\n";
@@ -101,7 +170,7 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
     const std::string cont = write_file(d, "cont.toml",
                                         "[system]\nkind = \"expr\"\nstates = [\"x\"]\nmeasurements = 1\nf = [\"-x\"]\n"
                                         "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nx0 = [1]\nxhat0 = [0]\nt_final = 0.03\n"
-                                        "[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n");
+                                        "[online]\ndisturbance_std = 1\nnoise_std = 1\n[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n");
     auto t = run_hinf("train " + cont + " --out " + (d / "net") + " --quiet");
     INFO(t.output);
     REQUIRE(t.status == 0);

@@ -35,9 +35,50 @@ checkpoint_every = 4
 RESET
 )";
 
-// type "h2hinf" runs seed 001's mixed filter on its maneuvering missile (time-varying, nv = 6)
+// variant gain on a small linear discrete-time system (the one-step game, docs/method.md section 16.8)
+const char* kSmallDiscrete = R"(
+[system]
+kind = "expr"
+time = "discrete"
+states = ["a", "b"]
+disturbances = 1
+measurements = 1
+f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
+g = [["0.5"], ["1"]]
+h = ["a + 0.5*b"]
+[filter]
+variant = "gain"
+rho = 6
+Q = [1.0, 1.0]
+x0 = [1, -1]
+xhat0 = [0, 0]
+dt = 0.01
+t_final = 0.12
+[online]
+disturbance_std = 0.3
+noise_std = 0.3
+[network]
+hidden = [16, 8]
+precision = "PRECISION"
+chunk = 30
+[training]
+samples = 200
+batch = 80
+adam_steps = 3
+checkpoint_every = 4
+RESET
+)";
+
+// type "h2hinf" runs seed 001's mixed filter on its maneuvering missile (time-varying, nv = 6); variant
+// "gain_discrete" is variant gain on kSmallDiscrete
 RunConfig small_config(const std::string& variant, const std::string& precision, bool reset = true,
                        const std::string& type = "hinf") {
+    if (variant == "gain_discrete") {
+        std::string text = kSmallDiscrete;
+        text.replace(text.find("PRECISION"), 9, precision);
+        text.replace(text.find("RESET"), 5, reset ? "" : "reset_adam_each_step = false");
+        return load_run_config(ConfigDoc::from_text(text, "small_discrete.toml"));
+    }
     std::string text = kSmall;
     text.replace(text.find("KIND"), 4, type == "h2hinf" ? "maneuvering_missile" : "missile");
     text.replace(text.find("TYPE"), 4, type);
@@ -63,7 +104,7 @@ TrainSummary train(const RunConfig& cfg, const std::string& dir, double until, i
 }  // namespace
 
 TEST_CASE("1 and 2 threads give bit-identical training", "[train][determinism]") {
-    for (const char* variant : {"dissipative", "paper", "gain"}) {
+    for (const char* variant : {"dissipative", "paper", "gain", "gain_discrete"}) {
         INFO(variant);
         test::TempDir d1("thr1"), d2("thr2");
         RunConfig cfg = small_config(variant, "float");
@@ -125,7 +166,7 @@ TEST_CASE("mixed filter: x^ + x~ equals x at every step, eqs. (11) and (23) as p
 TEST_CASE("train 2T equals train T, resume, train T (bit-identical)", "[train][resume]") {
     for (std::string precision : {"float", "double"}) {
         for (bool reset : {true, false}) {
-          for (const char* variant : {"dissipative", "gain"}) {
+          for (const char* variant : {"dissipative", "gain", "gain_discrete"}) {
             INFO(precision << " reset_adam " << reset << " variant " << variant);
             test::TempDir d("resume");
             RunConfig cfg = small_config(variant, precision, reset);

@@ -1,0 +1,115 @@
+// Variant gain on a discrete-time system (docs/method.md section 16.8): a short training on a small linear system
+// x_{k+1} = F x + G w, y = H x + v whose open-loop error level (gamma^2 ~ 4800) is far above rho = 6 gives a gain
+// whose filter x^_{k+1} = F x^ + K(x^)(y - H x^) is stable at every estimate it meets, satisfies the one-step
+// dissipation inequality at errors sampled around those estimates, and keeps the H-infinity bound on a run with
+// fresh noise. Any of them can fail: they are what training is for.
+#include <Eigen/Dense>
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "filters/dnn.hpp"
+#include "filters/gain_law.hpp"
+#include "gain.hpp"
+#include "helpers.hpp"
+#include "hinf/config.hpp"
+#include "io/checkpoint.hpp"
+#include "sim/truth.hpp"
+#include "train/gain_samples.hpp"
+#include "train/trainer.hpp"
+
+using namespace hinf;
+
+namespace {
+
+const char* kLinear = R"toml([system]
+kind = "expr"
+time = "discrete"
+states = ["a", "b"]
+disturbances = 1
+measurements = 1
+f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
+g = [["0.5"], ["1"]]
+h = ["a + 0.5*b"]
+[filter]
+variant = "gain"
+rho = 6
+Q = [1.0, 1.0]
+x0 = [1, -1]
+xhat0 = [0, 0]
+dt = 1
+t_final = 200
+[online]
+disturbance_std = 0.3
+noise_std = 0.3
+seed = 99
+[network]
+hidden = [16, 8]
+[training]
+samples = 256
+batch = 64
+adam_steps = 10
+)toml";
+
+}  // namespace
+
+TEST_CASE("gain variant on a linear discrete system: stable, dissipative at sampled errors, within rho",
+          "[train][gain][discrete]") {
+    test::TempDir d("gain-discrete");
+    RunConfig cfg = load_run_config(ConfigDoc::from_text(kLinear, "linear.toml"));
+    TrainOptions opt;
+    opt.out_dir = d / "run";
+    opt.quiet = true;
+    const TrainSummary s = train_start(cfg, opt);
+    REQUIRE(s.status == 0);
+    RunConfig ncfg;
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(d / "run/checkpoint.h5", &ncfg);
+    REQUIRE(net->step_config().gain.loss.discrete);
+
+    // the trained filter on a run with the on-line seed (never a training run)
+    const std::int64_t steps = cfg.steps_until();
+    const TruthRun tr = truth_simulate(cfg, Scenario{}, 3, steps);
+    std::unique_ptr<OnlineFilter> f = make_gain_filter(filter_model(cfg), *net, "dnn");
+    f->reset(FilterStart{cfg.xhat0, {}, cfg.online_seed, 3});
+    Eigen::Matrix2d F;
+    F << 1.05, 0.2, -0.1, 0.9;
+    const Eigen::RowVector2d H(1.0, 0.5);
+    kern::GainLossParams lp = net->step_config().gain.loss;
+    GainSamples smp;
+    double error_energy = 0, signal_energy = 0, worst_radius = 0;
+    int violations = 0, sampled = 0;
+    for (std::int64_t k = 0; k < steps; ++k) {
+        const double* x = tr.x.data() + k * 2;
+        const std::vector<double> xhat(f->estimate(), f->estimate() + 2);
+        const double e0 = x[0] - xhat[0], e1 = x[1] - xhat[1];
+        error_energy += e0 * e0 + e1 * e1;
+        signal_energy += tr.energy[k];
+        double K[2], S[4];
+        net->gain(K, S, xhat.data(), 1);
+        const Eigen::Matrix2d A = F - Eigen::Vector2d(K[0], K[1]) * H;
+        worst_radius = std::max(worst_radius, A.eigenvalues().cwiseAbs().maxCoeff());
+        if (k % 10 == 0) {  // the one-step inequality at 16 errors sampled around this estimate
+            gain_samples_at(&smp, cfg, net->step_config().gain, xhat.data(), cfg.time_of(k), 16,
+                            (std::uint64_t(1) << 40) + std::uint64_t(k));
+            for (int i = 0; i < 16; ++i) {
+                const kern::GainSampleValue v = kern::gain_sample_forward(K, S, smp.view(), i, lp);
+                violations += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+                ++sampled;
+            }
+        }
+        FilterInput in;
+        in.y = tr.y.data() + k;
+        in.t = cfg.time_of(k);
+        in.step = k;
+        REQUIRE(f->step(in) == FILTER_OK);
+    }
+    INFO("spectral radius " << worst_radius << ", violations " << violations << " of " << sampled
+                            << ", ratio " << error_energy / signal_energy);
+    CHECK(worst_radius < 0.95);
+    CHECK(violations <= sampled / 50);  // at most 2 %
+    // the H-infinity bound of the one-step game: sum x~'Q x~ - V(x~(0)) <= rho sum |w|^2
+    double K0[2], S0[4];
+    net->gain(K0, S0, cfg.xhat0.data(), 1);
+    const double v0 = quadratic_form(S0, std::vector<double>{1.0, -1.0}.data(), 2);
+    CHECK(error_energy - v0 <= cfg.rho * signal_energy);
+    CHECK(error_energy / signal_energy < 0.5 * cfg.rho);
+}
