@@ -191,6 +191,9 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
     c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
     c.storage_knots = net.get_int("storage_knots", c.storage_knots, 0, 4096);
+    if (c.storage_knots > 0 && c.system != nullptr && c.system->discrete_time())
+        net.reject("storage_knots", "a time-varying storage is built for continuous-time systems only (set 0 for a "
+                                    "discrete-time system: its one-step inequality uses one S, docs/method.md §16.8)");
     if (c.storage_knots > 0 && c.variant != "gain")
         net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));

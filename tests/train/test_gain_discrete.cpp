@@ -84,7 +84,7 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
         error_energy += e0 * e0 + e1 * e1;
         signal_energy += tr.energy[k];
         double K[2], S[4];
-        net->gain(K, S, xhat.data(), 1);
+        net->gain(K, S, nullptr, xhat.data(), cfg.time_of(k), *cfg.system, 1);
         const Eigen::Matrix2d A = F - Eigen::Vector2d(K[0], K[1]) * H;
         worst_radius = std::max(worst_radius, A.eigenvalues().cwiseAbs().maxCoeff());
         if (k % 10 == 0) {  // the one-step inequality at 16 errors sampled around this estimate
@@ -108,7 +108,7 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
     CHECK(violations <= sampled / 50);  // at most 2 %
     // the H-infinity bound of the one-step game: sum x~'Q x~ - V(x~(0)) <= rho sum |w|^2
     double K0[2], S0[4];
-    net->gain(K0, S0, cfg.xhat0.data(), 1);
+    net->gain(K0, S0, nullptr, cfg.xhat0.data(), 0.0, *cfg.system, 1);
     const double v0 = quadratic_form(S0, std::vector<double>{1.0, -1.0}.data(), 2);
     CHECK(error_energy - v0 <= cfg.rho * signal_energy);
     CHECK(error_energy / signal_energy < 0.5 * cfg.rho);
