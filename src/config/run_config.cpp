@@ -190,7 +190,10 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.input_scale = net.get_double("input_scale", c.input_scale, 0.0, big);
     c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
     c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
-    c.storage_knots = net.get_int("storage_knots", c.storage_knots, 0, 4096);
+    // variant gain on a continuous-time system: a time-varying storage by default (method.md §16.7: it beat the
+    // constant S on every measure we ran); discrete time: one S (§16.8)
+    const bool tv_default = c.variant == "gain" && !c.system->discrete_time();
+    c.storage_knots = net.get_int("storage_knots", tv_default ? 32 : 0, 0, 4096);
     if (c.storage_knots > 0 && c.system != nullptr && c.system->discrete_time())
         net.reject("storage_knots", "a time-varying storage is built for continuous-time systems only (set 0 for a "
                                     "discrete-time system: its one-step inequality uses one S, docs/method.md §16.8)");

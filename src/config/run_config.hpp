@@ -40,7 +40,7 @@ struct TrainingConfig {
     std::string precision = "float";
     double input_scale = 0.0;   // 0: auto
     double output_scale = 0.0;  // 0: auto
-    std::int64_t storage_knots = 0;  // variant gain: 0 = constant storage S; J > 0 = S(t) on J + 1 knots (§16.7)
+    std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
     double eps = 0.0;  // 0: auto from max_step_correction
     int chunk = 100;
     std::string gemm = "auto";  // GEMM kernels: "auto" (own where built, else openblas), "own", "openblas", "eigen"
