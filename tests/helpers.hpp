@@ -53,6 +53,47 @@ inline CommandResult run_hinf(const std::string& args) { return run_command(std:
 
 inline std::string source_path(const std::string& rel) { return std::string(HINF_SOURCE_DIR) + "/" + rel; }
 
+/// A Van der Pol config of the `gain` variant (position-only, nonlinear sensor: m < n) that trains in a fraction of
+/// a second; `training_extra` lines go into [training].
+inline std::string tiny_vdp_gain_config(const std::string& t_final = "0.5", const std::string& training_extra = "") {
+    return R"([system]
+kind = "expr"
+states = ["p", "w"]
+disturbances = 1
+measurements = 1
+parameters = { mu = 1.0, c = 0.3 }
+f = ["w", "mu*(1 - p^2)*w - p"]
+g = [["0"], ["1"]]
+h = ["p + c*p^3"]
+[filter]
+variant = "gain"
+rho = 0.5
+Q = [1.0, 1.0]
+x0 = [2.0, 0.0]
+xhat0 = [0.5, 1.0]
+dt = 0.01
+t_final = )" + t_final + R"(
+[network]
+hidden = [8]
+[training]
+samples = 100
+batch = 40
+adam_steps = 2
+checkpoint_every = 10
+)" + training_extra + R"([sampling]
+error_floor = [0.2, 0.2]
+trajectories = 3
+[objective]
+disturbance_intensity = 0.0025
+noise_intensity = 0.0001
+[online]
+mode = "measured"
+disturbance_std = 0.5
+noise_std = 0.1
+runs = 3
+)";
+}
+
 /// A missile config that trains in a fraction of a second (tiny network, few samples).
 inline std::string tiny_missile_config(const std::string& t_final = "0.05") {
     return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +

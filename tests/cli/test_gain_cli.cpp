@@ -10,43 +10,7 @@
 using hinf::test::run_hinf;
 
 namespace {
-const char* kVdp = R"(
-[system]
-kind = "expr"
-states = ["p", "w"]
-disturbances = 1
-measurements = 1
-parameters = { mu = 1.0, c = 0.3 }
-f = ["w", "mu*(1 - p^2)*w - p"]
-g = [["0"], ["1"]]
-h = ["p + c*p^3"]
-[filter]
-variant = "gain"
-rho = 0.5
-Q = [1.0, 1.0]
-x0 = [2.0, 0.0]
-xhat0 = [0.5, 1.0]
-dt = 0.01
-t_final = 0.5
-[network]
-hidden = [8]
-[training]
-samples = 100
-batch = 40
-adam_steps = 2
-checkpoint_every = 10
-[sampling]
-error_floor = [0.2, 0.2]
-trajectories = 3
-[objective]
-disturbance_intensity = 0.0025
-noise_intensity = 0.0001
-[online]
-mode = "measured"
-disturbance_std = 0.5
-noise_std = 0.1
-runs = 3
-)";
+const std::string kVdp = hinf::test::tiny_vdp_gain_config("0.5");
 }  // namespace
 
 TEST_CASE("gain variant: train, operate, compare, filter and worst run it in measured mode only", "[cli][gain]") {
