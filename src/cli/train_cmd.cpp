@@ -70,7 +70,8 @@ struct AcceptanceWorst {
     std::string skipped;                  // why no search ran ("" when it ran)
 };
 
-AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir, bool quiet) {
+AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir,
+                                 bool quiet) {
     AcceptanceWorst a;
     const std::int64_t K = cfg.steps_until();
     if (K < 2) {

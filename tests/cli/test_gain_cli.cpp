@@ -42,7 +42,9 @@ bool mc_passes(const Acceptance& a) {
     const double ratio = std::isfinite(a.ratio_minus_v0) ? a.ratio_minus_v0 : a.ratio;
     return a.diverged_runs == 0 && ratio <= a.rho;
 }
-bool worst_passes(const Acceptance& a) { return a.worst_evals == 0 || (a.worst_diverged == 0 && a.worst_ratio <= a.rho); }
+bool worst_passes(const Acceptance& a) {
+    return a.worst_evals == 0 || (a.worst_diverged == 0 && a.worst_ratio <= a.rho);
+}
 
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
@@ -164,7 +166,8 @@ TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Ca
     std::ofstream(cfg) << kVdp;
     // no initial error (the search's condition too) and a small rho: the Monte Carlo's random noise stays below it
     // (ratio ~2e-3 when written), the searched worst signals do not (~2e-2)
-    const std::string sets = " --set filter.rho=0.01 --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
+    const std::string sets =
+        " --set filter.rho=0.01 --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet" + sets);
     INFO(t.output);
     const Acceptance a = read_acceptance(d / "run/checkpoint.h5", 0.01);
@@ -198,7 +201,8 @@ TEST_CASE("acceptance: the worst-case search gives the same bits on 1 and 2 thre
     INFO(one.output << two.output);
     REQUIRE(one.status == 0);
     REQUIRE(two.status == 0);
-    const Acceptance a = read_acceptance(d / "one/checkpoint.h5", 0.5), b = read_acceptance(d / "two/checkpoint.h5", 0.5);
+    const Acceptance a = read_acceptance(d / "one/checkpoint.h5", 0.5);
+    const Acceptance b = read_acceptance(d / "two/checkpoint.h5", 0.5);
     CHECK(a.worst_evals > 0);
     CHECK(a.worst_evals == b.worst_evals);
     CHECK(same_bits(a.worst_ratio, b.worst_ratio));
