@@ -8,6 +8,8 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "eval/operate.hpp"
+#include "eval/worst.hpp"
+#include "filters/factory.hpp"
 #include "hinf/h5.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
@@ -56,9 +58,62 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
     std::printf("files: %s/trajectory.h5 %s/checkpoint.h5\n", dir.c_str(), dir.c_str());
 }
 
+// The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
+// (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
+// budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
+// energy-pulse scenario and, where the network gives dV/dx~ (not variant gain), the game's own worst case.
+struct AcceptanceWorst {
+    double ratio = NAN, ekf_ratio = NAN;  // the largest ratio found for the DNN filter and for the EKF
+    std::int64_t evals = 0;               // the DNN filter's objective evaluations, all its restarts
+    bool diverged = false;                // the DNN filter diverged under its worst signals (replay)
+    double wall_seconds = 0;
+    std::string skipped;                  // why no search ran ("" when it ran)
+};
+
+AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir,
+                                 bool quiet) {
+    AcceptanceWorst a;
+    const std::int64_t K = cfg.steps_until();
+    if (K < 2) {
+        a.skipped = "skipped: the horizon is shorter than two time steps";
+        return a;
+    }
+    if (!(cfg.disturbance_std * cfg.disturbance_std * cfg.nv + cfg.noise_std * cfg.noise_std * cfg.m > 0)) {
+        a.skipped = "skipped: no energy budget ([online] disturbance_std and noise_std are 0)";
+        return a;
+    }
+    RunConfig ncfg;
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
+    const bool game = !net->step_config().gain.enabled;
+    WorstOptions wo;
+    wo.random_starts = 2;
+    wo.scenario_starts = {"energy_pulse"};
+    wo.pieces = int(std::min<std::int64_t>(wo.pieces, K));  // a short horizon has fewer steps than pieces
+    wo.game_start = game;
+    const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0);
+    wo.evals = int(std::max<std::int64_t>(1, cfg.acceptance_worst_evals / restarts));
+    wo.quiet = quiet;
+    const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
+    FilterSet set = build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    std::vector<WorstGame> games(filters.size());
+    if (game) games[0] = WorstGame{net.get(), ncfg.rho};  // filters[0]: the DNN filter (dnn before ekf)
+    const WorstResult r = worst_search(cfg, filters, games, wo);
+    worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
+    a.ratio = r.filters[0].worst.ratio;
+    a.ekf_ratio = r.filters[1].worst.ratio;
+    for (const auto& rs : r.filters[0].restarts) a.evals += rs.evals;
+    a.diverged = r.cross.diverged_at[0] >= 0;  // row 0 (the DNN filter's worst set), column 0 (the DNN filter)
+    a.wall_seconds = r.wall_seconds;
+    return a;
+}
+
 // The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
-// [online] noise (operate's engine), verdict = no run diverged and attenuation ratio <= rho. Printed, written into
-// the checkpoint's root attributes and DIR/acceptance/operate.h5. Returns true when it passes.
+// [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
+// verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
+// Printed, written into the checkpoint's root attributes, DIR/acceptance/operate.h5 and DIR/acceptance/worst.h5.
+// Returns true when it passes.
 bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) {
     const std::string path = dir + "/checkpoint.h5";
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
@@ -73,7 +128,14 @@ bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) 
     OperateSummary s = operate_run(plain, *net, path, oo);
     // the H-infinity bound is int x~'Qx~ <= V(x~(0)) + rho int (v'v + n'n): the ratio less V(x~(0)) where V is defined
     const double ratio = std::isfinite(s.attenuation_ratio_minus_v0) ? s.attenuation_ratio_minus_v0 : s.attenuation_ratio;
-    const bool pass = s.diverged_runs == 0 && ratio <= cfg.rho;
+    const bool mc_pass = s.diverged_runs == 0 && ratio <= cfg.rho;
+    const bool search = cfg.acceptance_worst_evals > 0;
+    AcceptanceWorst w;
+    std::filesystem::remove(oo.out_dir + "/worst.h5");  // a file from an earlier check must not outlive its verdict
+    if (search) w = acceptance_worst(plain, path, oo.out_dir, quiet);
+    // from x~(0) = 0 the bound is the plain ratio: worst ratio found <= rho (NaN fails)
+    const bool worst_pass = !search || !w.skipped.empty() || (!w.diverged && w.ratio <= cfg.rho);
+    const bool pass = mc_pass && worst_pass;
     {
         h5::Handle f = h5::open_file(path, true);
         h5::set_attr(f.get(), "acceptance_verdict", pass ? "pass" : "fail");
@@ -82,11 +144,25 @@ bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) 
         h5::set_attr(f.get(), "acceptance_attenuation_ratio_minus_v0", s.attenuation_ratio_minus_v0);
         h5::set_attr(f.get(), "acceptance_rmse_position", s.rmse_position);
         h5::set_attr(f.get(), "acceptance_diverged_runs", static_cast<std::int64_t>(s.diverged_runs));
+        // 0 evaluations: no search ran, the worst-case figures are NaN
+        h5::set_attr(f.get(), "acceptance_worst_evals", w.evals);
+        h5::set_attr(f.get(), "acceptance_worst_ratio", w.ratio);
+        h5::set_attr(f.get(), "acceptance_worst_ratio_ekf", w.ekf_ratio);
+        h5::set_attr(f.get(), "acceptance_worst_diverged", static_cast<std::int64_t>(w.diverged ? 1 : 0));
+    }
+    std::string worst_text = "worst-case search off (training.acceptance_worst_evals = 0)";
+    if (search && !w.skipped.empty()) worst_text = "worst-case search " + w.skipped;
+    else if (search) {
+        char line[300];
+        std::snprintf(line, sizeof line, "worst ratio found %.4g%s (EKF %.4g; %lld evaluations, %.1f s)", w.ratio,
+                      w.diverged ? ", diverged" : "", w.ekf_ratio, static_cast<long long>(w.evals), w.wall_seconds);
+        worst_text = line;
     }
     std::printf("acceptance (%lld measured runs, [online] noise): attenuation ratio %.4g, less V(x~(0)) %.4g (rho %.4g), "
-                "position RMSE %.4g, diverged %lld: %s; file: %s/operate.h5\n",
+                "position RMSE %.4g, diverged %lld; %s: %s; files: %s/operate.h5%s\n",
                 static_cast<long long>(s.runs), s.attenuation_ratio, s.attenuation_ratio_minus_v0, cfg.rho, s.rmse_position,
-                static_cast<long long>(s.diverged_runs), pass ? "PASS" : "FAIL", oo.out_dir.c_str());
+                static_cast<long long>(s.diverged_runs), worst_text.c_str(), pass ? "PASS" : "FAIL", oo.out_dir.c_str(),
+                search && w.skipped.empty() ? ", worst.h5" : "");
     return pass;
 }
 
@@ -122,8 +198,8 @@ void add_train_commands(CLI::App& app) {
             const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet);
             if (!pass && cfg.require_acceptance) {
                 std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5: "
-                                     "attenuation ratio above [filter] rho, or a diverged run); training.require_acceptance "
-                                     "is set (train longer or with another seed, or lower it)\n", opt.out_dir.c_str());
+                                     "attenuation ratio or worst-case ratio above [filter] rho, or a diverged run); "
+                                     "training.require_acceptance is set (train longer or with another seed, or unset it)\n", opt.out_dir.c_str());
                 throw CLI::RuntimeError(5);
             }
         }

@@ -225,6 +225,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.max_rollbacks = t.get_int("max_rollbacks", c.max_rollbacks, 0, 1000);
     c.acceptance_runs = t.get_int("acceptance_runs", c.acceptance_runs, 0, 100000);
     c.require_acceptance = t.get_bool("require_acceptance", c.require_acceptance);
+    c.acceptance_worst_evals = t.get_int("acceptance_worst_evals", c.acceptance_worst_evals, 0, 1000000);
     if (c.require_acceptance && c.acceptance_runs == 0)
         t.reject("require_acceptance", "needs training.acceptance_runs > 0 (the validation Monte Carlo it checks)");
     // consistency: the network and the per-time-step buffers must fit in memory (a typo such as

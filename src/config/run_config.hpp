@@ -57,6 +57,7 @@ struct TrainingConfig {
     std::int64_t max_rollbacks = 3;      // then stop as with "stop"
     std::int64_t acceptance_runs = 5;    // validation Monte Carlo at the end of `hinf train` (0: none)
     bool require_acceptance = false;     // exit 5 when the acceptance check fails
+    std::int64_t acceptance_worst_evals = 240;  // the acceptance's worst-case search: evaluations per filter (0: none)
 
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;

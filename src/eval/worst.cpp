@@ -505,7 +505,7 @@ std::string system_table(const RunConfig& cfg) {
 }
 
 void write_identity(hid_t root, const RunConfig& cfg, std::int64_t steps) {
-    h5::set_attr(root, "system_table", system_table(cfg));
+    h5::set_text(root, "system_table", system_table(cfg));  // a dataset when too long for an attribute
     h5::set_attr(root, "system", cfg.system->name());
     h5::set_attr(root, "state_names", join(cfg.system->state_names()));
     h5::set_attr(root, "n", std::int64_t(cfg.n));
@@ -620,7 +620,7 @@ std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& c
     HINF_CHECK(sys == cfg.system->name() && names == join(cfg.system->state_names()),
                where + "its signals are for system '" + sys + "' (states " + names + "), the config's is '" +
                    cfg.system->name() + "' (states " + join(cfg.system->state_names()) + ")");
-    HINF_CHECK(h5::get_attr_string(root, "system_table") == system_table(cfg),
+    HINF_CHECK(h5::get_text(root, "system_table") == system_table(cfg),
                where + "its signals are for another [system] table (" + sys + " with other keys or parameters) than "
                        "the config's");
     const std::int64_t nv = h5::get_attr_int(root, "nv"), m = h5::get_attr_int(root, "m");

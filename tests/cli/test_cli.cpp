@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "helpers.hpp"
+#include "hinf/h5.hpp"
 
 using hinf::test::run_hinf;
 using hinf::test::TempDir;
@@ -34,6 +35,14 @@ TEST_CASE("hinf train, resume and operate on a tiny config", "[cli]") {
     INFO(r.output);
     REQUIRE(r.status == 0);
     CHECK(r.output.find("trained time steps 2..5") != std::string::npos);
+    {  // reaching t_final: the acceptance check, its worst-case search with the game's start (variant dissipative)
+        CHECK(r.output.find("worst ratio found") != std::string::npos);
+        hinf::h5::Handle c = hinf::h5::open_file(d / "run/checkpoint.h5", false);
+        CHECK(hinf::h5::get_attr_int(c.get(), "acceptance_worst_evals") > 0);
+        hinf::h5::Handle w = hinf::h5::open_file(d / "run/acceptance/worst.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(w.get(), "filters/dnn_dissipative_measured");
+        CHECK(hinf::h5::get_attr_string(g.get(), "starts") == "random:0,random:1,scenario:energy_pulse,game");
+    }
     auto o = run_hinf("operate " + cfg + " --network " + (d / "run/checkpoint.h5") + " --out " + (d / "op") +
                       " --mode measured --runs 2 --quiet");
     INFO(o.output);

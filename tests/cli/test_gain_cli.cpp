@@ -2,6 +2,9 @@
 // sensor (m < n), run it through operate, compare, filter and worst in measured mode; --mode oracle is refused in
 // one line; a checkpoint whose config was changed is refused.
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include "helpers.hpp"
@@ -10,6 +13,41 @@
 using hinf::test::run_hinf;
 
 namespace {
+
+// The acceptance figures of a checkpoint's root attributes.
+struct Acceptance {
+    std::string verdict;
+    double rho = 0, ratio = 0, ratio_minus_v0 = 0, worst_ratio = 0, worst_ratio_ekf = 0;
+    std::int64_t diverged_runs = 0, worst_evals = 0, worst_diverged = 0;
+};
+
+Acceptance read_acceptance(const std::string& checkpoint, double rho) {
+    hinf::h5::Handle f = hinf::h5::open_file(checkpoint, false);
+    const hid_t r = f.get();
+    Acceptance a;
+    a.rho = rho;
+    a.verdict = hinf::h5::get_attr_string(r, "acceptance_verdict");
+    a.ratio = hinf::h5::get_attr_double(r, "acceptance_attenuation_ratio");
+    a.ratio_minus_v0 = hinf::h5::get_attr_double(r, "acceptance_attenuation_ratio_minus_v0");
+    a.diverged_runs = hinf::h5::get_attr_int(r, "acceptance_diverged_runs");
+    a.worst_ratio = hinf::h5::get_attr_double(r, "acceptance_worst_ratio");
+    a.worst_ratio_ekf = hinf::h5::get_attr_double(r, "acceptance_worst_ratio_ekf");
+    a.worst_evals = hinf::h5::get_attr_int(r, "acceptance_worst_evals");
+    a.worst_diverged = hinf::h5::get_attr_int(r, "acceptance_worst_diverged");
+    return a;
+}
+
+// docs/method.md section 16.5: the Monte Carlo's bound, and (when a search ran) the worst ratio found <= rho
+bool mc_passes(const Acceptance& a) {
+    const double ratio = std::isfinite(a.ratio_minus_v0) ? a.ratio_minus_v0 : a.ratio;
+    return a.diverged_runs == 0 && ratio <= a.rho;
+}
+bool worst_passes(const Acceptance& a) {
+    return a.worst_evals == 0 || (a.worst_diverged == 0 && a.worst_ratio <= a.rho);
+}
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
 const std::string kVdp = hinf::test::tiny_vdp_gain_config("0.5");
 }  // namespace
 
@@ -21,9 +59,20 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     INFO(t.output);
     REQUIRE(t.status == 0);
     CHECK(t.output.find("acceptance (5 measured runs") != std::string::npos);
-    {
-        hinf::h5::Handle f = hinf::h5::open_file(net, false);
-        CHECK(hinf::h5::has_attr(f.get(), "acceptance_verdict"));
+    CHECK(t.output.find("worst ratio found") != std::string::npos);
+    {  // the acceptance's worst-case search: its figures in the checkpoint, its search in acceptance/worst.h5
+        const Acceptance a = read_acceptance(net, 0.5);
+        CHECK(a.worst_evals > 0);
+        CHECK(a.worst_evals <= 240);  // training.acceptance_worst_evals' default bounds the DNN filter's search
+        CHECK(std::isfinite(a.worst_ratio));
+        CHECK(a.worst_ratio > 0);
+        CHECK(std::isfinite(a.worst_ratio_ekf));
+        CHECK(a.verdict == (mc_passes(a) && worst_passes(a) ? "pass" : "fail"));
+        hinf::h5::Handle w = hinf::h5::open_file(d / "run/acceptance/worst.h5", false);
+        CHECK(hinf::h5::get_attr_string(w.get(), "format") == "hinf-worst");
+        hinf::h5::Handle g = hinf::h5::open_group(w.get(), "filters/dnn_gain_measured");
+        CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), a.worst_ratio));
+        CHECK(hinf::h5::exists(w.get(), "filters/ekf"));
     }
     auto op = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 2 --out " + (d / "op"));
     INFO(op.output);
@@ -72,4 +121,55 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     auto ok = run_hinf("train " + cfg + " --out " + (d / "run2") + " --quiet --set training.require_acceptance=true");
     INFO(ok.output);
     CHECK(ok.status == 0);
+}
+
+TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes; 0 evaluations skip it",
+          "[cli][gain][acceptance]") {
+    hinf::test::TempDir d("gainworst");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << kVdp;
+    // no initial error (the search's condition too) and a small rho: the Monte Carlo's random noise stays below it
+    // (ratio ~2e-3 when written), the searched worst signals do not (~2e-2)
+    const std::string sets =
+        " --set filter.rho=0.01 --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet" + sets);
+    INFO(t.output);
+    const Acceptance a = read_acceptance(d / "run/checkpoint.h5", 0.01);
+    CHECK(mc_passes(a));
+    CHECK(a.worst_evals > 0);
+    CHECK(a.worst_ratio > 0.01);
+    CHECK(a.verdict == "fail");
+    CHECK(t.status == 5);
+    CHECK(t.output.find("failed its acceptance check") != std::string::npos);
+
+    // training.acceptance_worst_evals = 0: the same training, the Monte Carlo alone decides
+    auto off = run_hinf("train " + cfg + " --out " + (d / "off") + " --quiet" + sets +
+                        " --set training.acceptance_worst_evals=0");
+    INFO(off.output);
+    CHECK(off.status == 0);
+    CHECK(off.output.find("worst-case search off") != std::string::npos);
+    const Acceptance b = read_acceptance(d / "off/checkpoint.h5", 0.01);
+    CHECK(b.worst_evals == 0);
+    CHECK(std::isnan(b.worst_ratio));
+    CHECK(b.verdict == "pass");
+    CHECK(same_bits(b.ratio, a.ratio));  // the same network and Monte Carlo
+    CHECK_FALSE(std::filesystem::exists(d / "off/acceptance/worst.h5"));
+}
+
+TEST_CASE("acceptance: the worst-case search gives the same bits on 1 and 2 threads", "[cli][gain][acceptance]") {
+    hinf::test::TempDir d("gainworstthr");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << kVdp;
+    auto one = run_hinf("train " + cfg + " --out " + (d / "one") + " --quiet --threads 1");
+    auto two = run_hinf("train " + cfg + " --out " + (d / "two") + " --quiet --threads 2");
+    INFO(one.output << two.output);
+    REQUIRE(one.status == 0);
+    REQUIRE(two.status == 0);
+    const Acceptance a = read_acceptance(d / "one/checkpoint.h5", 0.5);
+    const Acceptance b = read_acceptance(d / "two/checkpoint.h5", 0.5);
+    CHECK(a.worst_evals > 0);
+    CHECK(a.worst_evals == b.worst_evals);
+    CHECK(same_bits(a.worst_ratio, b.worst_ratio));
+    CHECK(same_bits(a.worst_ratio_ekf, b.worst_ratio_ekf));
+    CHECK(a.verdict == b.verdict);
 }
