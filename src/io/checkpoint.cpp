@@ -225,13 +225,29 @@ std::string ckpt_precision(const std::string& path) {
     return h5::get_attr_string(f.get(), "precision");
 }
 
+namespace {
+// The checkpoint's config as it was trained: a `gain` network written before network.storage_knots existed (no
+// storage_knots attribute) has one constant S, which is no longer the default; say so in its config.
+std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
+    std::string text = h5::read_string(file, "config");
+    HINF_CHECK(config_hash(text) == h5::get_attr_string(file, "config_hash"),
+               "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
+    if (h5::exists(file, "network/storage")) {
+        h5::Handle net = h5::open_group(file, "network");
+        if (!h5::has_attr(net.get(), "storage_knots")) {
+            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+            doc.set("network.storage_knots=0");
+            text = doc.text();
+        }
+    }
+    return text;
+}
+}  // namespace
+
 RunConfig ckpt_config(const std::string& path) {
     ckpt_precision(path);
     h5::Handle f = h5::open_file(path, false);
-    std::string text = h5::read_string(f.get(), "config");
-    HINF_CHECK(config_hash(text) == h5::get_attr_string(f.get(), "config_hash"),
-               "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
-    return load_run_config(ConfigDoc::from_text(text, path + ":/config"));
+    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f.get(), path), path + ":/config"));
 }
 
 template <typename T>
@@ -242,7 +258,7 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     RunConfig cfg = ckpt_config(path);
     h5::Handle f = h5::open_file(path, false);
     Checkpoint<T> ck;
-    ck.config_text = h5::read_string(f.get(), "config");
+    ck.config_text = h5::read_string(f.get(), "config");  // as written (the digest covers it; ckpt_config: effective)
     ck.net = network_shell<T>(cfg);  // shapes and scales from the config; no random draws, no OpenMP
     const kern::StepConfig& sc = ck.net.step;
     h5::Handle net = h5::open_group(f.get(), "network");
@@ -266,7 +282,18 @@ Checkpoint<T> ckpt_read(const std::string& path) {
     if (sc.gain.enabled) {
         const std::int64_t P = sc.shape.param_count(), ns = sc.gain.storage_params(cfg.n);
         std::vector<T> sp = read_array<T>(net.get(), "storage", nullptr);
-        HINF_CHECK(std::int64_t(sp.size()) == ns, "checkpoint '" + path + "': network/storage has the wrong size");
+        if (std::int64_t(sp.size()) != ns) {
+            // the storage's size follows network.storage_knots; files written before the key existed have one S
+            const std::int64_t np = std::int64_t(cfg.n) * (cfg.n + 1) / 2, size = std::int64_t(sp.size());
+            std::int64_t knots = size % np == 0 ? (size == np ? 0 : size / np - 1) : -1;
+            if (h5::has_attr(net.get(), "storage_knots")) knots = h5::get_attr_int(net.get(), "storage_knots");
+            HINF_FAIL("checkpoint '" + path + "': network/storage has " + std::to_string(sp.size()) +
+                      " parameters, the config's network.storage_knots = " + std::to_string(sc.gain.knots) + " needs " +
+                      std::to_string(ns) +
+                      (knots >= 0 ? " (the network was trained with storage_knots = " + std::to_string(knots) +
+                                        ": add --set network.storage_knots=" + std::to_string(knots) + ")"
+                                  : " (damaged file, or another config)"));
+        }
         HINF_CHECK(h5::get_attr_doubles(net.get(), "input_shift") == sc.gain.shift &&
                        h5::get_attr_doubles(net.get(), "input_spread") == sc.gain.spread,
                    "checkpoint '" + path + "': input standardisation does not match its config (damaged file, or "

@@ -672,9 +672,13 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
 // config itself (a comment line per resume, kept across later resumes), so the checkpoint and trajectory that
 // carry the config carry it too.
 std::string resume_config_text(const std::string& text, const std::vector<std::string>& sets, std::int64_t step,
-                               const std::string& path) {
+                               const std::string& path, const std::vector<std::string>& as_trained) {
     ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
     std::string record;
+    for (const std::string& s : as_trained) {  // keys a legacy file fixed implicitly (checkpoint.cpp), not user sets
+        doc.set(s);
+        record += (record.empty() ? "" : " ") + s;
+    }
     for (const std::string& s : sets) {
         std::string key = s.substr(0, s.find('='));
         key.erase(key.find_last_not_of(" \t") + 1);
@@ -701,7 +705,15 @@ template <typename T>
 TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     Checkpoint<T> ck = ckpt_read<T>(path);
     const std::string old_text = ck.config_text;
-    if (!opt.sets.empty()) ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path);
+    std::vector<std::string> legacy;
+    {  // a gain network written before network.storage_knots existed has one S: resume it as trained
+        const RunConfig as_trained = ckpt_config(path);
+        if (as_trained.variant == "gain" &&
+            as_trained.storage_knots != load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_knots)
+            legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));
+    }
+    if (!opt.sets.empty() || !legacy.empty())
+        ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
     train_check_time(cfg);
     std::int64_t last = cfg.steps_until(opt.until);
