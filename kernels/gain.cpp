@@ -116,15 +116,40 @@ GainSampleValue gain_sample_forward(const double* K, const double* S, const Hjie
     v.hinge = h * h;
     const double c = step_correction_excess(K, sv, i, gp, nullptr);
     v.hinge += c * c;
+    v.h2 = gain_h2_value(S, K, sv.Bm + i * n * nv, n, nv, m, gp);
+    return v;
+}
+
+double gain_h2_value(const double* S, const double* K, const double* B, int n, int nv, int m, const GainLossParams& gp) {
     double v0 = 0;
     if (gp.xt0 != nullptr && gp.initial_weight > 0) {
         for (int a = 0; a < n; ++a)
             for (int c = 0; c < n; ++c) v0 += gp.xt0[a] * S[a * n + c] * gp.xt0[c];
     }
-    const double rate = gp.disturbance_intensity * trace_form(S, sv.Bm + i * n * nv, n, nv) +
-                        gp.noise_intensity * trace_form(S, K, n, m);
-    v.h2 = (gp.initial_weight * v0 / gp.horizon + rate) / gp.h2_reference;
-    return v;
+    const double rate = gp.disturbance_intensity * trace_form(S, B, n, nv) + gp.noise_intensity * trace_form(S, K, n, m);
+    return (gp.initial_weight * v0 / gp.horizon + rate) / gp.h2_reference;
+}
+
+void gain_h2_backward(double* gK, double* gS, const double* S, const double* K, const double* B, int n, int nv, int m,
+                      const GainLossParams& gp, double d_h2) {
+    if (d_h2 == 0) return;
+    const double w = d_h2 / gp.h2_reference;
+    for (int a = 0; a < n; ++a)
+        for (int c = 0; c < n; ++c) {
+            double t = 0;
+            if (gp.xt0 != nullptr && gp.initial_weight > 0) t += gp.initial_weight * gp.xt0[a] * gp.xt0[c] / gp.horizon;
+            double bb = 0, kk = 0;
+            for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[c * nv + j];
+            for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[c * m + j];
+            gS[a * n + c] += w * (t + gp.disturbance_intensity * bb + gp.noise_intensity * kk);
+        }
+    // d tr(K'S K)/dK = (S + S') K = 2 S K
+    for (int a = 0; a < n; ++a)
+        for (int j = 0; j < m; ++j) {
+            double t = 0;
+            for (int c = 0; c < n; ++c) t += (S[a * n + c] + S[c * n + a]) * K[c * m + j];
+            gK[a * m + j] += w * gp.noise_intensity * t;
+        }
 }
 
 void gain_sample_backward(double* gK, double* gS, const double* K, const double* S, const HjieSystemView& sv,
@@ -186,26 +211,7 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
         if (c > 0)
             for (int k = 0; k < n * m; ++k) gK[k] += d_hinge * 2.0 * c * dr[k];
     }
-    if (d_h2 != 0) {
-        const double w = d_h2 / gp.h2_reference;
-        for (int a = 0; a < n; ++a)
-            for (int c = 0; c < n; ++c) {
-                double t = 0;
-                if (gp.xt0 != nullptr && gp.initial_weight > 0)
-                    t += gp.initial_weight * gp.xt0[a] * gp.xt0[c] / gp.horizon;
-                double bb = 0, kk = 0;
-                for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[c * nv + j];
-                for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[c * m + j];
-                gS[a * n + c] += w * (t + gp.disturbance_intensity * bb + gp.noise_intensity * kk);
-            }
-        // d tr(K'S K)/dK = (S + S') K = 2 S K
-        for (int a = 0; a < n; ++a)
-            for (int j = 0; j < m; ++j) {
-                double t = 0;
-                for (int c = 0; c < n; ++c) t += (S[a * n + c] + S[c * n + a]) * K[c * m + j];
-                gK[a * m + j] += w * gp.noise_intensity * t;
-            }
-    }
+    gain_h2_backward(gK, gS, S, K, B, n, nv, m, gp, d_h2);
 }
 
 namespace {

@@ -40,6 +40,13 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
                           std::int64_t i, const GainLossParams& gp, double d_hinge, double d_h2,
                           const double* Sdot = nullptr, double* gSd = nullptr);
 
+/// The per-sample H2 term, (w x~0'S x~0 / T + sv2 tr(B'S B) + sn2 tr(K'S K)) / h2_reference (w = initial_weight),
+/// for B [n x nv] and K [n x m], the same in continuous and discrete time; and its gradient: gK [n x m] and
+/// gS [n x n] += d_h2 * its derivatives (S symmetric).
+double gain_h2_value(const double* S, const double* K, const double* B, int n, int nv, int m, const GainLossParams& gp);
+void gain_h2_backward(double* gK, double* gS, const double* S, const double* K, const double* B, int n, int nv, int m,
+                      const GainLossParams& gp, double d_h2);
+
 /// Time-varying storage (g.knots > 0): S(t) = c D^-1 (M M' + eps I) D^-1 and Sdot = dS/dt, M(t) = diag(exp(.)) +
 /// strict tril(.) of the knot vectors interpolated linearly in t (knot j at j span / J; clamped: Sdot = 0 after span).
 template <typename T>

@@ -119,23 +119,6 @@ void discrete_parts(DiscreteParts* d, const double* K, const double* Sraw, const
     mat_vec(d->Sf, d->S, d->f, n);
 }
 
-// x~0'S x~0 / T + sv2 tr(B'S B) + sn2 tr(K'S K), over h2_reference
-double h2_value(const DiscreteParts& d, const double* K, const double* B, int n, int nv, int m,
-                const GainLossParams& gp) {
-    double v0 = 0;
-    if (gp.xt0 != nullptr && gp.initial_weight > 0) v0 = quad(d.S, gp.xt0, n);
-    double tb = 0, tk = 0;
-    for (int a = 0; a < n; ++a)
-        for (int c = 0; c < n; ++c) {
-            double bb = 0, kk = 0;
-            for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[c * nv + j];
-            for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[c * m + j];
-            tb += d.S[a * n + c] * bb;
-            tk += d.S[a * n + c] * kk;
-        }
-    return (gp.initial_weight * v0 / gp.horizon + gp.disturbance_intensity * tb + gp.noise_intensity * tk) /
-           gp.h2_reference;
-}
 }  // namespace
 
 GainSampleValue gain_discrete_sample_forward(const double* K, const double* S, const HjieSystemView& sv, std::int64_t i,
@@ -158,7 +141,7 @@ GainSampleValue gain_discrete_sample_forward(const double* K, const double* S, c
         v.hinge = (1.0 + gp.margin) * (1.0 + gp.margin);
     }
     v.hinge += c * c;
-    v.h2 = h2_value(d, K, sv.Bm + i * n * nv, n, nv, m, gp);
+    v.h2 = gain_h2_value(d.S, K, sv.Bm + i * n * nv, n, nv, m, gp);  // gain.hpp: shared with continuous time
     return v;
 }
 
@@ -199,26 +182,7 @@ void gain_discrete_sample_backward(double* gK, double* gS, const double* K, cons
         for (int a = 0; a < n; ++a)
             for (int j = 0; j < m; ++j) gK[a * m + j] -= gc * 2.0 * Sh[a] * d.top[nv + j];
     }
-    if (d_h2 != 0) {
-        const double w = d_h2 / gp.h2_reference;
-        for (int a = 0; a < n; ++a)
-            for (int cc = 0; cc < n; ++cc) {
-                double t = 0;
-                if (gp.xt0 != nullptr && gp.initial_weight > 0)
-                    t += gp.initial_weight * gp.xt0[a] * gp.xt0[cc] / gp.horizon;
-                double bb = 0, kk = 0;
-                for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[cc * nv + j];
-                for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[cc * m + j];
-                gS[a * n + cc] += w * (t + gp.disturbance_intensity * bb + gp.noise_intensity * kk);
-            }
-        // d tr(K'S K)/dK = 2 S K (S symmetric)
-        for (int a = 0; a < n; ++a)
-            for (int j = 0; j < m; ++j) {
-                double t = 0;
-                for (int cc = 0; cc < n; ++cc) t += d.S[a * n + cc] * K[cc * m + j];
-                gK[a * m + j] += w * gp.noise_intensity * 2.0 * t;
-            }
-    }
+    gain_h2_backward(gK, gS, d.S, K, B, n, nv, m, gp, d_h2);
 }
 
 }  // namespace hinf::kern
