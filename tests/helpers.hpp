@@ -94,6 +94,20 @@ runs = 3
 )";
 }
 
+/// The [system] block of a small linear discrete-time system (n = 2, nv = 1, m = 1) the `gain` variant trains on.
+inline std::string linear_discrete_system_toml() {
+    return R"([system]
+kind = "expr"
+time = "discrete"
+states = ["a", "b"]
+disturbances = 1
+measurements = 1
+f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
+g = [["0.5"], ["1"]]
+h = ["a + 0.5*b"]
+)";
+}
+
 /// A missile config that trains in a fraction of a second (tiny network, few samples).
 inline std::string tiny_missile_config(const std::string& t_final = "0.05") {
     return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +

@@ -21,16 +21,7 @@ using namespace hinf;
 
 namespace {
 
-const char* kLinear = R"toml([system]
-kind = "expr"
-time = "discrete"
-states = ["a", "b"]
-disturbances = 1
-measurements = 1
-f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
-g = [["0.5"], ["1"]]
-h = ["a + 0.5*b"]
-[filter]
+const std::string kLinear = hinf::test::linear_discrete_system_toml() + R"toml([filter]
 variant = "gain"
 rho = 6
 Q = [1.0, 1.0]

@@ -36,17 +36,7 @@ RESET
 )";
 
 // variant gain on a small linear discrete-time system (the one-step game, docs/method.md section 16.8)
-const char* kSmallDiscrete = R"(
-[system]
-kind = "expr"
-time = "discrete"
-states = ["a", "b"]
-disturbances = 1
-measurements = 1
-f = ["1.05*a + 0.2*b", "-0.1*a + 0.9*b"]
-g = [["0.5"], ["1"]]
-h = ["a + 0.5*b"]
-[filter]
+const std::string kSmallDiscrete = hinf::test::linear_discrete_system_toml() + R"([filter]
 variant = "gain"
 rho = 6
 Q = [1.0, 1.0]
