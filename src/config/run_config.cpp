@@ -191,7 +191,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.output_scale = net.get_double("output_scale", c.output_scale, 0.0, big);
     c.eps = net.get_double("eps", c.eps, 0.0, 1e6);
     // variant gain on a continuous-time system: a time-varying storage by default (method.md §16.7: it beat the
-    // constant S on every measure we ran); discrete time: one S (§16.8)
+    // constant S on both paper systems, not on continuous Lorenz-63 with x measured); discrete time: one S (§16.8)
     const bool tv_default = c.variant == "gain" && !c.system->discrete_time();
     c.storage_knots = net.get_int("storage_knots", tv_default ? 32 : 0, 0, 4096);
     if (c.storage_knots > 0 && c.system != nullptr && c.system->discrete_time())
