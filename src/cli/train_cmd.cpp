@@ -3,6 +3,9 @@
 #include <csignal>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <memory>
 #include <sstream>
 
 #include "cli/commands.hpp"
@@ -114,8 +117,8 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
 // verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
 // Printed, written into the checkpoint's root attributes, DIR/acceptance/operate.h5 and DIR/acceptance/worst.h5.
 // Returns true when it passes.
-bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) {
-    const std::string path = dir + "/checkpoint.h5";
+bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, const std::string& file = "checkpoint.h5") {
+    const std::string path = dir + "/" + file;
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
     OperateOptions oo;
     oo.out_dir = dir + "/acceptance";
@@ -166,6 +169,101 @@ bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet) 
     return pass;
 }
 
+
+// Checkpoint selection (training.select_every > 0, docs/method.md section 16.9): every select_every time steps the
+// checkpoint just written is run as a filter, `measured`, for training.select_runs runs on noise of its own (a seed
+// derived from training.seed, never the [online] seed the figures are measured on), and the one with the lowest
+// settled Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) over t >= settle_time (the whole run when that
+// is empty) is kept as DIR/best.h5 with its score, step and time in root attributes; DIR/select.csv has one row
+// per validation (step, t, score, kept). A diverged run scores +inf.
+// The training itself does not change: the validation only reads checkpoints.
+struct Selection {
+    double score = INFINITY;
+    std::int64_t step = -1;
+};
+
+std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the training seed, another constant
+    std::uint64_t z = training_seed + 0xD1B54A32D192ED03ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return (z ^ (z >> 31)) >> 1;
+}
+
+double select_score(const RunConfig& cfg, const std::string& path, const std::string& dir) {
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
+    OperateOptions oo;
+    oo.out_dir = dir + "/select";
+    oo.mode = "measured";
+    oo.runs = cfg.select_runs;
+    oo.quiet = true;
+    std::filesystem::create_directories(oo.out_dir);
+    RunConfig v = cfg;
+    v.retrain = false;
+    v.online_seed = select_seed(cfg.seed);
+    const OperateSummary s = operate_run(v, *net, path, oo);
+    if (s.diverged_runs > 0) return INFINITY;
+    const bool settled = !s.error_mean_settled.empty() && std::isfinite(s.error_mean_settled[0]);
+    const std::vector<double>& mean = settled ? s.error_mean_settled : s.error_mean;
+    const std::vector<double>& sd = settled ? s.error_std_settled : s.error_std;
+    double score = 0;
+    for (int j = 0; j < cfg.n; ++j) score += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
+    return std::isfinite(score) ? score : INFINITY;
+}
+
+// The step callback: validates at multiples of select_every that wrote a checkpoint, and at the run's last step.
+std::function<void(const TrainStepInfo&)> select_on_step(const RunConfig& cfg, const std::string& dir,
+                                                         std::shared_ptr<Selection> best) {
+    return [cfg, dir, best](const TrainStepInfo& info) {
+        const bool at = (info.step % cfg.select_every == 0 && info.step % cfg.checkpoint_every == 0) ||
+                        info.step == info.last_step;
+        if (!at || info.step == best->step) return;
+        const std::string ck = dir + "/checkpoint.h5";
+        const double score = select_score(cfg, ck, dir);
+        const bool better = score < best->score;
+        {  // every validation, one row: the validation curve
+            const std::string csv = dir + "/select.csv";
+            const bool head = !std::filesystem::exists(csv);
+            std::FILE* f = std::fopen(csv.c_str(), "a");
+            HINF_CHECK(f != nullptr, "cannot append to " + csv + " (check the directory's permissions and free space)");
+            if (head) std::fprintf(f, "step,t,score,kept\n");
+            std::fprintf(f, "%lld,%.17g,%.17g,%d\n", static_cast<long long>(info.step), info.t, score, better ? 1 : 0);
+            std::fclose(f);
+        }
+        if (!better) return;
+        const std::string tmp = dir + "/best.h5.tmp";
+        std::filesystem::copy_file(ck, tmp, std::filesystem::copy_options::overwrite_existing);
+        {
+            h5::Handle f = h5::open_file(tmp, true);
+            h5::set_attr(f.get(), "select_score", score);
+            h5::set_attr(f.get(), "select_step", info.step);
+            h5::set_attr(f.get(), "select_time", info.t);
+            h5::set_attr(f.get(), "select_runs", cfg.select_runs);
+        }
+        std::filesystem::rename(tmp, dir + "/best.h5");
+        best->score = score;
+        best->step = info.step;
+    };
+}
+
+// A resumed run continues the selection recorded in DIR/best.h5 (so it ends with the uninterrupted run's best.h5).
+std::shared_ptr<Selection> select_state(const std::string& dir) {
+    auto best = std::make_shared<Selection>();
+    const std::string path = dir + "/best.h5";
+    if (!std::filesystem::exists(path)) return best;
+    h5::Handle f = h5::open_file(path, false);
+    best->score = h5::get_attr_double(f.get(), "select_score");
+    best->step = h5::get_attr_int(f.get(), "select_step");
+    return best;
+}
+
+void print_selection(const RunConfig& cfg, const Selection& best, const std::string& dir) {
+    if (best.step < 0)
+        std::printf("select: no checkpoint validated without divergence (%s/best.h5 not written)\n", dir.c_str());
+    else
+        std::printf("select: best validated checkpoint at step %lld (t = %.6g s): settled Q-weighted MSE %.4g over %lld "
+                    "runs; use %s/best.h5\n", static_cast<long long>(best.step), cfg.time_of(best.step), best.score,
+                    static_cast<long long>(cfg.select_runs), dir.c_str());
+}
 }  // namespace
 
 void add_train_commands(CLI::App& app) {
@@ -188,18 +286,28 @@ void add_train_commands(CLI::App& app) {
                        "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
+        std::filesystem::remove(opt.out_dir + "/best.h5");  // a fresh run: an old selection must not outlive it
+        std::filesystem::remove(opt.out_dir + "/select.csv");
+        auto best = std::make_shared<Selection>();
+        const bool select = cfg.select_every > 0 && par_world_size() == 1;
+        if (select) opt.on_step = select_on_step(cfg, opt.out_dir, best);
         install_stop_handlers();
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
+        if (select) print_selection(cfg, *best, opt.out_dir);
+        if (cfg.select_every > 0 && par_world_size() > 1 && par_root())
+            std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");
         if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
             std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
         if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && par_world_size() == 1) {
-            const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet);
+            const std::string accepted = select && best->step >= 0 ? "best.h5" : "checkpoint.h5";
+            const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet, accepted);
             if (!pass && cfg.require_acceptance) {
-                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5: "
+                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/%s: "
                                      "attenuation ratio or worst-case ratio above [filter] rho, or a diverged run); "
-                                     "training.require_acceptance is set (train longer or with another seed, or unset it)\n", opt.out_dir.c_str());
+                                     "training.require_acceptance is set (train longer or with another seed, or unset it)\n", opt.out_dir.c_str(),
+                             accepted.c_str());
                 throw CLI::RuntimeError(5);
             }
         }
@@ -257,12 +365,17 @@ void add_train_commands(CLI::App& app) {
         opt.until = args->until;
         opt.quiet = args->quiet;
         opt.sets = args->sets;
+        std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
+        if (dir.empty()) dir = ".";
+        const RunConfig before = ckpt_config(args->checkpoint);
+        const bool select = before.select_every > 0 && par_world_size() == 1;
+        std::shared_ptr<Selection> best = select_state(dir);
+        if (select) opt.on_step = select_on_step(before, dir, best);
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
-        std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
-        if (dir.empty()) dir = ".";
         print_summary(s, dir);
+        if (select) print_selection(before, *best, dir);
         if (!args->sets.empty()) {
             std::string changed;
             for (const auto& v : args->sets) changed += " " + v;
@@ -272,10 +385,11 @@ void add_train_commands(CLI::App& app) {
         RunConfig cfg = ckpt_config(args->checkpoint);
         if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step &&
             par_world_size() == 1) {
-            const bool pass = acceptance_check(cfg, dir, args->quiet);
+            const std::string accepted = select && best->step >= 0 ? "best.h5" : "checkpoint.h5";
+            const bool pass = acceptance_check(cfg, dir, args->quiet, accepted);
             if (!pass && cfg.require_acceptance) {
-                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/checkpoint.h5); "
-                                     "training.require_acceptance is set\n", dir.c_str());
+                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/%s); "
+                                     "training.require_acceptance is set\n", dir.c_str(), accepted.c_str());
                 throw CLI::RuntimeError(5);
             }
         }

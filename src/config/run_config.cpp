@@ -226,6 +226,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.acceptance_runs = t.get_int("acceptance_runs", c.acceptance_runs, 0, 100000);
     c.require_acceptance = t.get_bool("require_acceptance", c.require_acceptance);
     c.acceptance_worst_evals = t.get_int("acceptance_worst_evals", c.acceptance_worst_evals, 0, 1000000);
+    c.select_every = t.get_int("select_every", c.select_every, 0, 1000000000);
+    c.select_runs = t.get_int("select_runs", c.select_runs, 1, 100000);
+    if (c.select_every > 0 && c.select_every % c.checkpoint_every != 0)
+        t.reject("select_every", "= " + std::to_string(c.select_every) + " must be a multiple of training.checkpoint_every = " +
+                                     std::to_string(c.checkpoint_every) + " (the selection validates written checkpoints)");
     if (c.require_acceptance && c.acceptance_runs == 0)
         t.reject("require_acceptance", "needs training.acceptance_runs > 0 (the validation Monte Carlo it checks)");
     // consistency: the network and the per-time-step buffers must fit in memory (a typo such as

@@ -57,6 +57,8 @@ struct TrainingConfig {
     std::int64_t max_rollbacks = 3;      // then stop as with "stop"
     std::int64_t acceptance_runs = 5;    // validation Monte Carlo at the end of `hinf train` (0: none)
     bool require_acceptance = false;     // exit 5 when the acceptance check fails
+    std::int64_t select_every = 0;       // keep the best validated checkpoint as DIR/best.h5 every this many steps (0: off)
+    std::int64_t select_runs = 5;        // its validation Monte Carlo's runs
     std::int64_t acceptance_worst_evals = 240;  // the acceptance's worst-case search: evaluations per filter (0: none)
 
     // [sampling]

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
@@ -174,4 +175,77 @@ TEST_CASE("acceptance: the worst-case search gives the same bits on 1 and 2 thre
     CHECK(same_bits(a.worst_ratio, b.worst_ratio));
     CHECK(same_bits(a.worst_ratio_ekf, b.worst_ratio_ekf));
     CHECK(a.verdict == b.verdict);
+}
+
+namespace {
+struct SelectRow {
+    std::int64_t step = 0;
+    double score = 0;
+    int kept = 0;
+};
+std::vector<SelectRow> read_select_csv(const std::string& path) {
+    std::ifstream in(path);
+    std::vector<SelectRow> rows;
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) {
+        SelectRow r;
+        double t = 0;
+        char c1 = 0, c2 = 0, c3 = 0;
+        std::istringstream ls(line);
+        ls >> r.step >> c1 >> t >> c2 >> r.score >> c3 >> r.kept;
+        rows.push_back(r);
+    }
+    return rows;
+}
+std::string content_digest(const std::string& checkpoint) {  // the digest of the network, optimiser and state
+    hinf::h5::Handle f = hinf::h5::open_file(checkpoint, false);
+    return hinf::h5::get_attr_string(f.get(), "content_digest");
+}
+}  // namespace
+
+TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5, and a resumed run keeps the same one",
+          "[cli][gain][select]") {
+    hinf::test::TempDir d("gainselect");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("0.5", "select_every = 10\nselect_runs = 2\n");
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet --set training.acceptance_worst_evals=0");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    CHECK(t.output.find("select: best validated checkpoint at step") != std::string::npos);
+    // one validation per 10 steps, and the kept one is the lowest score of them
+    const std::vector<SelectRow> rows = read_select_csv(d / "run/select.csv");
+    REQUIRE(rows.size() == 5);
+    std::size_t arg = 0;
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        CHECK(rows[r].step == std::int64_t(10 * (r + 1)));
+        if (rows[r].score < rows[arg].score) arg = r;
+    }
+    hinf::h5::Handle b = hinf::h5::open_file(d / "run/best.h5", false);
+    const std::int64_t step = hinf::h5::get_attr_int(b.get(), "select_step");
+    CHECK(step == rows[arg].step);
+    CHECK(same_bits(hinf::h5::get_attr_double(b.get(), "select_score"), rows[arg].score));
+    CHECK(rows[arg].kept == 1);
+    // the acceptance check ran on best.h5 (its attributes are there)
+    CHECK(hinf::h5::has_attr(b.get(), "acceptance_verdict"));
+    // best.h5 holds the network of that step: the same training stopped there gives the same parameters
+    auto stop = run_hinf("train " + cfg + " --out " + (d / "stop") + " --quiet --until " +
+                         std::to_string(0.01 * double(step)) + " --set training.acceptance_worst_evals=0");
+    INFO(stop.output);
+    REQUIRE(stop.status == 0);
+    CHECK(content_digest(d / "run/best.h5") == content_digest(d / "stop/checkpoint.h5"));
+    // interrupted at t = 0.2 and resumed: the same validation curve and the same best.h5
+    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + " --quiet --until 0.2 --set training.acceptance_worst_evals=0");
+    INFO(half.output);
+    REQUIRE(half.status == 0);
+    auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
+    INFO(rest.output);
+    REQUIRE(rest.status == 0);
+    const std::vector<SelectRow> again = read_select_csv(d / "split/select.csv");
+    REQUIRE(again.size() == rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        CHECK(again[r].step == rows[r].step);
+        CHECK(same_bits(again[r].score, rows[r].score));
+    }
+    CHECK(content_digest(d / "split/best.h5") == content_digest(d / "run/best.h5"));
 }
