@@ -343,7 +343,7 @@ void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const Gai
     knot_values(v, vd, s, knot_at(t, g), np);
     unpack_tv(M, Md, v, vd, n);
     const double c = g.storage_scale, eps = g.eps;
-    const double* d = g.dx.data();
+    const double* d = g.storage_dx();
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b) {
             double mm = 0, md = 0;
@@ -368,7 +368,7 @@ void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const
     knot_values(v, vd, s, k, np);
     unpack_tv(M, Md, v, vd, n);
     const double c = g.storage_scale;
-    const double* d = g.dx.data();
+    const double* d = g.storage_dx();
     int e = 0;
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b, ++e) {
@@ -400,7 +400,8 @@ void gain_riccati_forward(double* K, const T* o, const double* S, const double* 
     double L[kMax * kMax];
     for (int a = 0; a < n; ++a)
         for (int q = 0; q < m; ++q)
-            K[a * m + q] = rho * (Hx[q * n + a] + double(o[a * m + q]) * g.dy[q] / g.dx[a]);
+            K[a * m + q] = rho * (Hx[q * n + a] + (g.corr.empty() ? double(o[a * m + q]) * g.dy[q] / g.dx[a]
+                                                                   : double(o[a * m + q]) * g.corr[a * m + q]));
     chol(L, S, n);
     chol_solve(K, L, n, m);
 }
@@ -419,7 +420,7 @@ void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K
             gS[a * n + c] -= t;
         }
     for (int a = 0; a < n; ++a)
-        for (int q = 0; q < m; ++q) d_o[a * m + q] = T(rho * G[a * m + q] * g.dy[q] / g.dx[a]);
+        for (int q = 0; q < m; ++q) d_o[a * m + q] = T(g.corr.empty() ? rho * G[a * m + q] * g.dy[q] / g.dx[a] : rho * G[a * m + q] * g.corr[a * m + q]);
 }
 
 namespace {

@@ -39,6 +39,12 @@ struct GainSpec {
     // network's correction). knots = 0: the constant S and K = rate D o diag(dy)^-1 of sections 16.1-16.4.
     int knots = 0;
     double knot_span = 1.0;          // [s]
+    // the storage's per-state scale D_s in S(t) = c D_s^-1 (M M' + eps I) D_s^-1 (empty: dx); with
+    // network.storage_scaling = "output" it makes the initial Riccati gain K H ~ rate on every measured state
+    std::vector<double> sdx;
+    // the Riccati head's correction scale w [n x m]: K = rho S^-1 (H' + o .* w) (empty: w_aj = dy_j / dx_a)
+    std::vector<double> corr;
+    const double* storage_dx() const { return sdx.empty() ? dx.data() : sdx.data(); }
     int storage_params(int n) const { return enabled ? (knots > 0 ? knots + 1 : 1) * (n * (n + 1) / 2) : 0; }
 };
 

@@ -199,6 +199,7 @@ RunConfig load_run_config(ConfigDoc doc) {
                                     "discrete-time system: its one-step inequality uses one S, docs/method.md §16.8)");
     if (c.storage_knots > 0 && c.variant != "gain")
         net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
+    c.storage_scaling = net.get_string("storage_scaling", c.storage_scaling, {"output", "mean"});
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
     c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();

@@ -40,6 +40,7 @@ struct TrainingConfig {
     std::string precision = "float";
     double input_scale = 0.0;   // 0: auto
     double output_scale = 0.0;  // 0: auto
+    std::string storage_scaling = "output";  // variant gain with S(t): "output" (per state, from H(x^0)) or "mean" (one scale, before 2026-11-25)
     std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
     double eps = 0.0;  // 0: auto from max_step_correction
     int chunk = 100;

@@ -168,6 +168,9 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
+            if (sc.gain.knots > 0)
+                h5::set_attr(net.get(), "storage_state_scale",
+                             std::vector<double>(sc.gain.storage_dx(), sc.gain.storage_dx() + cfg.n));
         }
         h5::flush(root);
         test_pause_mid_write();
@@ -237,6 +240,11 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
         if (!h5::has_attr(net.get(), "storage_knots")) {
             ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
             doc.set("network.storage_knots=0");
+            text = doc.text();
+        } else if (h5::get_attr_int(net.get(), "storage_knots") > 0 && !h5::has_attr(net.get(), "storage_state_scale")) {
+            // an S(t) network written before network.storage_scaling existed has the one-scalar scale
+            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+            doc.set("network.storage_scaling=\"mean\"");
             text = doc.text();
         }
     }

@@ -94,6 +94,46 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
         double dy2 = 0;
         for (int j = 0; j < m; ++j) dy2 += g.dy[j] * g.dy[j] / m;
         g.storage_scale = cfg.rho * dy2 / g.rate;
+        // "output" (section 16.7, Scales): per state, S's initial diagonal is (rho / rate) (H0'H0)_jj, H0 = H(x^0), so
+        // that the initial gain K = rho S^-1 H' gives K H ~ rate on every measured state; a state no output sees
+        // gets the measured states' mean of (H0'H0)_jj dx_j^2 in its own scale. One scalar c alone ("mean", the
+        // first S(t)) starts state j at rate dx_j^2 / mean(dy^2): 4e-4 1/s for the missile's velocities. Where the
+        // two agree (one output: Van der Pol, Lorenz-63 with x measured) the error scale is kept as it is.
+        if (cfg.storage_scaling == "output") {
+            std::vector<double> hh(n, 0.0);
+            for (int j = 0; j < m; ++j)
+                for (int a = 0; a < n; ++a) hh[a] += H[j * n + a] * H[j * n + a];
+            double seen = 0;
+            int count = 0;
+            for (int a = 0; a < n; ++a)
+                if (hh[a] > 0 && std::isfinite(hh[a])) {
+                    seen += hh[a] * g.dx[a] * g.dx[a];
+                    ++count;
+                }
+            if (count > 0) {
+                seen /= count;
+                g.sdx = g.dx;
+                g.corr.assign(static_cast<std::size_t>(n) * m, 0.0);
+                bool differs = false;
+                for (int a = 0; a < n; ++a) {
+                    const double target = hh[a] > 0 && std::isfinite(hh[a]) ? hh[a] : seen / (g.dx[a] * g.dx[a]);
+                    const double sd = std::sqrt(g.storage_scale * g.rate / (cfg.rho * target));
+                    if (std::isfinite(sd) && sd > 0 && std::fabs(sd - g.dx[a]) > 1e-9 * g.dx[a]) g.sdx[a] = sd;
+                    // the correction: rho S(0)^-1 (o .* w) = rate dx_a o_aj / dy_j, the constant head's gain scale
+                    // (S(0) = (rho / rate) diag(target)), so w_aj = target_a dx_a / dy_j (= dy_j / dx_a with one output)
+                    for (int j = 0; j < m; ++j) {
+                        const double w = target * g.dx[a] / g.dy[j], w0 = g.dy[j] / g.dx[a];
+                        if (std::isfinite(w) && std::fabs(w - w0) > 1e-9 * std::fabs(w0)) {
+                            g.corr[a * m + j] = w;
+                            differs = true;
+                        } else {
+                            g.corr[a * m + j] = w0;
+                        }
+                    }
+                }
+                if (!differs) g.corr.clear();  // one output: the first S(t)'s head, its arithmetic and bits
+            }
+        }
     }
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;

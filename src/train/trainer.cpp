@@ -711,6 +711,9 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
         if (as_trained.variant == "gain" &&
             as_trained.storage_knots != load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_knots)
             legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));
+        if (as_trained.variant == "gain" && as_trained.storage_scaling !=
+                                                 load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_scaling)
+            legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
     }
     if (!opt.sets.empty() || !legacy.empty())
         ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);
