@@ -336,10 +336,12 @@ void chol_solve(double* X, const double* L, int n, int cols) {
 }
 }  // namespace
 
+namespace {
+// storage_tv_forward, keeping M(t) and Md(t) [n x n] for the backward pass (M, Md must not be null)
 template <typename T>
-void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const GainSpec& g, int n) {
+void storage_tv_parts(double* S, double* Sdot, double* M, double* Md, const T* s, double t, const GainSpec& g, int n) {
     const int np = n * (n + 1) / 2;
-    double v[kMax * (kMax + 1) / 2], vd[kMax * (kMax + 1) / 2], M[kMax * kMax], Md[kMax * kMax];
+    double v[kMax * (kMax + 1) / 2], vd[kMax * (kMax + 1) / 2];
     knot_values(v, vd, s, knot_at(t, g), np);
     unpack_tv(M, Md, v, vd, n);
     const double c = g.storage_scale, eps = g.eps;
@@ -357,16 +359,12 @@ void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const Gai
         }
 }
 
-template <typename T>
-void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const double* gSd, const T* s, double t,
-                         const GainSpec& g, int n) {
+// storage_tv_backward with M(t), Md(t) from storage_tv_parts
+void storage_tv_back_parts(double* d0, double* d1, int* j, const double* gS, const double* gSd, const double* M,
+                           const double* Md, double t, const GainSpec& g, int n) {
     // S = c D^-1 (M M' + eps I) D^-1, Sdot = c D^-1 (Md M' + M Md') D^-1:
     // dL/dM = c (G + G') M + c (Gd + Gd') Md, dL/dMd = c (Gd + Gd') M  (G = D^-1 gS D^-1, Gd = D^-1 gSd D^-1)
-    const int np = n * (n + 1) / 2;
     const KnotAt k = knot_at(t, g);
-    double v[kMax * (kMax + 1) / 2], vd[kMax * (kMax + 1) / 2], M[kMax * kMax], Md[kMax * kMax];
-    knot_values(v, vd, s, k, np);
-    unpack_tv(M, Md, v, vd, n);
     const double c = g.storage_scale;
     const double* d = g.storage_dx();
     int e = 0;
@@ -393,11 +391,27 @@ void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const
         }
     *j = k.j;
 }
+}  // namespace
+
+template <typename T>
+void storage_tv_forward(double* S, double* Sdot, const T* s, double t, const GainSpec& g, int n) {
+    double M[kMax * kMax], Md[kMax * kMax];
+    storage_tv_parts(S, Sdot, M, Md, s, t, g, n);
+}
+
+template <typename T>
+void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const double* gSd, const T* s, double t,
+                         const GainSpec& g, int n) {
+    double S[kMax * kMax], M[kMax * kMax], Md[kMax * kMax];
+    storage_tv_parts(S, static_cast<double*>(nullptr), M, Md, s, t, g, n);
+    storage_tv_back_parts(d0, d1, j, gS, gSd, M, Md, t, g, n);
+}
 
 template <typename T>
 void gain_riccati_forward(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,
-                          double rho) {
-    double L[kMax * kMax];
+                          double rho, double* Lout) {
+    double Lloc[kMax * kMax];
+    double* L = Lout != nullptr ? Lout : Lloc;
     for (int a = 0; a < n; ++a)
         for (int q = 0; q < m; ++q)
             K[a * m + q] = rho * (Hx[q * n + a] + (g.corr.empty() ? double(o[a * m + q]) * g.dy[q] / g.dx[a]
@@ -408,10 +422,14 @@ void gain_riccati_forward(double* K, const T* o, const double* S, const double* 
 
 template <typename T>
 void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K, const double* S, const GainSpec& g,
-                           int n, int m, double rho) {
-    double L[kMax * kMax], G[kMax * kMax];
+                           int n, int m, double rho, const double* Lin) {
+    double Lloc[kMax * kMax], G[kMax * kMax];
     for (int e = 0; e < n * m; ++e) G[e] = gK[e];
-    chol(L, S, n);
+    const double* L = Lin;
+    if (L == nullptr) {
+        chol(Lloc, S, n);
+        L = Lloc;
+    }
     chol_solve(G, L, n, m);  // dL/d(rho (Hx' + ...)) = S^-1 gK
     for (int a = 0; a < n; ++a)
         for (int c = 0; c < n; ++c) {
@@ -463,6 +481,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     const T* sparams = theta + P;
     double S[kMax * kMax];
     if (!tv) storage_forward(S, sparams, gs.dx.data(), n, gs.storage_scale, gs.eps);
+    if (tv && ws.storage.size() < std::size_t(M) * 5 * n * n) ws.storage.resize(std::size_t(M) * 5 * n * n);
     std::vector<GainSampleValue> vals(static_cast<std::size_t>(M));
 
     // pass 1: forward, gain head, per-sample loss pieces
@@ -474,13 +493,14 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         load_z(in, z, idx, b0, B, n);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
-        double Si[kMax * kMax], Sd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
             double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
-            if (tv) {
-                storage_tv_forward(Si, Sd, sparams, sys.t[i], gs, n);
-                gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i * m * n, gs, n, m, lp.rho);
+            if (tv) {  // S(t_i), dS/dt, its Cholesky factor, M(t_i) and dM/dt, kept for pass 2 (the same bits)
+                double* st = ws.storage.data() + std::int64_t(b0 + s) * 5 * n * n;
+                double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
+                storage_tv_parts(Si, Sd, Mt, Mdt, sparams, sys.t[i], gs, n);
+                gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i * m * n, gs, n, m, lp.rho, L);
                 vals[b0 + s] = gain_sample_forward(K, Si, sys, i, lp, Sd);
             } else {
                 gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
@@ -517,7 +537,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
-        double gK[kMax * kMax], Si[kMax * kMax], Sd[kMax * kMax], gSd[kMax * kMax];
+        double gK[kMax * kMax], gSd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
             const std::int64_t i = idx[b0 + s];
             const double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
@@ -525,11 +545,12 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
             for (int e = 0; e < n * n; ++e) gSs[e] = 0.0;
             if (tv) {
                 for (int e = 0; e < n * n; ++e) gSd[e] = 0.0;
-                storage_tv_forward(Si, Sd, sparams, sys.t[i], gs, n);
+                const double* st = ws.storage.data() + std::int64_t(b0 + s) * 5 * n * n;
+                const double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
                 gain_sample_backward(gK, gSs, K, Si, sys, i, lp, d_hinge, d_h2, Sd, gSd);
-                gain_riccati_backward(dout + std::int64_t(s) * O, gSs, gK, K, Si, gs, n, m, lp.rho);
+                gain_riccati_backward(dout + std::int64_t(s) * O, gSs, gK, K, Si, gs, n, m, lp.rho, L);
                 double* kp = knot_part.data() + std::int64_t(b0 + s) * 2 * np;
-                storage_tv_backward(kp, kp + np, &knot_j[b0 + s], gSs, gSd, sparams, sys.t[i], gs, n);
+                storage_tv_back_parts(kp, kp + np, &knot_j[b0 + s], gSs, gSd, Mt, Mdt, sys.t[i], gs, n);
             } else {
                 gain_sample_backward(gK, gSs, K, S, sys, i, lp, d_hinge, d_h2);
                 gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
@@ -636,9 +657,9 @@ void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const 
     template void storage_tv_backward<T>(double*, double*, int*, const double*, const double*, const T*, double,  \
                                          const GainSpec&, int);                                                    \
     template void gain_riccati_forward<T>(double*, const T*, const double*, const double*, const GainSpec&, int,  \
-                                          int, double);                                                            \
+                                          int, double, double*);                                                   \
     template void gain_riccati_backward<T>(T*, double*, const double*, const double*, const double*,              \
-                                           const GainSpec&, int, int, double);
+                                           const GainSpec&, int, int, double, const double*);
 HINF_GAIN_INST(float)
 HINF_GAIN_INST(double)
 #undef HINF_GAIN_INST

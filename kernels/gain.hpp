@@ -59,13 +59,15 @@ void storage_tv_backward(double* d0, double* d1, int* j, const double* gS, const
 
 /// The Riccati-form head (g.knots > 0): K = rho S^-1 (Hx' + D^-1 o diag(dy)), Hx [m x n] the output Jacobian at
 /// the estimate.
+/// Lout [n x n] (may be null) receives the Cholesky factor of S, for the backward pass.
 template <typename T>
 void gain_riccati_forward(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,
-                          double rho);
-/// d_o = dL/do; gS [n x n] += dL/dS through K (= -S^-1 gK K').
+                          double rho, double* Lout = nullptr);
+/// d_o = dL/do; gS [n x n] += dL/dS through K (= -S^-1 gK K'). Lin: the forward's Cholesky factor of S (null:
+/// recomputed).
 template <typename T>
 void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K, const double* S, const GainSpec& g,
-                           int n, int m, double rho);
+                           int n, int m, double rho, const double* Lin = nullptr);
 
 /// S = c D^-1 (M M' + eps I) D^-1, M = I + tril(s) (row-major lower-triangular packing), D = diag(d).
 template <typename T>

@@ -63,6 +63,7 @@ struct StepWorkspace {
     LineVector<T> pack;  // mlp_pack_weights(theta) of the current call (GEMM_OWN)
     std::vector<double> p, P;
     std::vector<double> K;  // gain variant: per-sample K [n x m]; P then holds per-sample dL/dS
+    std::vector<double> storage;  // gain variant with S(t): per sample S, dS/dt, chol(S), M, dM/dt [5 x n x n]
     std::vector<HjieSampleValue> values;
     std::vector<double> work;  // per chunk: step_work_stride doubles of scratch (sized from n: any state count)
     void reserve(const StepConfig& cfg, int max_batch);
