@@ -134,14 +134,20 @@ void gain_h2_backward(double* gK, double* gS, const double* S, const double* K, 
                       const GainLossParams& gp, double d_h2) {
     if (d_h2 == 0) return;
     const double w = d_h2 / gp.h2_reference;
+    // symmetric in (a, c): each product is computed once for both (the same operands in the same order, so the
+    // same bits as computing (c, a) afresh)
     for (int a = 0; a < n; ++a)
-        for (int c = 0; c < n; ++c) {
-            double t = 0;
-            if (gp.xt0 != nullptr && gp.initial_weight > 0) t += gp.initial_weight * gp.xt0[a] * gp.xt0[c] / gp.horizon;
+        for (int c = 0; c <= a; ++c) {
+            double t = 0, t2 = 0;
+            if (gp.xt0 != nullptr && gp.initial_weight > 0) {
+                t += gp.initial_weight * gp.xt0[a] * gp.xt0[c] / gp.horizon;
+                t2 += gp.initial_weight * gp.xt0[c] * gp.xt0[a] / gp.horizon;
+            }
             double bb = 0, kk = 0;
             for (int j = 0; j < nv; ++j) bb += B[a * nv + j] * B[c * nv + j];
             for (int j = 0; j < m; ++j) kk += K[a * m + j] * K[c * m + j];
             gS[a * n + c] += w * (t + gp.disturbance_intensity * bb + gp.noise_intensity * kk);
+            if (c != a) gS[c * n + a] += w * (t2 + gp.disturbance_intensity * bb + gp.noise_intensity * kk);
         }
     // d tr(K'S K)/dK = (S + S') K = 2 S K
     for (int a = 0; a < n; ++a)
@@ -320,18 +326,27 @@ void chol(double* L, const double* S, int n) {
             L[a * n + b] = a == b ? std::sqrt(std::max(t, 1e-300)) : t / L[b * n + b];
         }
 }
+// Row by row over all columns at once (the columns are independent; each element sees the same operations in the
+// same order as a column-by-column solve, so the bits are those of one)
 void chol_solve(double* X, const double* L, int n, int cols) {
-    for (int c = 0; c < cols; ++c) {
-        for (int a = 0; a < n; ++a) {
-            double t = X[a * cols + c];
-            for (int k = 0; k < a; ++k) t -= L[a * n + k] * X[k * cols + c];
-            X[a * cols + c] = t / L[a * n + a];
+    double t[kMax];
+    for (int a = 0; a < n; ++a) {
+        for (int c = 0; c < cols; ++c) t[c] = X[a * cols + c];
+        for (int k = 0; k < a; ++k) {
+            const double l = L[a * n + k];
+            for (int c = 0; c < cols; ++c) t[c] -= l * X[k * cols + c];
         }
-        for (int a = n - 1; a >= 0; --a) {
-            double t = X[a * cols + c];
-            for (int k = a + 1; k < n; ++k) t -= L[k * n + a] * X[k * cols + c];
-            X[a * cols + c] = t / L[a * n + a];
+        const double d = L[a * n + a];
+        for (int c = 0; c < cols; ++c) X[a * cols + c] = t[c] / d;
+    }
+    for (int a = n - 1; a >= 0; --a) {
+        for (int c = 0; c < cols; ++c) t[c] = X[a * cols + c];
+        for (int k = a + 1; k < n; ++k) {
+            const double l = L[k * n + a];
+            for (int c = 0; c < cols; ++c) t[c] -= l * X[k * cols + c];
         }
+        const double d = L[a * n + a];
+        for (int c = 0; c < cols; ++c) X[a * cols + c] = t[c] / d;
     }
 }
 }  // namespace
@@ -367,14 +382,19 @@ void storage_tv_back_parts(double* d0, double* d1, int* j, const double* gS, con
     const KnotAt k = knot_at(t, g);
     const double c = g.storage_scale;
     const double* d = g.storage_dx();
+    double Gs[kMax * kMax], Gd[kMax * kMax];  // (G + G')_aq and (Gd + Gd')_aq, once per (a, q)
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < n; ++q) {
+            const double dd = d[a] * d[q];
+            Gs[a * n + q] = gS != nullptr ? (gS[a * n + q] + gS[q * n + a]) / dd : 0.0;
+            Gd[a * n + q] = gSd != nullptr ? (gSd[a * n + q] + gSd[q * n + a]) / dd : 0.0;
+        }
     int e = 0;
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b, ++e) {
             double gm = 0, gmd = 0;
             for (int q = 0; q < n; ++q) {
-                const double dd = d[a] * d[q];
-                const double gs = gS != nullptr ? (gS[a * n + q] + gS[q * n + a]) / dd : 0.0;
-                const double gd = gSd != nullptr ? (gSd[a * n + q] + gSd[q * n + a]) / dd : 0.0;
+                const double gs = Gs[a * n + q], gd = Gd[a * n + q];
                 gm += gs * M[q * n + b] + gd * Md[q * n + b];
                 gmd += gd * M[q * n + b];
             }
