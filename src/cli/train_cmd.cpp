@@ -367,9 +367,15 @@ void add_train_commands(CLI::App& app) {
         opt.sets = args->sets;
         std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
         if (dir.empty()) dir = ".";
-        const RunConfig before = ckpt_config(args->checkpoint);
-        const bool select = before.select_every > 0 && par_world_size() == 1;
-        std::shared_ptr<Selection> best = select_state(dir);
+        RunConfig before;
+        bool select = false;
+        try {
+            before = ckpt_config(args->checkpoint);
+            select = before.select_every > 0 && par_world_size() == 1;
+        } catch (const std::exception&) {
+            // a checkpoint that cannot be read: train_resume says so, with its hint about checkpoint.prev.h5
+        }
+        std::shared_ptr<Selection> best = select ? select_state(dir) : std::make_shared<Selection>();
         if (select) opt.on_step = select_on_step(before, dir, best);
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
