@@ -210,12 +210,13 @@ double select_score(const RunConfig& cfg, const std::string& path, const std::st
     return std::isfinite(score) ? score : INFINITY;
 }
 
-// The step callback: validates at multiples of select_every that wrote a checkpoint, and at the run's last step.
+// The step callback: validates at multiples of select_every that wrote a checkpoint, and at t_final (not at an
+// --until stop, so that a run split there validates the same steps as one run)
 std::function<void(const TrainStepInfo&)> select_on_step(const RunConfig& cfg, const std::string& dir,
                                                          std::shared_ptr<Selection> best) {
     return [cfg, dir, best](const TrainStepInfo& info) {
         const bool at = (info.step % cfg.select_every == 0 && info.step % cfg.checkpoint_every == 0) ||
-                        info.step == info.last_step;
+                        (info.step == info.last_step && info.step == cfg.steps_until());
         if (!at || info.step == best->step) return;
         const std::string ck = dir + "/checkpoint.h5";
         const double score = select_score(cfg, ck, dir);

@@ -234,8 +234,8 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
     INFO(stop.output);
     REQUIRE(stop.status == 0);
     CHECK(content_digest(d / "run/best.h5") == content_digest(d / "stop/checkpoint.h5"));
-    // interrupted at t = 0.2 and resumed: the same validation curve and the same best.h5
-    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + " --quiet --until 0.2 --set training.acceptance_worst_evals=0");
+    // interrupted at t = 0.25 (between validations) and resumed: the same validation curve and the same best.h5
+    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + " --quiet --until 0.25 --set training.acceptance_worst_evals=0");
     INFO(half.output);
     REQUIRE(half.status == 0);
     auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
