@@ -112,6 +112,23 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     return a;
 }
 
+// A Monte Carlo of the checkpoint at `path` as the filter a user runs: `measured`, the network as trained (on-line
+// retraining is hinf operate's), `runs` runs on the noise of `seed`; operate.h5 goes to out_dir.
+OperateSummary measured_validation(const RunConfig& cfg, const std::string& path, const std::string& out_dir,
+                                   std::int64_t runs, std::uint64_t seed, bool quiet) {
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
+    OperateOptions oo;
+    oo.out_dir = out_dir;
+    oo.mode = "measured";
+    oo.runs = runs;
+    oo.quiet = quiet;
+    std::filesystem::create_directories(oo.out_dir);
+    RunConfig plain = cfg;
+    plain.retrain = false;
+    plain.online_seed = seed;
+    return operate_run(plain, *net, path, oo);
+}
+
 // The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
 // [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
 // verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
@@ -119,23 +136,17 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
 // Returns true when it passes.
 bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, const std::string& file = "checkpoint.h5") {
     const std::string path = dir + "/" + file;
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
-    OperateOptions oo;
-    oo.out_dir = dir + "/acceptance";
-    oo.mode = "measured";
-    oo.runs = cfg.acceptance_runs;
-    oo.quiet = quiet;
-    std::filesystem::create_directories(oo.out_dir);
+    const std::string out = dir + "/acceptance";
+    const OperateSummary s = measured_validation(cfg, path, out, cfg.acceptance_runs, cfg.online_seed, quiet);
     RunConfig plain = cfg;
-    plain.retrain = false;  // the network as trained is what is accepted (on-line retraining: hinf operate)
-    OperateSummary s = operate_run(plain, *net, path, oo);
+    plain.retrain = false;
     // the H-infinity bound is int x~'Qx~ <= V(x~(0)) + rho int (v'v + n'n): the ratio less V(x~(0)) where V is defined
     const double ratio = std::isfinite(s.attenuation_ratio_minus_v0) ? s.attenuation_ratio_minus_v0 : s.attenuation_ratio;
     const bool mc_pass = s.diverged_runs == 0 && ratio <= cfg.rho;
     const bool search = cfg.acceptance_worst_evals > 0;
     AcceptanceWorst w;
-    std::filesystem::remove(oo.out_dir + "/worst.h5");  // a file from an earlier check must not outlive its verdict
-    if (search) w = acceptance_worst(plain, path, oo.out_dir, quiet);
+    std::filesystem::remove(out + "/worst.h5");  // a file from an earlier check must not outlive its verdict
+    if (search) w = acceptance_worst(plain, path, out, quiet);
     // from x~(0) = 0 the bound is the plain ratio: worst ratio found <= rho (NaN fails)
     const bool worst_pass = !search || !w.skipped.empty() || (!w.diverged && w.ratio <= cfg.rho);
     const bool pass = mc_pass && worst_pass;
@@ -164,7 +175,7 @@ bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, 
     std::printf("acceptance (%lld measured runs, [online] noise): attenuation ratio %.4g, less V(x~(0)) %.4g (rho %.4g), "
                 "position RMSE %.4g, diverged %lld; %s: %s; files: %s/operate.h5%s\n",
                 static_cast<long long>(s.runs), s.attenuation_ratio, s.attenuation_ratio_minus_v0, cfg.rho, s.rmse_position,
-                static_cast<long long>(s.diverged_runs), worst_text.c_str(), pass ? "PASS" : "FAIL", oo.out_dir.c_str(),
+                static_cast<long long>(s.diverged_runs), worst_text.c_str(), pass ? "PASS" : "FAIL", out.c_str(),
                 search && w.skipped.empty() ? ", worst.h5" : "");
     return pass;
 }
@@ -190,17 +201,7 @@ std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the t
 }
 
 double select_score(const RunConfig& cfg, const std::string& path, const std::string& dir) {
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
-    OperateOptions oo;
-    oo.out_dir = dir + "/select";
-    oo.mode = "measured";
-    oo.runs = cfg.select_runs;
-    oo.quiet = true;
-    std::filesystem::create_directories(oo.out_dir);
-    RunConfig v = cfg;
-    v.retrain = false;
-    v.online_seed = select_seed(cfg.seed);
-    const OperateSummary s = operate_run(v, *net, path, oo);
+    const OperateSummary s = measured_validation(cfg, path, dir + "/select", cfg.select_runs, select_seed(cfg.seed), true);
     if (s.diverged_runs > 0) return INFINITY;
     const bool settled = !s.error_mean_settled.empty() && std::isfinite(s.error_mean_settled[0]);
     const std::vector<double>& mean = settled ? s.error_mean_settled : s.error_mean;
