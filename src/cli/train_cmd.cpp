@@ -372,6 +372,7 @@ void add_train_commands(CLI::App& app) {
         RunConfig before;
         bool select = false;
         try {
+            ckpt_verify(args->checkpoint);  // read in a child first: a damaged file may crash the HDF5 library
             before = ckpt_config(args->checkpoint);
             select = before.select_every > 0 && par_world_size() == 1;
         } catch (const std::exception&) {
