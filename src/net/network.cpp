@@ -116,7 +116,10 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
                 g.corr.assign(static_cast<std::size_t>(n) * m, 0.0);
                 bool differs = false;
                 for (int a = 0; a < n; ++a) {
-                    const double target = hh[a] > 0 && std::isfinite(hh[a]) ? hh[a] : seen / (g.dx[a] * g.dx[a]);
+                    // a state whose output share is a vanishing part of the others' (a Jacobian that is zero but
+                    // for rounding at x^0, say) counts as unseen: K H ~ rate would need a gain of 1/H there
+                    const bool sees = hh[a] > 0 && std::isfinite(hh[a]) && hh[a] * g.dx[a] * g.dx[a] >= 1e-9 * seen;
+                    const double target = sees ? hh[a] : seen / (g.dx[a] * g.dx[a]);
                     const double sd = std::sqrt(g.storage_scale * g.rate / (cfg.rho * target));
                     if (std::isfinite(sd) && sd > 0 && std::fabs(sd - g.dx[a]) > 1e-9 * g.dx[a]) g.sdx[a] = sd;
                     // the correction: rho S(0)^-1 (o .* w) = rate dx_a o_aj / dy_j, the constant head's gain scale

@@ -97,6 +97,24 @@ TEST_CASE("storage_scaling: the initial Riccati gain is the same rate on every m
     CHECK(km[0] > rate);
 }
 
+TEST_CASE("storage_scaling: a Jacobian that vanishes at x^0 does not ask for a gain of 1/H", "[gain][scaling]") {
+    // h = [a, b^2] at b^ = 1e-7: dh/db = 2e-7, a share of (2e-7 dx_b)^2 against a's dx_a^2; b counts as unseen and
+    // starts from the seen state's mean in its own scale, as an unmeasured state does
+    std::string text = two_scale_config();
+    const std::string h = "h = [\"a\", \"b\"]", x = "xhat0 = [0.0, 0.0]";
+    text.replace(text.find(h), h.size(), "h = [\"a\", \"b^2\"]");
+    text.replace(text.find(x), x.size(), "xhat0 = [0.0, 1e-7]");
+    const hinf::RunConfig c = load(text);
+    const hinf::kern::StepConfig sc = hinf::network_step_config(c);
+    const hinf::kern::GainSpec& g = sc.gain;
+    std::vector<double> theta(sc.shape.param_count() + g.storage_params(2), 0.0), S(4);
+    hinf::kern::gain_storage_eval(S.data(), static_cast<double*>(nullptr), theta.data(), 0.0, sc);
+    // seen = (1 * dx_a^2 + 4e-14 dx_b^2) / 2 (both counted in the mean); S_bb = (rho / rate)(1 + eps) seen / dx_b^2
+    const double seen = (g.dx[0] * g.dx[0] + 4e-14 * g.dx[1] * g.dx[1]) / 2;
+    CHECK(S[3] == Approx(c.rho / g.rate * (1 + g.eps) * seen / (g.dx[1] * g.dx[1])).epsilon(1e-9));
+    CHECK(S[0] == Approx(c.rho / g.rate * (1 + g.eps)).epsilon(1e-9));
+}
+
 TEST_CASE("storage_scaling: one output keeps the error scale bit for bit", "[gain][scaling]") {
     const hinf::RunConfig c = load(hinf::test::tiny_vdp_gain_config("0.5"));
     REQUIRE(c.storage_knots > 0);
