@@ -53,6 +53,16 @@ inline CommandResult run_hinf(const std::string& args) { return run_command(std:
 
 inline std::string source_path(const std::string& rel) { return std::string(HINF_SOURCE_DIR) + "/" + rel; }
 
+/// A run written by an older hinf: tests/corpus/legacy/NAME_checkpoint.h5 and NAME_trajectory.h5 copied into dir
+/// (created) as checkpoint.h5 and trajectory.h5, ready to resume; returns dir/checkpoint.h5. NAME_full.h5 beside
+/// them is that hinf's checkpoint at the end of the uninterrupted run.
+inline std::string copy_legacy_run(const std::string& name, const std::string& dir) {
+    std::filesystem::create_directories(dir);
+    std::filesystem::copy_file(source_path("tests/corpus/legacy/" + name + "_checkpoint.h5"), dir + "/checkpoint.h5");
+    std::filesystem::copy_file(source_path("tests/corpus/legacy/" + name + "_trajectory.h5"), dir + "/trajectory.h5");
+    return dir + "/checkpoint.h5";
+}
+
 /// A Van der Pol config of the `gain` variant (position-only, nonlinear sensor: m < n) that trains in a fraction of
 /// a second; `training_extra` lines go into [training].
 inline std::string tiny_vdp_gain_config(const std::string& t_final = "0.5", const std::string& training_extra = "") {

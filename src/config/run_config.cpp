@@ -200,6 +200,9 @@ RunConfig load_run_config(ConfigDoc doc) {
     if (c.storage_knots > 0 && c.variant != "gain")
         net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
     c.storage_scaling = net.get_string("storage_scaling", c.storage_scaling, {"output", "mean"});
+    if (net.has("storage_scaling") && (c.variant != "gain" || c.storage_knots == 0))
+        net.reject("storage_scaling", "scales a time-varying storage: it needs [filter] variant = \"gain\" and "
+                                      "network.storage_knots > 0 (remove the key)");
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
     c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();

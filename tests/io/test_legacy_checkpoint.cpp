@@ -15,11 +15,8 @@ using hinf::test::source_path;
 
 TEST_CASE("a gain checkpoint with a constant S from before storage_knots loads and resumes as trained", "[cli][gain]") {
     hinf::test::TempDir d("legacy");
-    namespace fs = std::filesystem;
     const std::string dir = d / "run";
-    fs::create_directories(dir);
-    fs::copy_file(source_path("tests/corpus/legacy/gain_constant_s_checkpoint.h5"), dir + "/checkpoint.h5");
-    fs::copy_file(source_path("tests/corpus/legacy/gain_constant_s_trajectory.h5"), dir + "/trajectory.h5");
+    hinf::test::copy_legacy_run("gain_constant_s", dir);
     const std::string cfg = source_path("tests/corpus/legacy/gain_constant_s.toml");
 
     auto c = run_hinf("compare " + cfg + " --network " + dir + "/checkpoint.h5 --filters dnn --runs 1 --quiet --out " +

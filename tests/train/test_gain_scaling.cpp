@@ -126,13 +126,10 @@ TEST_CASE("an S(t) checkpoint from before storage_scaling loads with the one-sca
           "[cli][gain][scaling]") {
     // fixtures written by the hinf of commit 821b096 (before the key) from tests/corpus/legacy/gain_tv_mean.toml
     // (= two_scale_config() above): the 0.1 s checkpoint with its trajectory, and the 0.3 s checkpoint of the full run
-    namespace fs = std::filesystem;
     using hinf::test::source_path;
     hinf::test::TempDir d("scalelegacy");
     const std::string dir = d / "run";
-    fs::create_directories(dir);
-    fs::copy_file(source_path("tests/corpus/legacy/gain_tv_mean_checkpoint.h5"), dir + "/checkpoint.h5");
-    fs::copy_file(source_path("tests/corpus/legacy/gain_tv_mean_trajectory.h5"), dir + "/trajectory.h5");
+    hinf::test::copy_legacy_run("gain_tv_mean", dir);
     CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").storage_scaling == "mean");
     auto r = hinf::test::run_hinf("resume " + dir + "/checkpoint.h5 --quiet");
     INFO(r.output);
