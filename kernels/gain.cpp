@@ -662,6 +662,187 @@ void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const 
         for (int e = 0; e < n * n; ++e) Sdot[e] = 0.0;
 }
 
+namespace {
+// X <- A^-1 X for A [n x n] (copied), X [n x cols]: Gauss-Jordan with partial pivoting (the naive twin's solve)
+void gauss_solve(const double* A, double* X, int n, int cols) {
+    double a[kMax * kMax];
+    for (int e = 0; e < n * n; ++e) a[e] = A[e];
+    for (int k = 0; k < n; ++k) {
+        int p = k;
+        for (int r = k + 1; r < n; ++r)
+            if (std::fabs(a[r * n + k]) > std::fabs(a[p * n + k])) p = r;
+        for (int c = 0; c < n; ++c) std::swap(a[k * n + c], a[p * n + c]);
+        for (int c = 0; c < cols; ++c) std::swap(X[k * cols + c], X[p * cols + c]);
+        for (int r = 0; r < n; ++r) {
+            if (r == k) continue;
+            const double f = a[r * n + k] / a[k * n + k];
+            for (int c = 0; c < n; ++c) a[r * n + c] -= f * a[k * n + c];
+            for (int c = 0; c < cols; ++c) X[r * cols + c] -= f * X[k * cols + c];
+        }
+    }
+    for (int k = 0; k < n; ++k)
+        for (int c = 0; c < cols; ++c) X[k * cols + c] /= a[k * n + k];
+}
+
+// S(t) and dS/dt from the knots by the definition: M(t) = diag(exp(v)) + strict tril(v), v linear in t between
+// knots (constant after the span), S = c Ds^-1 (M M' + eps I) Ds^-1, Sdot = c Ds^-1 (Md M' + M Md') Ds^-1
+template <typename T>
+void naive_storage_tv(double* S, double* Sd, const T* s, double t, const GainSpec& g, int n) {
+    const int np = n * (n + 1) / 2, J = g.knots;
+    const double h = g.knot_span / J;
+    int j = 0;
+    double w = 0, slope = 1.0 / h;
+    if (t >= g.knot_span) {
+        j = J - 1;
+        w = 1.0;
+        slope = 0.0;
+    } else if (t > 0) {
+        j = std::min(J - 1, int(t / h));
+        w = t / h - j;
+    }
+    double Mt[kMax * kMax] = {}, Md[kMax * kMax] = {};
+    int e = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b <= a; ++b, ++e) {
+            const double v0 = double(s[j * np + e]), v1 = double(s[(j + 1) * np + e]);
+            const double v = (1 - w) * v0 + w * v1, vd = (v1 - v0) * slope;
+            Mt[a * n + b] = a == b ? std::exp(v) : v;
+            Md[a * n + b] = a == b ? std::exp(v) * vd : vd;
+        }
+    const double* d = g.storage_dx();
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+            double mm = 0, md = 0;
+            for (int k = 0; k < n; ++k) {
+                mm += Mt[a * n + k] * Mt[b * n + k];
+                md += Md[a * n + k] * Mt[b * n + k] + Mt[a * n + k] * Md[b * n + k];
+            }
+            S[a * n + b] = g.storage_scale * (mm + (a == b ? g.eps : 0.0)) / (d[a] * d[b]);
+            Sd[a * n + b] = g.storage_scale * md / (d[a] * d[b]);
+        }
+}
+
+// K = rho S^-1 (Hx' + o .* w) (the Riccati head by its definition, w from GainSpec::corr or dy_j / dx_a)
+template <typename T>
+void naive_riccati(double* K, const T* o, const double* S, const double* Hx, const GainSpec& g, int n, int m,
+                   double rho) {
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q) {
+            const double w = g.corr.empty() ? g.dy[q] / g.dx[a] : g.corr[a * m + q];
+            K[a * m + q] = rho * (Hx[q * n + a] + double(o[a * m + q]) * w);
+        }
+    gauss_solve(S, K, n, m);
+}
+}  // namespace
+
+template <typename T>
+StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
+                                  const std::int64_t* idx, int M, const StepConfig& cfg) {
+    const MlpShape& sh = cfg.shape;
+    const GainSpec& gs = cfg.gain;
+    const int n = sys.n, m = sys.m, O = sh.outputs(), np = n * (n + 1) / 2;
+    const std::int64_t P = sh.param_count();
+    const bool tv = gs.knots > 0;
+    GainLossParams lp = gs.loss;
+    lp.xt0 = gs.xt0.data();
+    lp.dx = gs.dx.data();
+    const double initial_weight = lp.initial_weight;
+    if (tv) lp.initial_weight = 0.0;
+    const T* sp = theta + P;
+    std::vector<T> acts(static_cast<std::size_t>(sh.act_per_sample())), in(static_cast<std::size_t>(n));
+    std::vector<T> dout(static_cast<std::size_t>(O)), gtheta(static_cast<std::size_t>(P), T(0));
+    double Sc[kMax * kMax];
+    if (!tv) storage_forward(Sc, sp, gs.dx.data(), n, gs.storage_scale, gs.eps);
+    // the sample's K, S and dS/dt, from scratch each time it is needed
+    auto sample = [&](int s, double* K, double* S, double* Sd) {
+        const std::int64_t i = idx[s];
+        for (int a = 0; a < n; ++a) in[a] = T(z[i * n + a]);
+        mlp_forward_naive(acts.data(), theta, in.data(), 1, sh);
+        const T* o = acts.data() + sh.act_offset(sh.layers(), 1);
+        if (tv) {
+            naive_storage_tv(S, Sd, sp, sys.t[i], gs, n);
+            naive_riccati(K, o, S, sys.Hx + i * m * n, gs, n, m, lp.rho);
+        } else {
+            for (int e = 0; e < n * n; ++e) S[e] = Sc[e], Sd[e] = 0.0;
+            for (int a = 0; a < n; ++a)
+                for (int q = 0; q < m; ++q) K[a * m + q] = gs.rate * gs.dx[a] * double(o[a * m + q]) / gs.dy[q];
+        }
+    };
+    double K[kMax * kMax], S[kMax * kMax], Sd[kMax * kMax];
+    double sum_hinge = 0, sum_h2 = 0;
+    for (int s = 0; s < M; ++s) {
+        sample(s, K, S, Sd);
+        const GainSampleValue v = gain_sample_forward(K, S, sys, idx[s], lp, tv ? Sd : nullptr);
+        sum_hinge += v.hinge;
+        sum_h2 += v.h2;
+    }
+    StepLoss loss;
+    loss.hinge = std::sqrt(sum_hinge / M);
+    loss.h2 = sum_h2 / M;
+    if (tv && initial_weight > 0) {
+        double S0[kMax * kMax], Sd0[kMax * kMax], v0 = 0;
+        naive_storage_tv(S0, Sd0, sp, 0.0, gs, n);
+        for (int a = 0; a < n; ++a) v0 += S0[a * n + a] * gs.dx[a] * gs.dx[a];
+        loss.h2 += initial_weight * v0 / (lp.horizon * lp.h2_reference);
+    }
+    loss.loss = loss.hinge + gs.h2_weight * loss.h2;
+    const double d_hinge = loss.hinge > 0 ? 1.0 / (2.0 * M * loss.hinge) : 0.0;
+    const double d_h2 = gs.h2_weight / M;
+
+    std::vector<double> gk(tv ? std::size_t(gs.knots + 1) * np : 0, 0.0);
+    double gSsum[kMax * kMax] = {};
+    for (int s = 0; s < M; ++s) {
+        const std::int64_t i = idx[s];
+        sample(s, K, S, Sd);
+        double gK[kMax * kMax], gS[kMax * kMax] = {}, gSd[kMax * kMax] = {};
+        gain_sample_backward(gK, gS, K, S, sys, i, lp, d_hinge, d_h2, tv ? Sd : nullptr, tv ? gSd : nullptr);
+        if (tv) {
+            // K = rho S^-1 R: dL/dR = rho S^-1 gK, dL/dS -= (S^-1 gK) K'
+            double G[kMax * kMax];
+            for (int e = 0; e < n * m; ++e) G[e] = gK[e];
+            gauss_solve(S, G, n, m);
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c)
+                    for (int q = 0; q < m; ++q) gS[a * n + c] -= G[a * m + q] * K[c * m + q];
+            for (int a = 0; a < n; ++a)
+                for (int q = 0; q < m; ++q) {
+                    const double w = gs.corr.empty() ? gs.dy[q] / gs.dx[a] : gs.corr[a * m + q];
+                    dout[a * m + q] = T(lp.rho * G[a * m + q] * w);
+                }
+            double d0[kMax * (kMax + 1) / 2], d1[kMax * (kMax + 1) / 2];
+            int j = 0;
+            storage_tv_backward(d0, d1, &j, gS, gSd, sp, sys.t[i], gs, n);
+            for (int e = 0; e < np; ++e) {
+                gk[std::size_t(j) * np + e] += d0[e];
+                gk[std::size_t(j + 1) * np + e] += d1[e];
+            }
+        } else {
+            for (int a = 0; a < n; ++a)
+                for (int q = 0; q < m; ++q) dout[a * m + q] = T(gs.rate * gs.dx[a] * gK[a * m + q] / gs.dy[q]);
+            for (int e = 0; e < n * n; ++e) gSsum[e] += gS[e];
+        }
+        mlp_backward_naive(gtheta.data(), static_cast<T*>(nullptr), theta, in.data(), acts.data(), dout.data(), 1, sh);
+    }
+    for (std::int64_t e = 0; e < P; ++e) grad[e] = gtheta[e];
+    if (!tv) {
+        storage_backward(grad + P, gSsum, sp, gs.dx.data(), n, gs.storage_scale);
+        return loss;
+    }
+    if (initial_weight > 0) {
+        double gS0[kMax * kMax] = {}, d0[kMax * (kMax + 1) / 2], d1[kMax * (kMax + 1) / 2];
+        const double w = gs.h2_weight * initial_weight / (lp.horizon * lp.h2_reference);
+        for (int a = 0; a < n; ++a) gS0[a * n + a] = w * gs.dx[a] * gs.dx[a];
+        int j0 = 0;
+        storage_tv_backward(d0, d1, &j0, gS0, static_cast<const double*>(nullptr), sp, 0.0, gs, n);
+        for (int e = 0; e < np; ++e) {
+            gk[std::size_t(j0) * np + e] += d0[e];
+            gk[std::size_t(j0 + 1) * np + e] += d1[e];
+        }
+    }
+    for (std::size_t e = 0; e < gk.size(); ++e) grad[P + std::int64_t(e)] = T(gk[e]);
+    return loss;
+}
+
 #define HINF_GAIN_INST(T)                                                                                        \
     template void storage_forward<T>(double*, const T*, const double*, int, double, double);                     \
     template void storage_backward<T>(T*, const double*, const T*, const double*, int, double);                  \
@@ -673,6 +854,8 @@ void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const 
                                        std::int64_t,                                                             \
                                        const StepConfig&, StepWorkspace<T>&);                                    \
     template void gain_storage_eval<T>(double*, double*, const T*, double, const StepConfig&);                    \
+    template StepLoss gain_step_gradient_naive<T>(T*, const T*, const HjieSystemView&, const double*,            \
+                                                  const std::int64_t*, int, const StepConfig&);                  \
     template void storage_tv_forward<T>(double*, double*, const T*, double, const GainSpec&, int);                \
     template void storage_tv_backward<T>(double*, double*, int*, const double*, const double*, const T*, double,  \
                                          const GainSpec&, int);                                                    \

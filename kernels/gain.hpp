@@ -89,6 +89,14 @@ template <typename T>
 StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
                             const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws);
 
+/// The naive twin of gain_step_gradient, the reference for it in tests: one sample at a time through the naive
+/// MLP, S(t) and M(t) from the knots by plain loops, K and the backward's S^-1 by Gaussian elimination with
+/// partial pivoting (not the fast path's Cholesky), nothing kept between the passes, sums in sample order
+/// (so equal to the fast path up to rounding, not bit for bit). Single-threaded.
+template <typename T>
+StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
+                                  const std::int64_t* idx, int M, const StepConfig& cfg);
+
 /// K [count x n x m] at standardised inputs z [count x n] (the Riccati-form head needs the times t [count] and Hx
 /// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0).
 template <typename T>

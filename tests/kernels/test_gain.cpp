@@ -323,3 +323,95 @@ TEST_CASE("gain variant, time-varying storage: on a linear system the Riccati he
         CHECK(gain_sample_forward(K2.data(), S.data(), v, 0, lp, Sdot.data()).residual >= val.residual - 1e-12);
     }
 }
+
+TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the paper's size", "[kernel][gain][naive]") {
+    // 6 states, 6 outputs, the 6-256-128-32-36 network, M = 800 of N = 2000 in chunks of 100, the default GEMM path:
+    // the fast path's chunking, kept S(t)/Cholesky/M(t), row-wise solves and chunk-ordered sums against plain loops
+    const int n = 6, nv = 1, m = 6, N = 2000, M = 800;
+    struct Case {
+        int knots;
+        bool discrete, output_scale;
+    };
+    for (const Case cs : {Case{0, false, false}, Case{0, true, false}, Case{35, false, false}, Case{35, false, true}}) {
+        INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale);
+        StepConfig sc;
+        sc.shape.sizes = {n, 256, 128, 32, n * m};
+        sc.head.n = n;
+        sc.chunk = 100;
+        sc.gain.enabled = true;
+        sc.gain.m = m;
+        sc.gain.dx = {1e4, 6e3, 9e3, 300, 320, 410};
+        sc.gain.dy = {2e3, 1e3, 1.5e3, 80, 60, 90};
+        sc.gain.xt0 = {1e4, 6e3, 9e3, 300, -300, 400};
+        sc.gain.rate = 0.14;
+        sc.gain.storage_scale = 2.5;
+        sc.gain.loss.rho = 0.03;
+        sc.gain.loss.margin = 0.02;
+        sc.gain.loss.horizon = 70.0;
+        sc.gain.loss.h2_reference = 7.0;
+        sc.gain.loss.initial_weight = cs.knots > 0 ? 1.0 : 0.0;
+        sc.gain.loss.dt = 0.01;
+        sc.gain.loss.discrete = cs.discrete;
+        sc.gain.knots = cs.knots;
+        sc.gain.knot_span = 70.0;
+        if (cs.output_scale) {
+            sc.gain.sdx = {3e3, 2e3, 4e3, 150, 200, 170};
+            sc.gain.corr.resize(n * m);
+            for (int e = 0; e < n * m; ++e) sc.gain.corr[e] = 0.5 + 0.01 * e;
+        }
+        const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
+        std::vector<double> theta(P), xt(N * n), dA(N * n), B(N * n * nv), dC(N * m), q(N), z(N * n), t(N);
+        std::vector<double> Hx(N * m * n);
+        rng_normal(theta.data(), P, 9, RNG_STREAM_INIT, 0, 0);
+        for (std::int64_t k = 0; k < P; ++k) theta[k] *= k < sc.shape.param_count() ? 0.05 : 0.3;
+        rng_normal(xt.data(), N * n, 9, RNG_STREAM_SAMPLES, 0, 0);
+        rng_normal(dA.data(), N * n, 9, RNG_STREAM_SAMPLES, 1, 0);
+        rng_normal(B.data(), N * n * nv, 9, RNG_STREAM_SAMPLES, 2, 0);
+        rng_normal(dC.data(), N * m, 9, RNG_STREAM_SAMPLES, 3, 0);
+        rng_normal(z.data(), N * n, 9, RNG_STREAM_SAMPLES, 4, 0);
+        rng_normal(Hx.data(), N * m * n, 9, RNG_STREAM_SAMPLES, 5, 0);
+        for (int i = 0; i < N; ++i) {
+            for (int a = 0; a < n; ++a) {
+                xt[i * n + a] *= sc.gain.dx[a] * 1e-3;
+                dA[i * n + a] *= sc.gain.dx[a] * 1e-3;
+            }
+            for (int j = 0; j < m; ++j) dC[i * m + j] *= sc.gain.dy[j] * 1e-3;
+            double qq = 0;
+            for (int a = 0; a < n; ++a) qq += 1e-5 * xt[i * n + a] * xt[i * n + a];
+            q[i] = qq;
+            t[i] = 77.0 * i / N;  // every knot interval, and past the span
+        }
+        HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dC.data(), q.data(), t.data(), Hx.data()};
+        std::vector<std::int64_t> idx(M);
+        for (int s = 0; s < M; ++s) idx[s] = (s * 7919LL) % N;
+        auto relative = [](const auto& a, const auto& b, std::int64_t from, std::int64_t to) {
+            double d = 0, r = 0;
+            for (std::int64_t k = from; k < to; ++k) {
+                d += (double(a[k]) - double(b[k])) * (double(a[k]) - double(b[k]));
+                r += double(b[k]) * double(b[k]);
+            }
+            return std::sqrt(d / std::max(r, 1e-300));
+        };
+        const std::int64_t Pm = sc.shape.param_count();
+        {  // double: equal to rounding
+            StepWorkspace<double> ws;
+            std::vector<double> fast(P), naive(P);
+            const StepLoss Lf = gain_step_gradient(fast.data(), theta.data(), view, z.data(), idx.data(), M, sc, ws);
+            const StepLoss Ln = gain_step_gradient_naive(naive.data(), theta.data(), view, z.data(), idx.data(), M, sc);
+            REQUIRE(Lf.hinge > 0);
+            CHECK(Lf.loss == Approx(Ln.loss).epsilon(1e-12));
+            CHECK(Lf.h2 == Approx(Ln.h2).epsilon(1e-12));
+            CHECK(relative(fast, naive, 0, Pm) < 1e-10);
+            CHECK(relative(fast, naive, Pm, P) < 1e-10);
+        }
+        {  // float (the default precision): the same up to single-precision sums in another order
+            std::vector<float> th(theta.begin(), theta.end()), fast(P), naive(P);
+            StepWorkspace<float> ws;
+            const StepLoss Lf = gain_step_gradient(fast.data(), th.data(), view, z.data(), idx.data(), M, sc, ws);
+            const StepLoss Ln = gain_step_gradient_naive(naive.data(), th.data(), view, z.data(), idx.data(), M, sc);
+            CHECK(Lf.loss == Approx(Ln.loss).epsilon(1e-5));
+            CHECK(relative(fast, naive, 0, Pm) < 1e-4);
+            CHECK(relative(fast, naive, Pm, P) < 1e-4);
+        }
+    }
+}
