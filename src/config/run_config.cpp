@@ -203,6 +203,10 @@ RunConfig load_run_config(ConfigDoc doc) {
     if (net.has("storage_scaling") && (c.variant != "gain" || c.storage_knots == 0))
         net.reject("storage_scaling", "scales a time-varying storage: it needs [filter] variant = \"gain\" and "
                                       "network.storage_knots > 0 (remove the key)");
+    c.storage_init = net.get_string("storage_init", c.storage_init, {"flat", "riccati"});
+    if (net.has("storage_init") && (c.variant != "gain" || c.storage_knots == 0))
+        net.reject("storage_init", "initialises a time-varying storage: it needs [filter] variant = \"gain\" and "
+                                   "network.storage_knots > 0 (remove the key)");
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
     c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();
@@ -267,7 +271,11 @@ RunConfig load_run_config(ConfigDoc doc) {
 
     ConfigSection o(doc, "objective");
     const bool has_dist_intensity = o.has("disturbance_intensity"), has_noise_intensity = o.has("noise_intensity");
-    c.margin = o.get_double("margin", c.margin, 0.0, 1.0);
+    // the hinge's relative margin: none with a time-varying storage that starts on the Riccati solution (method.md
+    // §16.7, "Initial knots": that solution meets the inequality with equality, and the scale holds x~'Sdot x~ and
+    // s'dA, which cancel along a contracting system; a margin there slows S(t)'s growth)
+    const bool riccati = c.variant == "gain" && c.storage_knots > 0 && c.storage_init == "riccati";
+    c.margin = o.get_double("margin", riccati ? 0.0 : c.margin, 0.0, 1.0);
     c.h2_weight = o.get_double("h2_weight", c.h2_weight, 0.0, 1e9);
     c.disturbance_intensity = o.get_double("disturbance_intensity", c.disturbance_intensity, 0.0, 1e12);
     c.noise_intensity = o.get_double("noise_intensity", c.noise_intensity, 0.0, 1e12);

@@ -168,9 +168,11 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
-            if (sc.gain.knots > 0)
+            if (sc.gain.knots > 0) {
                 h5::set_attr(net.get(), "storage_state_scale",
                              std::vector<double>(sc.gain.storage_dx(), sc.gain.storage_dx() + cfg.n));
+                h5::set_attr(net.get(), "storage_init", cfg.storage_init);
+            }
         }
         h5::flush(root);
         test_pause_mid_write();
@@ -241,10 +243,15 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
             ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
             doc.set("network.storage_knots=0");
             text = doc.text();
-        } else if (h5::get_attr_int(net.get(), "storage_knots") > 0 && !h5::has_attr(net.get(), "storage_state_scale")) {
-            // an S(t) network written before network.storage_scaling existed has the one-scalar scale
+        } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
             ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-            doc.set("network.storage_scaling=\"mean\"");
+            // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
+            // before network.storage_init existed started flat and trained with the old default margin 0.02
+            if (!h5::has_attr(net.get(), "storage_state_scale")) doc.set("network.storage_scaling=\"mean\"");
+            if (!h5::has_attr(net.get(), "storage_init")) {
+                if (!ConfigSection(doc, "network").has("storage_init")) doc.set("network.storage_init=\"flat\"");
+                if (!ConfigSection(doc, "objective").has("margin")) doc.set("objective.margin=0.02");
+            }
             text = doc.text();
         }
     }

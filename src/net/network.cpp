@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <Eigen/Dense>
 
@@ -209,6 +210,83 @@ Network<T> network_shell(const RunConfig& cfg) {
     return net;
 }
 
+namespace {
+// network.storage_init = "riccati" (docs/method.md section 16.7, "Initial knots"): the knots of S(t) on the game's
+// Riccati solution for the system linearised along the noise-free trajectory from x0, i.e. (16.7.1) with equality
+// and o = 0, integrated in its sampled information form from the flat S(0):
+//   P = rho S^-1,  P+ = (P^-1 + dt (H'H - Q / rho))^-1,  P <- F P+ F' + G G' / dt
+// (F, G the Jacobians of the Euler step, H of the output). Where P^-1 + dt (H'H - Q / rho) falls below a floor in S's
+// scale (S^ = Ds S Ds / c; the start is (1 + eps) I, where K H ~ rate) -- on its way to losing positive definiteness
+// when the -Q/rho term outweighs what the outputs bring (no H-infinity filter of level rho from this start) -- its
+// eigenvalues are held at that floor, and a knot's S^ likewise: max(2 eps, rate dt / kappa), so the held gain's step,
+// about rate dt / S^, stays within the sampled-data cap kappa (objective.max_step_correction). Returns the first time
+// that happened, or a negative number.
+template <typename T>
+double riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
+    using Mat = Eigen::MatrixXd;
+    using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int n = cfg.n, m = cfg.m, nv = cfg.nv, np = n * (n + 1) / 2, J = g.knots;
+    const System& sys = *cfg.system;
+    const double rho = cfg.rho, dt = cfg.dt, c = g.storage_scale;
+    const Eigen::VectorXd ds = Eigen::Map<const Eigen::VectorXd>(g.storage_dx(), n);
+    const Mat Q = Eigen::Map<const RowMat>(cfg.Q.data(), n, n);
+    double held = -1.0;
+    const double lo = std::max(2.0 * g.eps, g.loss.dt > 0 ? g.rate * g.loss.dt / g.loss.kappa : 0.0);
+    // X (an information matrix, S / rho) with the eigenvalues of its scaled form (rho / c) Ds X Ds held >= lo
+    // (X itself where they already are: the same bits)
+    auto hold = [&](const Mat& X, double t) -> Mat {
+        const Mat D = ds.asDiagonal(), Di = ds.cwiseInverse().asDiagonal();
+        const Mat Xs = 0.5 * (X + X.transpose());
+        Eigen::SelfAdjointEigenSolver<Mat> es((rho / c) * D * Xs * D);
+        if (es.info() != Eigen::Success || es.eigenvalues().minCoeff() >= lo) return X;
+        if (held < 0) held = t;
+        const Eigen::VectorXd l = es.eigenvalues().cwiseMax(lo);
+        return (c / rho) * Di * (es.eigenvectors() * l.asDiagonal() * es.eigenvectors().transpose()) * Di;
+    };
+    Mat P = Mat::Zero(n, n);
+    for (int a = 0; a < n; ++a) P(a, a) = rho * ds[a] * ds[a] / (c * (1.0 + g.eps));
+    const std::int64_t steps = cfg.steps_until();
+    std::vector<double> x = cfg.x0;
+    RowMat H(m, n), F(n, n), G(n, nv);
+    int next = 1;  // knot 0 is the flat S(0)
+    for (std::int64_t k = 0; k < steps && next <= J; ++k) {
+        const double t = cfg.time_of(k);
+        sys.measurement_jacobian(H.data(), x.data(), t);
+        system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, dt);
+        Eigen::LLT<Mat> lp(P);
+        if (lp.info() != Eigen::Success) return t;  // a singular step Jacobian: the later knots stay flat
+        const Mat Y = hold(lp.solve(Mat::Identity(n, n)) + dt * (Mat(H.transpose() * H) - Q / rho), t);
+        Eigen::LLT<Mat> ly(Y);
+        if (ly.info() != Eigen::Success) return t;
+        P = F * ly.solve(Mat::Identity(n, n)) * F.transpose() + G * G.transpose() / dt;
+        P = 0.5 * (P + P.transpose()).eval();
+        system_advance(sys, x.data(), x.data(), nullptr, t, dt);
+        if (!P.allFinite()) return t;
+        // knot `next` at t_j = j T / J: S = rho P^-1 there, M = chol(Ds S Ds / c - eps I)
+        while (next <= J && cfg.time_of(k + 1) >= next * g.knot_span / J - 0.5 * dt) {
+            Eigen::LLT<Mat> lk(P);
+            if (lk.info() != Eigen::Success) return t;
+            const Mat S = rho * hold(lk.solve(Mat::Identity(n, n)), t);
+            Mat A(n, n);
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b < n; ++b) A(a, b) = ds[a] * S(a, b) * ds[b] / c - (a == b ? g.eps : 0.0);
+            Eigen::LLT<Mat> lm(A);
+            if (lm.info() != Eigen::Success) return t;
+            const Mat L = lm.matrixL();
+            int e = 0;
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b <= a; ++b, ++e) knots[std::int64_t(next) * np + e] = T(a == b ? std::log(L(a, a)) : L(a, b));
+            ++next;
+        }
+    }
+    for (; next <= J; ++next)  // knots after the last step (a horizon beyond t_final): the last knot's values
+        for (int e = 0; e < np; ++e) knots[std::int64_t(next) * np + e] = knots[std::int64_t(next - 1) * np + e];
+    for (std::int64_t e = 0; e < std::int64_t(J + 1) * np; ++e)
+        if (!std::isfinite(double(knots[e]))) return cfg.t_final;
+    return held;
+}
+}  // namespace
+
 template <typename T>
 Network<T> network_create(const RunConfig& cfg) {
     Network<T> net = network_shell<T>(cfg);
@@ -224,6 +302,19 @@ Network<T> network_create(const RunConfig& cfg) {
         T* W = net.theta.data() + sh.weight_offset(l);
         for (std::int64_t i = 0; i < cnt; ++i) W[i] = T(bound * (2.0 * u[i] - 1.0));
         // biases start at zero
+    }
+    const kern::GainSpec& g = net.step.gain;
+    if (g.enabled && g.knots > 0 && cfg.storage_init == "riccati") {
+        T* knots = net.theta.data() + sh.param_count();
+        const double held = riccati_knots(knots, cfg, g);
+        if (held >= 0)
+            std::fprintf(stderr,
+                         "hinf: note: network.storage_init = \"riccati\": from t = %.4g s the game's Riccati equation "
+                         "falls to the storage's floor (on its way to losing definiteness: no H-infinity filter of level "
+                         "rho = %g from this start for the linearised system, or a gain beyond the sampled-data cap); "
+                         "it is held there. Compare network.storage_knots = 0 (a constant storage) on this system: on "
+                         "continuous Lorenz-63 it did better (docs/method.md section 16.7)\n",
+                         held, cfg.rho);
     }
     return net;
 }

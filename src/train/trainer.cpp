@@ -714,6 +714,16 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
         if (as_trained.variant == "gain" && as_trained.storage_scaling !=
                                                  load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_scaling)
             legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
+        if (as_trained.variant == "gain" && as_trained.storage_knots > 0) {
+            const RunConfig now = load_run_config(ConfigDoc::from_text(ck.config_text, path));
+            if (as_trained.storage_init != now.storage_init)
+                legacy.push_back("network.storage_init=\"" + as_trained.storage_init + "\"");
+            if (as_trained.margin != now.margin) {
+                char m[64];
+                std::snprintf(m, sizeof m, "objective.margin=%.17g", as_trained.margin);
+                legacy.push_back(m);
+            }
+        }
     }
     if (!opt.sets.empty() || !legacy.empty())
         ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);

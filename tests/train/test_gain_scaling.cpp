@@ -4,6 +4,7 @@
 // rate dx_j^2 / mean(dy^2). Single-output systems keep the error scale bit for bit. An S(t) checkpoint written before
 // the key existed is read with "mean" and resumes as trained.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -131,6 +132,10 @@ TEST_CASE("an S(t) checkpoint from before storage_scaling loads with the one-sca
     const std::string dir = d / "run";
     hinf::test::copy_legacy_run("gain_tv_mean", dir);
     CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").storage_scaling == "mean");
+    // and, from before network.storage_init: flat knots and the margin of then (0.02; now 0 with S(t))
+    CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").storage_init == "flat");
+    CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").margin == 0.02);
+    CHECK(load(two_scale_config()).margin == 0.0);
     auto r = hinf::test::run_hinf("resume " + dir + "/checkpoint.h5 --quiet");
     INFO(r.output);
     REQUIRE(r.status == 0);
@@ -148,4 +153,87 @@ TEST_CASE("an S(t) checkpoint from before storage_scaling loads with the one-sca
     REQUIRE(now.status == 0);
     hinf::h5::Handle fresh = hinf::h5::open_file(d / "now/checkpoint.h5", false);
     CHECK(hinf::h5::read_doubles(fresh.get(), "network/storage") != hinf::h5::read_doubles(want.get(), "network/storage"));
+}
+
+namespace {
+// two decoupled linear states, both measured (H = I), the disturbance on b: the information-form Riccati equations
+// are scalar, Sa' = 0.2 Sa - Qa + rho and Sb' = 0.4 Sb - Qb - Sb^2 / rho + rho
+std::string riccati_config(double rho, double q) {
+    std::string text = two_scale_config("storage_knots = 4\nstorage_init = \"riccati\"\n");
+    auto put = [&text](const std::string& from, const std::string& to) {
+        const std::size_t at = text.find(from);
+        REQUIRE(at != std::string::npos);
+        text.replace(at, from.size(), to);
+    };
+    put("rho = 0.5", "rho = " + std::to_string(rho));
+    put("Q = [1.0, 1.0]", "Q = [" + std::to_string(q) + ", " + std::to_string(q) + "]");
+    put("t_final = 0.3", "t_final = 2.0");
+    return text;
+}
+}  // namespace
+
+TEST_CASE("storage_init = riccati: the knots start on the game's Riccati solution", "[gain][scaling][riccati]") {
+    const double rho = 4.0, q = 1.0;
+    const hinf::RunConfig c = load(riccati_config(rho, q));
+    REQUIRE(c.storage_init == "riccati");
+    const hinf::Network<double> net = hinf::network_create<double>(c);
+    const hinf::kern::StepConfig& sc = net.step;
+    std::vector<double> S(4);
+    hinf::kern::gain_storage_eval(S.data(), static_cast<double*>(nullptr), net.theta.data(), 0.0, sc);
+    // RK4 of the two scalar equations from the network's S(0), compared at the knots t = 0.5, 1, 1.5, 2
+    double sa = S[0], sb = S[3];
+    const double s0a = S[0];
+    auto fa = [&](double s) { return 0.2 * s - q + rho; };
+    auto fb = [&](double s) { return 0.4 * s - q - s * s / rho + rho; };
+    const double h = 1e-4;
+    int checked = 0;
+    for (int step = 1; step <= 20000; ++step) {
+        const double a1 = fa(sa), a2 = fa(sa + 0.5 * h * a1), a3 = fa(sa + 0.5 * h * a2), a4 = fa(sa + h * a3);
+        const double b1 = fb(sb), b2 = fb(sb + 0.5 * h * b1), b3 = fb(sb + 0.5 * h * b2), b4 = fb(sb + h * b3);
+        sa += h / 6 * (a1 + 2 * a2 + 2 * a3 + a4);
+        sb += h / 6 * (b1 + 2 * b2 + 2 * b3 + b4);
+        if (step % 5000 == 0) {
+            const double t = step * h;
+            hinf::kern::gain_storage_eval(S.data(), static_cast<double*>(nullptr), net.theta.data(), t, sc);
+            INFO("t = " << t << ": S = " << S[0] << ", " << S[3] << " against " << sa << ", " << sb);
+            // the sampled recursion (dt = 0.01) against the ODE: first order in dt
+            CHECK(S[0] == Approx(sa).epsilon(0.01));
+            CHECK(S[3] == Approx(sb).epsilon(0.01));
+            CHECK(std::fabs(S[1]) < 1e-9 * std::sqrt(S[0] * S[3]));
+            ++checked;
+        }
+    }
+    CHECK(checked == 4);
+    CHECK(sa > 1.5 * s0a);  // the information grew: the gain fell
+}
+
+TEST_CASE("storage_init = riccati: where the game's Riccati equation loses definiteness S(t) is held at its floor",
+          "[gain][scaling][riccati]") {
+    // Q / rho = 200 against H'H = 1: the information falls through zero at once (no H-infinity filter of level rho
+    // from this start); S(t) is held at its floor max(2 eps, rate dt / kappa) in its scale, S(0) = (1 + eps) in it
+    const hinf::RunConfig c = load(riccati_config(0.5, 100.0));
+    REQUIRE(c.margin == 0.0);
+    const hinf::Network<double> net = hinf::network_create<double>(c);
+    const hinf::kern::GainSpec& g = net.step.gain;
+    const double lo = std::max(2 * g.eps, g.rate * g.loss.dt / g.loss.kappa), eps = g.eps;
+    std::vector<double> S0(4), S(4);
+    hinf::kern::gain_storage_eval(S0.data(), static_cast<double*>(nullptr), net.theta.data(), 0.0, net.step);
+    for (double t : {0.5, 1.0, 1.5, 2.0}) {
+        INFO("t = " << t);
+        hinf::kern::gain_storage_eval(S.data(), static_cast<double*>(nullptr), net.theta.data(), t, net.step);
+        // at the floor, but for the last prediction step's contraction on top of it (within 1 %)
+        for (int e : {0, 3}) {
+            CHECK(S[e] >= S0[e] * lo / (1 + eps) * (1 - 1e-9));
+            CHECK(S[e] <= S0[e] * lo / (1 + eps) * 1.01);
+        }
+        CHECK(std::fabs(S[1]) < 1e-9 * S[0]);
+    }
+    // "flat" starts every knot at S(0) and keeps the margin of before
+    std::string text = riccati_config(0.5, 100.0);
+    text.replace(text.find("\"riccati\""), 9, "\"flat\"");
+    const hinf::RunConfig flat = load(text);
+    REQUIRE(flat.storage_init == "flat");
+    CHECK(flat.margin == 0.02);
+    const hinf::Network<double> fnet = hinf::network_create<double>(flat);
+    for (std::size_t e = fnet.step.shape.param_count(); e < fnet.theta.size(); ++e) CHECK(fnet.theta[e] == 0.0);
 }
