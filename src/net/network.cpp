@@ -219,10 +219,14 @@ namespace {
 // scale (S^ = Ds S Ds / c; the start is (1 + eps) I, where K H ~ rate) -- on its way to losing positive definiteness
 // when the -Q/rho term outweighs what the outputs bring (no H-infinity filter of level rho from this start) -- its
 // eigenvalues are held at that floor, and a knot's S^ likewise: max(2 eps, rate dt / kappa), so the held gain's step,
-// about rate dt / S^, stays within the sampled-data cap kappa (objective.max_step_correction). Returns the first time
-// that happened, or a negative number.
+// about rate dt / S^, stays within the sampled-data cap kappa (objective.max_step_correction).
+struct RiccatiStart {
+    double held = -1;     // first time the floor held the information (negative: never)
+    double stopped = -1;  // time the recursion stopped (a non-finite trajectory or Jacobian, a singular step): the
+                          // later knots keep the last knot's values (negative: it ran to the end)
+};
 template <typename T>
-double riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
+RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
     using Mat = Eigen::MatrixXd;
     using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int n = cfg.n, m = cfg.m, nv = cfg.nv, np = n * (n + 1) / 2, J = g.knots;
@@ -230,7 +234,8 @@ double riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
     const double rho = cfg.rho, dt = cfg.dt, c = g.storage_scale;
     const Eigen::VectorXd ds = Eigen::Map<const Eigen::VectorXd>(g.storage_dx(), n);
     const Mat Q = Eigen::Map<const RowMat>(cfg.Q.data(), n, n);
-    double held = -1.0;
+    RiccatiStart r;
+    double& held = r.held;
     const double lo = std::max(2.0 * g.eps, g.loss.dt > 0 ? g.rate * g.loss.dt / g.loss.kappa : 0.0);
     // X (an information matrix, S / rho) with the eigenvalues of its scaled form (rho / c) Ds X Ds held >= lo
     // (X itself where they already are: the same bits)
@@ -249,41 +254,57 @@ double riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
     std::vector<double> x = cfg.x0;
     RowMat H(m, n), F(n, n), G(n, nv);
     int next = 1;  // knot 0 is the flat S(0)
-    for (std::int64_t k = 0; k < steps && next <= J; ++k) {
+    for (std::int64_t k = 0; k < steps && next <= J && r.stopped < 0; ++k) {
         const double t = cfg.time_of(k);
         sys.measurement_jacobian(H.data(), x.data(), t);
         system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, dt);
         Eigen::LLT<Mat> lp(P);
-        if (lp.info() != Eigen::Success) return t;  // a singular step Jacobian: the later knots stay flat
+        if (lp.info() != Eigen::Success) {
+            r.stopped = t;
+            break;
+        }
         const Mat Y = hold(lp.solve(Mat::Identity(n, n)) + dt * (Mat(H.transpose() * H) - Q / rho), t);
         Eigen::LLT<Mat> ly(Y);
-        if (ly.info() != Eigen::Success) return t;
+        if (ly.info() != Eigen::Success || !Y.allFinite()) {
+            r.stopped = t;
+            break;
+        }
         P = F * ly.solve(Mat::Identity(n, n)) * F.transpose() + G * G.transpose() / dt;
         P = 0.5 * (P + P.transpose()).eval();
         system_advance(sys, x.data(), x.data(), nullptr, t, dt);
-        if (!P.allFinite()) return t;
+        if (!P.allFinite()) {
+            r.stopped = t;
+            break;
+        }
         // knot `next` at t_j = j T / J: S = rho P^-1 there, M = chol(Ds S Ds / c - eps I)
         while (next <= J && cfg.time_of(k + 1) >= next * g.knot_span / J - 0.5 * dt) {
             Eigen::LLT<Mat> lk(P);
-            if (lk.info() != Eigen::Success) return t;
+            if (lk.info() != Eigen::Success) {
+                r.stopped = t;
+                break;
+            }
             const Mat S = rho * hold(lk.solve(Mat::Identity(n, n)), t);
             Mat A(n, n);
             for (int a = 0; a < n; ++a)
                 for (int b = 0; b < n; ++b) A(a, b) = ds[a] * S(a, b) * ds[b] / c - (a == b ? g.eps : 0.0);
             Eigen::LLT<Mat> lm(A);
-            if (lm.info() != Eigen::Success) return t;
             const Mat L = lm.matrixL();
+            bool finite = lm.info() == Eigen::Success;
+            for (int a = 0; a < n && finite; ++a) finite = std::isfinite(std::log(L(a, a))) && L.row(a).allFinite();
+            if (!finite) {
+                r.stopped = t;
+                break;
+            }
             int e = 0;
             for (int a = 0; a < n; ++a)
                 for (int b = 0; b <= a; ++b, ++e) knots[std::int64_t(next) * np + e] = T(a == b ? std::log(L(a, a)) : L(a, b));
             ++next;
         }
     }
-    for (; next <= J; ++next)  // knots after the last step (a horizon beyond t_final): the last knot's values
+    // knots after the last step (a horizon beyond t_final) or after a stop: the last knot's values
+    for (; next <= J; ++next)
         for (int e = 0; e < np; ++e) knots[std::int64_t(next) * np + e] = knots[std::int64_t(next - 1) * np + e];
-    for (std::int64_t e = 0; e < std::int64_t(J + 1) * np; ++e)
-        if (!std::isfinite(double(knots[e]))) return cfg.t_final;
-    return held;
+    return r;
 }
 }  // namespace
 
@@ -306,15 +327,21 @@ Network<T> network_create(const RunConfig& cfg) {
     const kern::GainSpec& g = net.step.gain;
     if (g.enabled && g.knots > 0 && cfg.storage_init == "riccati") {
         T* knots = net.theta.data() + sh.param_count();
-        const double held = riccati_knots(knots, cfg, g);
-        if (held >= 0)
+        const RiccatiStart r = riccati_knots(knots, cfg, g);
+        if (r.stopped >= 0)
+            std::fprintf(stderr,
+                         "hinf: note: network.storage_init = \"riccati\": the game's Riccati equation stopped at "
+                         "t = %.4g s (a non-finite noise-free trajectory or Jacobian, or a singular step); the later "
+                         "knots start at the last one\n",
+                         r.stopped);
+        if (r.held >= 0)
             std::fprintf(stderr,
                          "hinf: note: network.storage_init = \"riccati\": from t = %.4g s the game's Riccati equation "
                          "falls to the storage's floor (on its way to losing definiteness: no H-infinity filter of level "
                          "rho = %g from this start for the linearised system, or a gain beyond the sampled-data cap); "
                          "it is held there. Compare network.storage_knots = 0 (a constant storage) on this system: on "
                          "continuous Lorenz-63 it did better (docs/method.md section 16.7)\n",
-                         held, cfg.rho);
+                         r.held, cfg.rho);
     }
     return net;
 }

@@ -237,3 +237,26 @@ TEST_CASE("storage_init = riccati: where the game's Riccati equation loses defin
     const hinf::Network<double> fnet = hinf::network_create<double>(flat);
     for (std::size_t e = fnet.step.shape.param_count(); e < fnet.theta.size(); ++e) CHECK(fnet.theta[e] == 0.0);
 }
+
+TEST_CASE("storage_init = riccati: a noise-free trajectory that escapes stops the recursion, the knots stay finite",
+          "[gain][scaling][riccati]") {
+    // a' = a^2 from a = 1 escapes at t = 1 s; the knots after the stop keep the last one's values
+    std::string text = two_scale_config("storage_knots = 8\n");
+    auto put = [&text](const std::string& from, const std::string& to) {
+        const std::size_t at = text.find(from);
+        REQUIRE(at != std::string::npos);
+        text.replace(at, from.size(), to);
+    };
+    put("f = [\"-0.1*a\", \"-0.2*b\"]", "f = [\"a^2\", \"-0.2*b\"]");
+    put("x0 = [30.0, 1.0]", "x0 = [1.0, 1.0]");
+    put("rho = 0.5", "rho = 4.0");
+    put("t_final = 0.3", "t_final = 2.0");
+    const hinf::RunConfig c = load(text);
+    REQUIRE(c.storage_init == "riccati");
+    const hinf::Network<double> net = hinf::network_create<double>(c);
+    const std::int64_t P = net.step.shape.param_count();
+    for (std::size_t e = P; e < net.theta.size(); ++e) CHECK(std::isfinite(net.theta[e]));
+    // knots 5..8 (t >= 1.25 s, past the escape) equal knot 4's or an earlier one's: the last set before the stop
+    const int np = 3;
+    for (int e = 0; e < np; ++e) CHECK(net.theta[P + 8 * np + e] == net.theta[P + 5 * np + e]);
+}
