@@ -604,14 +604,20 @@ private:
                                        lower_rate() + ", or --set training.on_divergence=rollback)"
                                      : "No checkpoint was written yet (train again with a lower rate: hinf train CONFIG --force "
                                        "--set training.learning_rate=" + lower_rate() + ")";
+        // a gain S(t) started on the Riccati solution can be the cause (a stiff system with error scales far apart:
+        // method.md section 16.7, "Initial knots"); the flat start and the constant storage are the alternatives
+        const std::string alt = cfg_.variant == "gain" && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati"
+                                    ? " If it diverges in the first steps, try --set network.storage_init=flat or "
+                                      "--set network.storage_knots=0."
+                                    : "";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
         if (!writer_) return;  // every process of the run diverges alike; one says so
         std::fprintf(stderr,
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
-                     "loss %s, |x~| %g, learning rate %g. %s\n",
+                     "loss %s, |x~| %g, learning rate %g. %s%s\n",
                      static_cast<long long>(step), cfg_.time_of(step), what, value, last_loss, std::sqrt(err),
-                     cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str());
+                     cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str(), alt.c_str());
         traj_.flush();
     }
 

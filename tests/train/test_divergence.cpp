@@ -250,3 +250,23 @@ TEST_CASE("an h2hinf run rolled back keeps every column growing and resumes", "[
     CHECK(res.output.find("rows but the checkpoint needs") == std::string::npos);
     for (const auto& c : column_rows(d / "run/trajectory.h5")) CHECK(c.second == column_rows(d / "run/trajectory.h5").at("t"));
 }
+
+TEST_CASE("a diverging gain run with the Riccati start names the other starts in its one line", "[train][divergence][gain]") {
+    test::TempDir d("divgain");
+    std::string text = kDiverging;
+    text.replace(text.find("[filter]\n"), 9, "[filter]\nvariant = \"gain\"\n");
+    text += "acceptance_runs = 0\n";
+    std::ofstream(d / "gain.toml") << text;
+    auto r = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + (d / "gain.toml") + " --out " +
+                               (d / "run") + " --quiet");
+    INFO(r.output);
+    CHECK(r.status == 4);
+    REQUIRE(diverged_step(r.output) > 0);
+    CHECK(r.output.find("try --set network.storage_init=flat or --set network.storage_knots=0.") != std::string::npos);
+    // the flat start (and every other variant) does not get that advice
+    auto f = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + (d / "gain.toml") + " --out " +
+                               (d / "flat") + " --quiet --set network.storage_init=flat");
+    INFO(f.output);
+    REQUIRE(diverged_step(f.output) > 0);
+    CHECK(f.output.find("storage_init=flat") == std::string::npos);
+}
