@@ -462,10 +462,11 @@ void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K
 }
 
 namespace {
+// rows first .. first + B of the network input: the estimate of sample idx[row * G] (G = 1: idx[row])
 template <typename T>
-void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int n) {
+void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int n, int G = 1) {
     for (int s = 0; s < B; ++s) {
-        const std::int64_t i = idx ? idx[first + s] : first + s;
+        const std::int64_t i = idx ? idx[(first + s) * G] : first + s;
         for (int a = 0; a < n; ++a) in[s * n + a] = T(z[i * n + a]);
     }
 }
@@ -483,13 +484,17 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
                             const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws) {
     const MlpShape& sh = cfg.shape;
     const GainSpec& gs = cfg.gain;
-    const int n = sys.n, m = sys.m, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
-    const int chunks = (M + C - 1) / C;
+    // rows: one per estimate, each with G samples (errors) idx[r G .. r G + G - 1] that share its z, t and Hx; a
+    // chunk holds cfg.chunk samples, so C = cfg.chunk / G rows (the same chunks, and threads, for any G)
+    const int G = std::max(1, gs.group), R = M / G;
+    const int n = sys.n, m = sys.m, C = std::max(1, cfg.chunk / G), O = sh.outputs(), D0 = sh.inputs();
+    assert(M % G == 0);
+    const int chunks = (R + C - 1) / C;
     const std::int64_t P = sh.param_count(), Ps = step_partial_stride(sh), As = step_acts_stride(cfg);
     const bool tv = gs.knots > 0;  // time-varying storage and the Riccati-form head (section 16.7)
     const int np = n * (n + 1) / 2;
     assert(!tv || (sys.t != nullptr && sys.Hx != nullptr));
-    ws.reserve(cfg, M);
+    ws.reserve(cfg, M);  // M rows' room: as many chunks as M samples make
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare(sh.gemm);
     const T* wt = pack_weights(ws, theta, sh);
@@ -501,30 +506,33 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     const T* sparams = theta + P;
     double S[kMax * kMax];
     if (!tv) storage_forward(S, sparams, gs.dx.data(), n, gs.storage_scale, gs.eps);
-    if (tv && ws.storage.size() < std::size_t(M) * 5 * n * n) ws.storage.resize(std::size_t(M) * 5 * n * n);
+    if (tv && ws.storage.size() < std::size_t(R) * 5 * n * n) ws.storage.resize(std::size_t(R) * 5 * n * n);
     std::vector<GainSampleValue> vals(static_cast<std::size_t>(M));
 
-    // pass 1: forward, gain head, per-sample loss pieces
+    // pass 1: forward and gain head per row, loss pieces per sample
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < chunks; ++c) {
-        const int b0 = c * C, B = std::min(C, M - b0);
+        const int b0 = c * C, B = std::min(C, R - b0);
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(c) * As;
-        load_z(in, z, idx, b0, B, n);
+        load_z(in, z, idx, b0, B, n, G);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         for (int s = 0; s < B; ++s) {
-            const std::int64_t i = idx[b0 + s];
-            double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
-            if (tv) {  // S(t_i), dS/dt, its Cholesky factor, M(t_i) and dM/dt, kept for pass 2 (the same bits)
-                double* st = ws.storage.data() + std::int64_t(b0 + s) * 5 * n * n;
+            const int r = b0 + s;
+            const std::int64_t i0 = idx[std::int64_t(r) * G];
+            double* K = ws.K.data() + std::int64_t(r) * n * m;
+            if (tv) {  // S(t), dS/dt, its Cholesky factor, M(t) and dM/dt of the row, kept for pass 2 (the same bits)
+                double* st = ws.storage.data() + std::int64_t(r) * 5 * n * n;
                 double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
-                storage_tv_parts(Si, Sd, Mt, Mdt, sparams, sys.t[i], gs, n);
-                gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i * m * n, gs, n, m, lp.rho, L);
-                vals[b0 + s] = gain_sample_forward(K, Si, sys, i, lp, Sd);
+                storage_tv_parts(Si, Sd, Mt, Mdt, sparams, sys.t[i0], gs, n);
+                gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i0 * m * n, gs, n, m, lp.rho, L);
+                for (int g = 0; g < G; ++g)
+                    vals[std::int64_t(r) * G + g] = gain_sample_forward(K, Si, sys, idx[std::int64_t(r) * G + g], lp, Sd);
             } else {
                 gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
-                vals[b0 + s] = gain_sample_forward(K, S, sys, i, lp);
+                for (int g = 0; g < G; ++g)
+                    vals[std::int64_t(r) * G + g] = gain_sample_forward(K, S, sys, idx[std::int64_t(r) * G + g], lp);
             }
         }
     }
@@ -547,32 +555,42 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     loss.loss = loss.hinge + gs.h2_weight * loss.h2;
     const double d_hinge = loss.hinge > 0 ? 1.0 / (2.0 * M * loss.hinge) : 0.0;
     const double d_h2 = gs.h2_weight / M;
-    std::vector<double> knot_part(tv ? static_cast<std::size_t>(M) * 2 * np : 0);
-    std::vector<int> knot_j(tv ? M : 0);
+    std::vector<double> knot_part(tv ? static_cast<std::size_t>(R) * 2 * np : 0);
+    std::vector<int> knot_j(tv ? R : 0);
 
-    // pass 2: dL/dK -> dL/do -> partial dL/dtheta per chunk; dL/dS per sample (ws.P, or the knots' shares)
+    // pass 2: dL/dK summed over the row's samples -> dL/do -> partial dL/dtheta per chunk; dL/dS per row (ws.P, or
+    // the knots' shares). Both are linear in dL/dK and dL/dS, so one head backward per row serves its G samples.
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < chunks; ++c) {
-        const int b0 = c * C, B = std::min(C, M - b0);
+        const int b0 = c * C, B = std::min(C, R - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
-        double gK[kMax * kMax], gSd[kMax * kMax];
+        double gK[kMax * kMax], gKg[kMax * kMax], gSd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
-            const std::int64_t i = idx[b0 + s];
-            const double* K = ws.K.data() + std::int64_t(b0 + s) * n * m;
-            double* gSs = ws.P.data() + std::int64_t(b0 + s) * n * n;
+            const int r = b0 + s;
+            const std::int64_t i0 = idx[std::int64_t(r) * G];
+            const double* K = ws.K.data() + std::int64_t(r) * n * m;
+            double* gSs = ws.P.data() + std::int64_t(r) * n * n;
             for (int e = 0; e < n * n; ++e) gSs[e] = 0.0;
             if (tv) {
                 for (int e = 0; e < n * n; ++e) gSd[e] = 0.0;
-                const double* st = ws.storage.data() + std::int64_t(b0 + s) * 5 * n * n;
+                const double* st = ws.storage.data() + std::int64_t(r) * 5 * n * n;
                 const double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
-                gain_sample_backward(gK, gSs, K, Si, sys, i, lp, d_hinge, d_h2, Sd, gSd);
+                gain_sample_backward(gK, gSs, K, Si, sys, i0, lp, d_hinge, d_h2, Sd, gSd);
+                for (int g = 1; g < G; ++g) {
+                    gain_sample_backward(gKg, gSs, K, Si, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2, Sd, gSd);
+                    for (int e = 0; e < n * m; ++e) gK[e] += gKg[e];
+                }
                 gain_riccati_backward(dout + std::int64_t(s) * O, gSs, gK, K, Si, gs, n, m, lp.rho, L);
-                double* kp = knot_part.data() + std::int64_t(b0 + s) * 2 * np;
-                storage_tv_back_parts(kp, kp + np, &knot_j[b0 + s], gSs, gSd, Mt, Mdt, sys.t[i], gs, n);
+                double* kp = knot_part.data() + std::int64_t(r) * 2 * np;
+                storage_tv_back_parts(kp, kp + np, &knot_j[r], gSs, gSd, Mt, Mdt, sys.t[i0], gs, n);
             } else {
-                gain_sample_backward(gK, gSs, K, S, sys, i, lp, d_hinge, d_h2);
+                gain_sample_backward(gK, gSs, K, S, sys, i0, lp, d_hinge, d_h2);
+                for (int g = 1; g < G; ++g) {
+                    gain_sample_backward(gKg, gSs, K, S, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2);
+                    for (int e = 0; e < n * m; ++e) gK[e] += gKg[e];
+                }
                 gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
             }
         }
@@ -583,7 +601,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     sum_chunk_partials(grad, ws.partial.data(), chunks, Ps, P);  // chunk order (train_step.hpp)
     if (tv) {  // the knots' gradients, summed in sample order (bits independent of the thread count)
         std::vector<double> gk(static_cast<std::size_t>(gs.knots + 1) * np, 0.0);
-        for (int s = 0; s < M; ++s) {
+        for (int s = 0; s < R; ++s) {
             const double* kp = knot_part.data() + std::int64_t(s) * 2 * np;
             double* g0 = gk.data() + std::int64_t(knot_j[s]) * np;
             for (int e = 0; e < 2 * np; ++e) g0[e] += kp[e];
@@ -605,7 +623,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     }
     // the storage's gradient: dL/dS summed in sample order, then through S = c D^-1 (M M' + eps I) D^-1
     double gS[kMax * kMax] = {};
-    for (int s = 0; s < M; ++s) {
+    for (int s = 0; s < R; ++s) {
         const double* gSs = ws.P.data() + std::int64_t(s) * n * n;
         for (int e = 0; e < n * n; ++e) gS[e] += gSs[e];
     }

@@ -32,6 +32,10 @@ struct GainSpec {
     double storage_scale = 1.0;      // S = c D^-1 (M M' + eps I) D^-1
     double eps = 1e-3;
     double h2_weight = 0.1;          // eta
+    // errors per estimate G (sampling.errors_per_estimate): in a minibatch idx, samples idx[r G .. r G + G - 1]
+    // share one estimate (z, t, Hx), so the network, S(t), its Cholesky factor and K run once per estimate
+    // (docs/method.md section 16.3); M is a multiple of G. 1: every sample has its own estimate.
+    int group = 1;
     GainLossParams loss;             // xt0 points into this spec's xt0 at call time
     // Time-varying storage (knots > 0, docs/method.md section 16.7): S(t) from knot vectors s_0..s_J at
     // t_j = j span / J (linear between knots, constant after span), M = diag(exp(.)) + strict tril(.), and the gain

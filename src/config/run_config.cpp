@@ -264,6 +264,22 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.local_spread = s.get_double("local_spread", c.local_spread, 0.0, 1e6);
     c.radius_decades = s.get_double("radius_decades", c.radius_decades, 0.0, 30.0);
     c.trajectories = s.get_int("trajectories", c.trajectories, 1, 100000);
+    // variant gain: errors per estimate (method.md §16.3); the default is the largest of 4, 2, 1 that divides both
+    // training.samples and training.batch (the network then runs once per estimate: a quarter of the GEMM work)
+    if (s.has("errors_per_estimate") && c.variant != "gain")
+        s.reject("errors_per_estimate", "groups the samples of [filter] variant = \"gain\" only (remove the key)");
+    std::int64_t group_default = 1;
+    for (std::int64_t g : {4, 2})
+        if (c.variant == "gain" && c.samples % g == 0 && c.batch % g == 0) {
+            group_default = g;
+            break;
+        }
+    c.errors_per_estimate = s.get_int("errors_per_estimate", group_default, 1, 1000000);
+    if (c.samples % c.errors_per_estimate != 0 || c.batch % c.errors_per_estimate != 0)
+        s.reject("errors_per_estimate", "= " + std::to_string(c.errors_per_estimate) +
+                                            " must divide training.samples = " + std::to_string(c.samples) +
+                                            " and training.batch = " + std::to_string(c.batch) +
+                                            " (each estimate keeps all its errors in one minibatch)");
     c.error_floor = s.get_doubles("error_floor", own ? own_error_floor_default(c) : std::vector<double>(n, 20.0), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");

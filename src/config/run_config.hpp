@@ -66,6 +66,7 @@ struct TrainingConfig {
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
     std::vector<double> error_floor;  // n
+    std::int64_t errors_per_estimate = 1;  // variant gain: errors x~ drawn around each estimate x^ (section 16.3)
     std::int64_t trajectories = 16;   // variant gain: simulated truth runs the estimates are sampled along
 
     // [objective] (dissipative variant)

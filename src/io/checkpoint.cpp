@@ -168,6 +168,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
+            h5::set_attr(net.get(), "errors_per_estimate", std::int64_t(sc.gain.group));
             if (sc.gain.knots > 0) {
                 h5::set_attr(net.get(), "storage_state_scale",
                              std::vector<double>(sc.gain.storage_dx(), sc.gain.storage_dx() + cfg.n));
@@ -239,6 +240,13 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
                "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
     if (h5::exists(file, "network/storage")) {
         h5::Handle net = h5::open_group(file, "network");
+        if (!h5::has_attr(net.get(), "errors_per_estimate")) {  // written before errors were grouped per estimate
+            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+            if (!ConfigSection(doc, "sampling").has("errors_per_estimate")) {
+                doc.set("sampling.errors_per_estimate=1");
+                text = doc.text();
+            }
+        }
         if (!h5::has_attr(net.get(), "storage_knots")) {
             ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
             doc.set("network.storage_knots=0");

@@ -37,6 +37,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     kern::GainSpec g;
     g.enabled = true;
     g.m = m;
+    g.group = int(cfg.errors_per_estimate);
     g.dx.resize(n);
     g.xt0.resize(n);
     for (int j = 0; j < n; ++j) {

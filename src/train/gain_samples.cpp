@@ -90,8 +90,17 @@ void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& po
     resize(s, cfg, g, N);
     std::vector<double> u;
     draw_errors(s, cfg, g, N, a, &u);
-    const std::int64_t R = std::int64_t(pool.runs.size());
+    const std::int64_t R = std::int64_t(pool.runs.size()), G = std::max(1, g.group);
     for (std::int64_t i = 0; i < N; ++i) {
+        const std::int64_t lead = i - i % G;  // the group's first sample draws the run, the time and the estimate
+        if (i != lead) {                       // the others: errors around the same estimate, x = x^ + x~
+            for (int j = 0; j < n; ++j) {
+                s->xhat[i * n + j] = s->xhat[lead * n + j];
+                s->x[i * n + j] = s->xhat[lead * n + j] + s->xt[i * n + j];
+            }
+            s->t[i] = s->t[lead];
+            continue;
+        }
         const std::int64_t r = std::min(R - 1, std::int64_t(u[i * 3] * double(R)));
         const std::int64_t k = std::min(pool.steps - 1, std::int64_t(u[i * 3 + 1] * double(pool.steps)));
         const double* x = pool.runs[r].x.data() + k * n;

@@ -29,7 +29,9 @@ struct GainSamples {
 
 /// N samples for time step `step` (Philox (seed, RNG_STREAM_GAIN, a, 0/1)): run r and time index k uniform,
 /// x = pool run r at k, x~_j = 10^(-D u) dx_j xi_j (u ~ U(0,1), xi ~ N(0,1), D = sampling.radius_decades),
-/// x^ = x - x~. `a` is the counter (the time step; the on-line check uses its own range).
+/// x^ = x - x~. `a` is the counter (the time step; the on-line check uses its own range). With g.group = G > 1 the
+/// samples come in groups of G around one estimate: the group's first sample is drawn as above, the others keep its
+/// x^ and t and take x = x^ + x~ with their own x~ (N a multiple of G).
 void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
                         std::int64_t N, std::uint64_t a);
 

@@ -140,6 +140,8 @@ public:
 private:
     void restore_origin() {
         net_ = origin_->net;
+        step1_ = net_.step;
+        step1_.gain.group = 1;  // every retraining sample has this x^: one network row each (the bits of before)
         m_ = origin_->adam_m;
         v_ = origin_->adam_v;
         adam_step_ = origin_->state.adam_step;
@@ -178,7 +180,7 @@ private:
         bool ok = true;
         for (std::int64_t k = 0; k < st_.steps && ok; ++k) {
             const kern::StepLoss L = kern::gain_step_gradient(grad_.data(), net_.theta.data(), view, train_.z.data(),
-                                                              idx_.data(), int(N), net_.step, ws_);
+                                                              idx_.data(), int(N), step1_, ws_);
             ok = std::isfinite(L.loss);
             if (!ok) break;
             ++adam_step_;
@@ -202,6 +204,7 @@ private:
     OnlineRetrainSettings st_;
     std::string name_;
     Network<T> net_;  // this filter's own copy, changed by retraining
+    kern::StepConfig step1_;  // net_.step with one sample per network row (errors_per_estimate = 1)
     std::vector<T> m_, v_, grad_;
     std::int64_t adam_step_ = 0;
     kern::StepWorkspace<T> ws_;

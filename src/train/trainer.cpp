@@ -415,8 +415,11 @@ private:
             ck_.state.adam_step = 0;
         }
         for (std::int64_t k = 1; k <= cfg_.adam_steps; ++k) {
-            kern::sample_minibatch(idx_.data(), int(cfg_.batch), cfg_.samples, cfg_.seed, step, k, work_.data(),
+            const std::int64_t G = gain_ ? cfg_.errors_per_estimate : 1;  // whole groups of errors per estimate
+            kern::sample_minibatch(idx_.data(), int(cfg_.batch / G), cfg_.samples / G, cfg_.seed, step, k, work_.data(),
                                    perm_.data());
+            for (std::int64_t b = cfg_.batch / G - 1; G > 1 && b >= 0; --b)
+                for (std::int64_t g = G - 1; g >= 0; --g) idx_[b * G + g] = idx_[b] * G + g;
             kern::StepLoss L = gradient(grad_.data());
             if (k == 1) rec->loss_first = L.loss;
             if (k == cfg_.adam_steps) rec->loss_last = L.loss;
@@ -720,6 +723,10 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
         if (as_trained.variant == "gain" && as_trained.storage_scaling !=
                                                  load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_scaling)
             legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
+        if (as_trained.variant == "gain" &&
+            as_trained.errors_per_estimate !=
+                load_run_config(ConfigDoc::from_text(ck.config_text, path)).errors_per_estimate)
+            legacy.push_back("sampling.errors_per_estimate=" + std::to_string(as_trained.errors_per_estimate));
         if (as_trained.variant == "gain" && as_trained.storage_knots > 0) {
             const RunConfig now = load_run_config(ConfigDoc::from_text(ck.config_text, path));
             if (as_trained.storage_init != now.storage_init)

@@ -328,12 +328,17 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
     // 6 states, 6 outputs, the 6-256-128-32-36 network, M = 800 of N = 2000 in chunks of 100, the default GEMM path:
     // the fast path's chunking, kept S(t)/Cholesky/M(t), row-wise solves and chunk-ordered sums against plain loops
     const int n = 6, nv = 1, m = 6, N = 2000, M = 800;
+    // group > 1: errors per estimate (samples idx[r G .. r G + G - 1] share z, t and Hx; one network row each)
     struct Case {
         int knots;
         bool discrete, output_scale;
+        int group;
     };
-    for (const Case cs : {Case{0, false, false}, Case{0, true, false}, Case{35, false, false}, Case{35, false, true}}) {
-        INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale);
+    for (const Case cs : {Case{0, false, false, 1}, Case{0, true, false, 1}, Case{35, false, false, 1},
+                          Case{35, false, true, 1}, Case{0, false, false, 4}, Case{0, true, false, 4},
+                          Case{35, false, true, 4}}) {
+        INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale << " group "
+                      << cs.group);
         StepConfig sc;
         sc.shape.sizes = {n, 256, 128, 32, n * m};
         sc.head.n = n;
@@ -354,6 +359,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         sc.gain.loss.discrete = cs.discrete;
         sc.gain.knots = cs.knots;
         sc.gain.knot_span = 70.0;
+        sc.gain.group = cs.group;
         if (cs.output_scale) {
             sc.gain.sdx = {3e3, 2e3, 4e3, 150, 200, 170};
             sc.gain.corr.resize(n * m);
@@ -381,9 +387,16 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
             q[i] = qq;
             t[i] = 77.0 * i / N;  // every knot interval, and past the span
         }
+        const int G = cs.group;
+        for (int i = 0; i < N; ++i) {  // a group's samples share their leader's estimate and time
+            const int lead = i - i % G;
+            for (int a = 0; a < n; ++a) z[i * n + a] = z[lead * n + a];
+            for (int e = 0; e < m * n; ++e) Hx[i * m * n + e] = Hx[lead * m * n + e];
+            t[i] = t[lead];
+        }
         HjieSystemView view{n, nv, m, xt.data(), dA.data(), B.data(), dC.data(), q.data(), t.data(), Hx.data()};
         std::vector<std::int64_t> idx(M);
-        for (int s = 0; s < M; ++s) idx[s] = (s * 7919LL) % N;
+        for (int s = 0; s < M; ++s) idx[s] = ((s / G) * 7919LL) % (N / G) * G + s % G;
         auto relative = [](const auto& a, const auto& b, std::int64_t from, std::int64_t to) {
             double d = 0, r = 0;
             for (std::int64_t k = from; k < to; ++k) {

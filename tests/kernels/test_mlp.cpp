@@ -30,8 +30,12 @@ static void check_against_naive(GemmPath path, const std::vector<int>& sizes, in
     std::vector<T> scratch(sh.scratch_size(B));
     mlp_backward(g.data(), dx.data(), theta.data(), x.data(), acts.data(), dout.data(), B, sh, scratch.data());
     mlp_backward_naive(g_ref.data(), dx_ref.data(), theta.data(), x.data(), acts_ref.data(), dout.data(), B, sh);
-    CHECK(hinf::test::max_rel_diff(g, g_ref, 1e-3) < tol);
-    CHECK(hinf::test::max_rel_diff(dx, dx_ref, 1e-3) < tol);
+    // float gradients sum B * 256 products of O(1) terms: entries below 1e-2 carry absolute rounding errors of a
+    // few 1e-6 whatever the kernel (2.1e-3 relative at a 1e-3 floor with OpenBLAS's AVX-512 kernels), so they are
+    // compared absolutely from 1e-2 down; a wrong index or a missing term still differs by O(1)
+    const double floor = sizeof(T) == sizeof(float) ? 1e-2 : 1e-3;
+    CHECK(hinf::test::max_rel_diff(g, g_ref, floor) < tol);
+    CHECK(hinf::test::max_rel_diff(dx, dx_ref, floor) < tol);
 }
 
 TEST_CASE("mlp forward/backward match the naive twins", "[kernel][mlp]") {
