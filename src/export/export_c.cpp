@@ -332,6 +332,126 @@ LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
     return law;
 }
 
+// gain (docs/method.md section 16): K(x^, t) from the network at z = (x^ - shift) / spread alone, as
+// kernels/gain.cpp gain_network_eval computes it: the constant-storage head K = rate dx_a o_aq / dy_q, or the
+// Riccati-form head K = rho S(t)^-1 (H(x^)' + o .* w) with S(t) from the storage's knots (linear in t between
+// knots, M = diag(exp) + strict tril, S = c Ds^-1 (M M' + eps I) Ds^-1) and a Cholesky solve. The innovation is not
+// an input of the gain: the step multiplies it.
+LawC gain_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& P) {
+    const kern::GainSpec& g = sc.gain;
+    const int n = sc.head.n, m = g.m, np = n * (n + 1) / 2;
+    const bool tv = g.knots > 0;
+    auto array = [](const std::string& name, const double* v, int count) {
+        std::ostringstream c;
+        c << "static const double " << name << "[" << count << "] = {";
+        for (int i = 0; i < count; ++i) c << (i ? ", " : "") << lit(v[i]);
+        c << "};\n";
+        return c.str();
+    };
+    LawC law;
+    std::ostringstream c;
+    c << "/* variant gain: the network input z = (x^ - shift) / spread (its scales from the training config) */\n"
+      << array(P + "_shift", g.shift.data(), n) << array(P + "_spread", g.spread.data(), n);
+    if (!tv || g.corr.empty()) c << array(P + "_dx", g.dx.data(), n) << array(P + "_dy", g.dy.data(), m);
+    if (tv) {
+        c << array(P + "_sdx", g.storage_dx(), n);
+        if (!g.corr.empty()) c << array(P + "_corr", g.corr.data(), n * m);
+    }
+    c << "\n/* K(x^, t) [n x m], the trained gain (kernels/gain.cpp gain_network_eval) */\n"
+      << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
+      << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
+      << "    double z[" << n << "];\n"
+      << "    const " << P << "_real* o;\n"
+      << "    int a, q;\n"
+      << "    for (a = 0; a < " << n << "; ++a) z[a] = (xhat[a] - " << P << "_shift[a]) / " << P << "_spread[a];\n"
+      << "    o = " << P << "_forward(buf, z);\n";
+    if (!tv) {
+        c << "    (void)t;\n"
+          << "    (void)" << P << "_measurement_jacobian; /* the constant-storage head needs no dC/dx */\n"
+          << "    /* the constant-storage head: K_aq = rate dx_a o_aq / dy_q */\n"
+          << "    for (a = 0; a < " << n << "; ++a)\n"
+          << "        for (q = 0; q < " << m << "; ++q)\n"
+          << "            k[a * " << m << " + q] = " << lit(g.rate) << " * " << P << "_dx[a] * (double)o[a * " << m
+          << " + q] / " << P << "_dy[q];\n"
+          << "}\n\n";
+    } else {
+        const std::int64_t off = sc.shape.param_count();
+        c << "    {\n"
+          << "        /* S(t) from knots j, j + 1 at t_j = j span / J (clamped after span) */\n"
+          << "        const " << P << "_real* s = " << P << "_theta + " << off << ";\n"
+          << "        const double h = " << lit(g.knot_span) << " / " << g.knots << ".0;\n"
+          << "        double v[" << np << "], M[" << n * n << "], S[" << n * n << "], L[" << n * n << "], H[" << m * n
+          << "], tt[" << m << "], w = 0.0;\n"
+          << "        int j = 0, b, e, kk;\n"
+          << "        if (t >= " << lit(g.knot_span) << ") {\n"
+          << "            j = " << g.knots - 1 << ";\n"
+          << "            w = 1.0;\n"
+          << "        } else if (t > 0) {\n"
+          << "            const double u = t / h;\n"
+          << "            j = (int)u;\n"
+          << "            if (j > " << g.knots - 1 << ") j = " << g.knots - 1 << ";\n"
+          << "            w = u - j;\n"
+          << "        }\n"
+          << "        for (e = 0; e < " << np << "; ++e)\n"
+          << "            v[e] = (1.0 - w) * (double)s[j * " << np << " + e] + w * (double)s[(j + 1) * " << np << " + e];\n"
+          << "        for (e = 0; e < " << n * n << "; ++e) M[e] = 0.0;\n"
+          << "        for (a = 0, e = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b, ++e) M[a * " << n << " + b] = a == b ? exp(v[e]) : v[e];\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b) {\n"
+          << "                double mm = 0;\n"
+          << "                for (kk = 0; kk <= b; ++kk) mm += M[a * " << n << " + kk] * M[b * " << n << " + kk];\n"
+          << "                S[a * " << n << " + b] = S[b * " << n << " + a] = " << lit(g.storage_scale) << " / ("
+          << P << "_sdx[a] * " << P << "_sdx[b]) * (mm + (a == b ? " << lit(g.eps) << " : 0.0));\n"
+          << "            }\n"
+          << "        /* K = rho S^-1 (H' + o .* w), H = dC/dx at x^ */\n"
+          << "        " << P << "_measurement_jacobian(H, xhat, t);\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (q = 0; q < " << m << "; ++q)\n"
+          << "                k[a * " << m << " + q] = " << lit(g.loss.rho) << " * (H[q * " << n << " + a] + "
+          << (g.corr.empty() ? "(double)o[a * " + std::to_string(m) + " + q] * " + P + "_dy[q] / " + P + "_dx[a]"
+                             : "(double)o[a * " + std::to_string(m) + " + q] * " + P + "_corr[a * " +
+                                   std::to_string(m) + " + q]")
+          << ");\n"
+          << "        /* Cholesky S = L L' (kernels/gain.cpp chol), then k <- S^-1 k row by row */\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b) {\n"
+          << "                double x = S[a * " << n << " + b];\n"
+          << "                for (kk = 0; kk < b; ++kk) x -= L[a * " << n << " + kk] * L[b * " << n << " + kk];\n"
+          << "                L[a * " << n << " + b] = a == b ? sqrt(x > 1e-300 ? x : 1e-300) : x / L[b * " << n
+          << " + b];\n"
+          << "            }\n"
+          << "        for (a = 0; a < " << n << "; ++a) {\n"
+          << "            for (q = 0; q < " << m << "; ++q) tt[q] = k[a * " << m << " + q];\n"
+          << "            for (kk = 0; kk < a; ++kk)\n"
+          << "                for (q = 0; q < " << m << "; ++q) tt[q] -= L[a * " << n << " + kk] * k[kk * " << m
+          << " + q];\n"
+          << "            for (q = 0; q < " << m << "; ++q) k[a * " << m << " + q] = tt[q] / L[a * " << n << " + a];\n"
+          << "        }\n"
+          << "        for (a = " << n - 1 << "; a >= 0; --a) {\n"
+          << "            for (q = 0; q < " << m << "; ++q) tt[q] = k[a * " << m << " + q];\n"
+          << "            for (kk = a + 1; kk < " << n << "; ++kk)\n"
+          << "                for (q = 0; q < " << m << "; ++q) tt[q] -= L[kk * " << n << " + a] * k[kk * " << m
+          << " + q];\n"
+          << "            for (q = 0; q < " << m << "; ++q) k[a * " << m << " + q] = tt[q] / L[a * " << n << " + a];\n"
+          << "        }\n"
+          << "    }\n"
+          << "}\n\n";
+    }
+    c << "/* the step's gain law: K(x^, t) alone (the innovation multiplies it in the step) */\n"
+      << "static void " << P << "_gain(double* k, const double* xhat, double t, const double* e, const double* B) {\n"
+      << "    (void)e;\n    (void)B;\n"
+      << "    " << P << "_gain_matrix(k, xhat, t);\n"
+      << "}\n\n";
+    law.code = c.str();
+    law.header = "/* the frozen network's gain K(x^, t) [n x m] (row-major) at the estimate x^ [n] and time t */\nvoid " +
+                 P + "_gain_matrix(double* k, const double* xhat, double t);\n\n";
+    // z, the head; with S(t): the knots' interpolation, M M', the right-hand side, Cholesky and two solves
+    law.flops = 2LL * n + (tv ? 3LL * np + 2LL * n * (n + 1) * (n + 2) / 6 + 4LL * n * m + n * n * n / 3 + 2LL * n * n * m
+                              : 3LL * n * m);
+    return law;
+}
+
 struct CGainLaw {
     const char* variant;
     LawC (*emit)(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& prefix);
@@ -339,6 +459,7 @@ struct CGainLaw {
 const CGainLaw kGainLaws[] = {
     {"dissipative", hinf_gain_c},
     {"paper", hinf_gain_c},
+    {"gain", gain_gain_c},
 };
 
 // ---------------------------------------------------------------------------------------------- network

@@ -4,6 +4,7 @@
 // both training variants. Bad use is one line.
 #include <catch2/catch.hpp>
 #include <sstream>
+#include <tuple>
 
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
@@ -106,15 +107,17 @@ Compared export_and_compare(const TempDir& d, const std::string& cfg, const std:
 
 TEST_CASE("exported C filter of a double network on a built-in system matches hinf filter to double round-off",
           "[export]") {
-    const std::pair<const char*, const char*> cases[] = {
-        {"missile", "dissipative"}, {"missile", "paper"}, {"maneuvering_missile", "dissipative"}};
-    for (const auto& [kind, variant] : cases) {
-        SECTION(std::string(kind) + " " + variant) {
+    // gain: the time-varying storage S(t) (its default) and the constant S (storage_knots = 0)
+    const std::tuple<const char*, const char*, const char*> cases[] = {
+        {"missile", "dissipative", ""}, {"missile", "paper", ""}, {"maneuvering_missile", "dissipative", ""},
+        {"missile", "gain", ""}, {"missile", "gain", "storage_knots = 0\n"}};
+    for (const auto& [kind, variant, network] : cases) {
+        SECTION(std::string(kind) + " " + variant + " " + network) {
             TempDir d("export-missile");
             const std::string cfg = write_file(d, "tiny.toml",
                                                "[system]\nkind = \"" + std::string(kind) +
                                                    "\"\n[filter]\nt_final = 3.0\nvariant = \"" + std::string(variant) +
-                                                   "\"\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n"
+                                                   "\"\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n" + network +
                                                    "[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n"
                                                    "checkpoint_every = 5\n");
             Compared c = export_and_compare(d, cfg, "--until 0.1", std::string("dnn_") + variant + "_measured");
@@ -138,6 +141,21 @@ TEST_CASE("exported C filter of a float expression-system network matches hinf f
     INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale << ", after the last step " << c.final_abs);
     CHECK(c.rows == 2001);
     // the float network's round-off (~1e-7 relative) is amplified by the first large gain steps, then contracts
+    CHECK(c.max_abs <= 1e-4 * c.scale);
+    CHECK(c.final_abs <= 1e-6 * c.scale);
+}
+
+TEST_CASE("exported C filter of a float gain network (S(t), m < n) matches hinf filter to float round-off",
+          "[export][gain]") {
+    TempDir d("export-gain");
+    const std::string cfg = hinf::test::source_path("runs/vanderpol.toml");
+    Compared c = export_and_compare(d, cfg,
+                                    "--until 0.3 --set filter.variant=gain --set training.samples=400 "
+                                    "--set training.batch=200 --set training.adam_steps=5",
+                                    "dnn_gain_measured");
+    INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale << ", after the last step " << c.final_abs);
+    CHECK(c.rows == 2001);
+    CHECK(c.compared == 2001);
     CHECK(c.max_abs <= 1e-4 * c.scale);
     CHECK(c.final_abs <= 1e-6 * c.scale);
 }
