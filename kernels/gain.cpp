@@ -479,17 +479,31 @@ const T* pack_weights(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) 
 }
 }  // namespace
 
+int gain_step_chunks(int M, const StepConfig& cfg) {
+    const int G = std::max(1, cfg.gain.group), C = (cfg.chunk + G - 1) / G;
+    return (M / G + C - 1) / C;
+}
+
 template <typename T>
 StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
-                            const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws) {
+                            const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws,
+                            const StepSplit* split) {
     const MlpShape& sh = cfg.shape;
     const GainSpec& gs = cfg.gain;
     // rows: one per estimate, each with G samples (errors) idx[r G .. r G + G - 1] that share its z, t and Hx; a
-    // chunk holds cfg.chunk samples, so C = cfg.chunk / G rows (the same chunks, and threads, for any G)
+    // chunk holds about cfg.chunk samples, C = ceil(cfg.chunk / G) rows (as many chunks, and threads, for any G)
     const int G = std::max(1, gs.group), R = M / G;
-    const int n = sys.n, m = sys.m, C = std::max(1, cfg.chunk / G), O = sh.outputs(), D0 = sh.inputs();
+    const int n = sys.n, m = sys.m, C = (cfg.chunk + G - 1) / G, O = sh.outputs(), D0 = sh.inputs();
     assert(M % G == 0);
-    const int chunks = (R + C - 1) / C;
+    const int chunks = gain_step_chunks(M, cfg);
+    // this process's chunks [c_first, c_last) (all of them without a split), and where each process's rows start
+    const int ranks = split != nullptr ? split->ranks : 1, rank = split != nullptr ? split->rank : 0;
+    const int c_first = step_split_begin(chunks, rank, ranks), c_last = step_split_begin(chunks, rank + 1, ranks);
+    std::vector<std::int64_t> row_begin, sample_begin;
+    for (int r = 0; ranks > 1 && r <= ranks; ++r) {
+        row_begin.push_back(std::min<std::int64_t>(R, std::int64_t(step_split_begin(chunks, r, ranks)) * C));
+        sample_begin.push_back(row_begin.back() * G);
+    }
     const std::int64_t P = sh.param_count(), Ps = step_partial_stride(sh), As = step_acts_stride(cfg);
     const bool tv = gs.knots > 0;  // time-varying storage and the Riccati-form head (section 16.7)
     const int np = n * (n + 1) / 2;
@@ -511,7 +525,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
 
     // pass 1: forward and gain head per row, loss pieces per sample
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
+    for (int c = c_first; c < c_last; ++c) {
         const int b0 = c * C, B = std::min(C, R - b0);
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(c) * As;
@@ -536,6 +550,8 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
             }
         }
     }
+    // every process needs every sample's loss pieces: the loss (and so each dL/dK) is a function of all of them
+    if (ranks > 1) split->allgather(vals.data(), sizeof(GainSampleValue), sample_begin.data());
     double sum_hinge = 0, sum_h2 = 0;
     for (int s = 0; s < M; ++s) {
         sum_hinge += vals[s].hinge;
@@ -561,7 +577,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     // pass 2: dL/dK summed over the row's samples -> dL/do -> partial dL/dtheta per chunk; dL/dS per row (ws.P, or
     // the knots' shares). Both are linear in dL/dK and dL/dS, so one head backward per row serves its G samples.
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
+    for (int c = c_first; c < c_last; ++c) {
         const int b0 = c * C, B = std::min(C, R - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
@@ -597,6 +613,19 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         T* part = ws.partial.data() + std::int64_t(c) * Ps;
         T* scratch = ws.scratch.data() + std::int64_t(c) * sh.scratch_size(C);
         mlp_backward(part, static_cast<T*>(nullptr), theta, in, acts, dout, B, sh, scratch, /*overwrite=*/true, wt);
+    }
+    // every chunk's partial and every row's storage gradient to every process (all-gathers: the sums below keep
+    // one process's order)
+    if (ranks > 1) {
+        std::vector<std::int64_t> chunk_begin;
+        for (int r = 0; r <= ranks; ++r) chunk_begin.push_back(step_split_begin(chunks, r, ranks));
+        split->allgather(ws.partial.data(), Ps * std::int64_t(sizeof(T)), chunk_begin.data());
+        if (tv) {
+            split->allgather(knot_part.data(), 2 * np * std::int64_t(sizeof(double)), row_begin.data());
+            split->allgather(knot_j.data(), sizeof(int), row_begin.data());
+        } else {
+            split->allgather(ws.P.data(), std::int64_t(n) * n * std::int64_t(sizeof(double)), row_begin.data());
+        }
     }
     sum_chunk_partials(grad, ws.partial.data(), chunks, Ps, P);  // chunk order (train_step.hpp)
     if (tv) {  // the knots' gradients, summed in sample order (bits independent of the thread count)
@@ -867,7 +896,8 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     template void gain_head_forward<T>(double*, const T*, const double*, const double*, int, int, double);        \
     template void gain_head_backward<T>(T*, const double*, const double*, const double*, int, int, double);      \
     template StepLoss gain_step_gradient<T>(T*, const T*, const HjieSystemView&, const double*,                  \
-                                            const std::int64_t*, int, const StepConfig&, StepWorkspace<T>&);     \
+                                            const std::int64_t*, int, const StepConfig&, StepWorkspace<T>&,      \
+                                            const StepSplit*);                                                   \
     template void gain_network_eval<T>(double*, const T*, const double*, const double*, const double*,            \
                                        std::int64_t,                                                             \
                                        const StepConfig&, StepWorkspace<T>&);                                    \

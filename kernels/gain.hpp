@@ -85,9 +85,15 @@ void gain_head_backward(T* d_o, const double* gK, const double* dx, const double
 /// grad [P + n(n+1)/2] = dL/dtheta (overwritten), theta = [MLP parameters | storage parameters]; the network input
 /// of sample i is z [i x n] (the standardised estimate). L = sqrt(mean hinge) + eta mean h2 over idx[0..M).
 /// Fixed chunks of cfg.chunk samples, partials summed in chunk order: the bits do not depend on the thread count.
+/// With a split (MPI data parallelism), every process passes the same theta, z, idx and M and gets the same bits
+/// as one process without a split; it works on chunks [step_split_begin(chunks, rank, ranks), ...) of
+/// gain_step_chunks(M, cfg).
 template <typename T>
 StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
-                            const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws);
+                            const std::int64_t* idx, int M, const StepConfig& cfg, StepWorkspace<T>& ws,
+                            const StepSplit* split = nullptr);
+/// The chunks of a minibatch of M samples: ceil(chunk / G) estimates (rows) each.
+int gain_step_chunks(int M, const StepConfig& cfg);
 
 /// The naive twin of gain_step_gradient, the reference for it in tests: one sample at a time through the naive
 /// MLP, S(t) and M(t) from the knots by plain loops, K and the backward's S^-1 by Gaussian elimination with

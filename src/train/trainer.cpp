@@ -191,12 +191,12 @@ public:
         cos_.resize(N);
         ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
 
-        if (gain_) {
-            HINF_CHECK(split_.ranks == 1, "variant \"gain\" trains in one process (run hinf train without mpirun)");
+        if (gain_) {  // every process simulates the same pool and draws the same samples (deterministic)
             if (pool_.runs.empty()) pool_ = gain_pool_build(cfg_);
             K_all_.resize(N * n * cfg_.m);
         }
-        const int chunks = int((cfg_.batch + ck_.net.step.chunk - 1) / ck_.net.step.chunk);
+        const int chunks = gain_ ? kern::gain_step_chunks(int(cfg_.batch), ck_.net.step)
+                                 : int((cfg_.batch + ck_.net.step.chunk - 1) / ck_.net.step.chunk);
         HINF_CHECK(split_.ranks <= chunks,
                    std::to_string(split_.ranks) + " MPI processes for a minibatch of " + std::to_string(chunks) +
                        " chunk(s) (training.batch " + std::to_string(cfg_.batch) + " / network.chunk " +
@@ -296,7 +296,7 @@ private:
         const kern::HjieSystemView view = gsm_.view();
         const bool ok = adam_steps(rec, step, [&](T* grad) {
             return kern::gain_step_gradient(grad, ck_.net.theta.data(), view, gsm_.z.data(), idx_.data(),
-                                            int(cfg_.batch), ck_.net.step, ws_);
+                                            int(cfg_.batch), ck_.net.step, ws_, split_.ranks > 1 ? &split_ : nullptr);
         });
         if (!ok) return false;
         // statistics over all N samples after the K steps

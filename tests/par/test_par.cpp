@@ -183,8 +183,8 @@ TEST_CASE("a process that dies takes the job down, with one line from rank 0 and
 namespace {
 
 // 6 chunks of 50 samples per minibatch: split 6/3/2 over 1/2/3 processes
-std::string data_parallel_config(const std::string& t_final) {
-    return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +
+std::string data_parallel_config(const std::string& t_final, const std::string& variant = "dissipative") {
+    return "[system]\nkind = \"missile\"\n[filter]\nvariant = \"" + variant + "\"\nt_final = " + t_final +
            "\n[network]\nhidden = [16]\nchunk = 50\n[training]\nsamples = 400\nbatch = 300\nadam_steps = 3\n"
            "checkpoint_every = 2\nacceptance_runs = 0\n";  // the plain runs compared with sweeps: no acceptance attributes
 }
@@ -206,17 +206,24 @@ TEST_CASE("data-parallel training: the weights after a few steps are the same bi
         return;
     }
     TempDir d("par-train");
-    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.04"));
-    CommandResult one = hinf::test::run_hinf("train " + cfg + " --threads 1 --quiet --out " + d / "plain");
-    INFO(one.output);
-    REQUIRE(one.status == 0);
-    for (int np : {2, 3}) {
-        const std::string out = d / ("np" + std::to_string(np));
-        CommandResult r = hinf::test::run_command(mpirun(np) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + out);
-        INFO("mpirun -np " << np << "\n" << r.output);
-        REQUIRE(r.status == 0);
-        check_same_run(d / "plain", out);
+    // gain: four errors per estimate (400, 300), 6 chunks of 13 estimates, S(t) knots gathered per estimate
+    for (const char* variant : {"dissipative", "gain"}) {
+        INFO("variant " << variant);
+        const std::string v = variant;
+        const std::string cfg = hinf::test::write_file(d, v + ".toml", data_parallel_config("0.04", v));
+        CommandResult one = hinf::test::run_hinf("train " + cfg + " --threads 1 --quiet --out " + d / (v + "_plain"));
+        INFO(one.output);
+        REQUIRE(one.status == 0);
+        for (int np : {2, 3}) {
+            const std::string out = d / (v + "_np" + std::to_string(np));
+            CommandResult r =
+                hinf::test::run_command(mpirun(np) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + out);
+            INFO("mpirun -np " << np << "\n" << r.output);
+            REQUIRE(r.status == 0);
+            check_same_run(d / (v + "_plain"), out);
+        }
     }
+    const std::string cfg = d / "dissipative.toml";
     // more processes than chunks: one line, non-zero exit
     CommandResult bad = hinf::test::run_command(mpirun(7) + HINF_CLI_PATH + " train " + cfg + " --threads 1 --quiet --out " + d / "bad");
     INFO(bad.output);
