@@ -174,7 +174,21 @@ PYBIND11_MODULE(_hinf, m) {
             [](const hinf::TrainedNetwork& net, const Array& xt) {
                 return net.value(vector_of(xt, std::size_t(net.config().states()), "Network.value: x~"));
             },
-            py::arg("xtilde"));
+            py::arg("xtilde"))
+        .def(
+            "gain",
+            [](const hinf::TrainedNetwork& net, const Array& xh, double t) {
+                const int n = net.config().states(), m = net.config().outputs();
+                HINF_CHECK((xh.ndim() == 1 && xh.shape(0) == n) || (xh.ndim() == 2 && xh.shape(1) == n),
+                           "Network.gain: x^ has shape " + shape_text(xh) + "; expected (" + std::to_string(n) +
+                               ",) or (count, " + std::to_string(n) + ")");
+                std::vector<double> K = net.gain(std::vector<double>(xh.data(), xh.data() + xh.size()), t);
+                Array out = to_array(K);
+                if (xh.ndim() == 1) return py::object(out.reshape({py::ssize_t(n), py::ssize_t(m)}));
+                return py::object(out.reshape({xh.shape(0), py::ssize_t(n), py::ssize_t(m)}));
+            },
+            py::arg("xhat"), py::arg("t") = 0.0,
+            "variant gain: K(x^, t) [n x m] at x^ ([n]; [count x n] gives [count x n x m])");
 
     py::class_<hinf::FilterTrace>(m, "FilterTrace",
                                   "One filter over a record: xhat [K x n] (row k estimates x(t_k) from y before t_k), "

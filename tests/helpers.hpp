@@ -119,8 +119,10 @@ h = ["a + 0.5*b"]
 }
 
 /// A missile config that trains in a fraction of a second (tiny network, few samples).
+/// (variant `dissipative`, named: the CLI tests that use it read its oracle mode and its p = dV/dx~ columns; the
+/// default variant, `gain`, has its own tests)
 inline std::string tiny_missile_config(const std::string& t_final = "0.05") {
-    return "[system]\nkind = \"missile\"\n[filter]\nt_final = " + t_final +
+    return "[system]\nkind = \"missile\"\n[filter]\nvariant = \"dissipative\"\nt_final = " + t_final +
            "\n[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 2\n";
 }
 

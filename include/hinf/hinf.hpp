@@ -60,12 +60,15 @@ public:
     static TrainedNetwork load(const std::string& checkpoint_path);
     std::string path() const;
     Config config() const;        ///< the config it was trained with (stored in the checkpoint)
-    std::string variant() const;  ///< "dissipative" or "paper"
+    std::string variant() const;  ///< "gain", "dissipative" or "paper"
     std::string precision() const;  ///< "float" or "double"
     /// p = dV/dx~ [count x n] at x~ [count x n].
     std::vector<double> gradient(const std::vector<double>& xtilde) const;
     /// V(x~) (Gauss-Legendre quadrature of p along 0 -> x~).
     double value(const std::vector<double>& xtilde) const;
+    /// Variant "gain": its gain K(x^, t) [count x n x m] (row-major n x m each) at estimates x^ [count x n].
+    /// gradient() and value() are for the other variants, gain() for this one (each refuses the other in one line).
+    std::vector<double> gain(const std::vector<double>& xhat, double t) const;
 
     struct Impl;
     std::shared_ptr<Impl> impl;  ///< internal

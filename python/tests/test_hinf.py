@@ -100,7 +100,7 @@ def test_missile_filters_match_hinf_filter_bit_for_bit(tmp_path):
     names = "dnn,ekf,ukf,pf,open_loop,glf"
     written = run_cli_filter(str(config), path, names, tmp_path / "flt", network=ckpt)
     filters = hinf.filters(cfg, names, network=hinf.Network(ckpt), particles=300)
-    assert [f.name for f in filters] == ["dnn_dissipative_measured", "ekf", "ukf", "pf", "open_loop", "glf"]
+    assert [f.name for f in filters] == ["dnn_gain_measured", "ekf", "ukf", "pf", "open_loop", "glf"]
     for f in filters:
         trace = f.run(t, Y)
         g = written[f.name]
@@ -124,7 +124,7 @@ def test_expression_system_filters_match_hinf_filter(trained, record, tmp_path):
     names = "dnn,ekf,ukf,pf,open_loop"
     written = run_cli_filter(VANDERPOL, path, names, tmp_path, network=ckpt)
     filters = hinf.filters(hinf.Config(VANDERPOL), names, network=ckpt, particles=300)
-    assert [f.name for f in filters] == ["dnn_dissipative_measured", "ekf", "ukf", "pf", "open_loop"]
+    assert [f.name for f in filters] == ["dnn_gain_measured", "ekf", "ukf", "pf", "open_loop"]
     for f in filters:
         trace = f.run(t, Y)
         g = written[f.name]
@@ -155,10 +155,24 @@ def test_step_by_step_equals_run(trained, record):
         assert np.array_equal(f.estimate, cfg.initial_estimate)
 
 
-def test_network_gradient_shapes(trained):
+def test_network_gain_shapes(trained):
+    """The default variant, gain: K(x^, t) [n x m] from the estimate alone; the error's gradient is refused."""
     _, ckpt, _, _, _ = trained
     net = hinf.Network(ckpt)
+    assert net.variant == "gain" and net.config.states == 2
+    one = net.gain(np.array([0.5, 1.0]), 0.1)
+    many = net.gain(np.array([[0.5, 1.0], [0.3, 0.4]]), 0.1)
+    assert one.shape == (2, 1) and many.shape == (2, 2, 1) and np.array_equal(many[0], one)
+    assert np.isfinite(many).all() and one[0, 0] > 0  # the position innovation corrects the position upwards
+    one_line_error(lambda: net.gradient(np.array([0.1, -0.2])), "use gain(x^, t)")
+
+
+def test_network_gradient_shapes(tmp_path):
+    cfg = hinf.Config(VANDERPOL, set=SMALL + ['filter.variant="dissipative"'])
+    hinf.train(cfg, str(tmp_path / "run"), until=0.1)
+    net = hinf.Network(str(tmp_path / "run" / "checkpoint.h5"))
     assert net.variant == "dissipative" and net.config.states == 2
+    one_line_error(lambda: net.gain(np.array([0.5, 1.0])), "use gradient(x~)")
     one = net.gradient(np.array([0.1, -0.2]))
     many = net.gradient(np.array([[0.1, -0.2], [0.3, 0.4]]))
     assert one.shape == (2,) and many.shape == (2, 2) and np.array_equal(many[0], one)

@@ -123,6 +123,8 @@ std::string TrainedNetwork::precision() const { return network_impl(*this).preci
 std::vector<double> TrainedNetwork::gradient(const std::vector<double>& xtilde) const {
     Impl& im = network_impl(*this);
     const std::size_t n = std::size_t(im.cfg.n);
+    HINF_CHECK(im.cfg.variant != "gain", "TrainedNetwork::gradient: '" + im.path + "' is a \"gain\" network, which has "
+                                         "no dV/dx~ (its gain sees x^ alone: use gain(x^, t))");
     HINF_CHECK(!xtilde.empty() && xtilde.size() % n == 0,
                "TrainedNetwork::gradient: x~ has " + std::to_string(xtilde.size()) + " values, not a multiple of the " +
                    std::to_string(n) + " states (pass count x n values)");
@@ -132,8 +134,25 @@ std::vector<double> TrainedNetwork::gradient(const std::vector<double>& xtilde) 
     return p;
 }
 
+std::vector<double> TrainedNetwork::gain(const std::vector<double>& xhat, double t) const {
+    Impl& im = network_impl(*this);
+    const std::size_t n = std::size_t(im.cfg.n);
+    HINF_CHECK(im.cfg.variant == "gain", "TrainedNetwork::gain: '" + im.path + "' is a \"" + im.cfg.variant +
+                                             "\" network, whose gain needs the error (use gradient(x~))");
+    HINF_CHECK(!xhat.empty() && xhat.size() % n == 0,
+               "TrainedNetwork::gain: x^ has " + std::to_string(xhat.size()) + " values, not a multiple of the " +
+                   std::to_string(n) + " states (pass count x n values)");
+    const std::int64_t count = std::int64_t(xhat.size() / n);
+    std::vector<double> K(std::size_t(count) * n * std::size_t(im.cfg.m));
+    std::lock_guard<std::mutex> lock(im.mutex);
+    im.net->gain(K.data(), nullptr, nullptr, xhat.data(), t, *im.cfg.system, count);
+    return K;
+}
+
 double TrainedNetwork::value(const std::vector<double>& xtilde) const {
     Impl& im = network_impl(*this);
+    HINF_CHECK(im.cfg.variant != "gain", "TrainedNetwork::value: '" + im.path + "' is a \"gain\" network: its storage is "
+                                         "x~'S(t)x~, not a network of x~ (use gain(x^, t))");
     check_size(xtilde.size(), std::size_t(im.cfg.n), "TrainedNetwork::value: x~");
     std::lock_guard<std::mutex> lock(im.mutex);
     return im.net->value(xtilde.data(), im.cfg.n);

@@ -52,8 +52,17 @@ void add_operate_command(CLI::App& app) {
         }
         HINF_CHECK(!a->network.empty(),
                    "operate needs --network DIR/checkpoint.h5 (train one first: hinf train " + a->config + ")");
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
-        std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(a->network);
+        RunConfig trained;
+        std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(a->network, &trained);
+        // a config that names no variant runs the network's (one trained before `gain` became the default is a
+        // `dissipative` network, with its oracle mode by default)
+        std::vector<std::string> sets = a->sets;
+        {
+            ConfigDoc doc = ConfigDoc::from_file(a->config);
+            for (const auto& s : a->sets) doc.set(s);
+            if (!ConfigSection(doc, "filter").has("variant")) sets.push_back("filter.variant=\"" + trained.variant + "\"");
+        }
+        RunConfig cfg = load_config_with_overrides(a->config, sets);
         OperateOptions opt;
         opt.mode = a->mode;
         opt.runs = a->runs;

@@ -117,6 +117,10 @@ void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
     }
 }
 
+std::string default_variant(const std::string& type, int n, int m, int nv) {
+    return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";
+}
+
 RunConfig load_run_config(ConfigDoc doc) {
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
     RunConfig c;
@@ -129,7 +133,9 @@ RunConfig load_run_config(ConfigDoc doc) {
 
     ConfigSection f(doc, "filter");
     c.type = f.get_string("type", c.type, {"hinf", "h2hinf"});
-    c.variant = f.get_string("variant", c.variant, {"dissipative", "paper", "gain"});
+    // the gain variant (K(x^), method.md §16) wherever it applies: an H-infinity filter of at most 32 states,
+    // outputs and disturbances; otherwise the dissipative network of seed 000
+    c.variant = f.get_string("variant", default_variant(c.type, c.n, c.m, c.nv), {"dissipative", "paper", "gain"});
     if (c.variant == "gain" && c.type != "hinf")
         f.reject("variant", "\"gain\" is an H-infinity filter: use it with type = \"hinf\"");
     if (c.variant == "gain" && std::max({c.n, c.m, c.nv}) > kern::kGainMaxDim)
@@ -303,7 +309,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     o.finish();
 
     ConfigSection on(doc, "online");
-    c.mode = on.get_string("mode", c.mode, {"oracle", "measured"});
+    c.mode = on.get_string("mode", c.variant == "gain" ? "measured" : c.mode, {"oracle", "measured"});
     c.disturbance_std = on.get_double("disturbance_std", c.disturbance_std, 0.0, 1e12);
     c.noise_std = on.get_double("noise_std", c.noise_std, 0.0, 1e12);
     c.runs = on.get_int("runs", c.runs, 1, 1000000);

@@ -18,7 +18,7 @@ struct ProblemConfig {
 
     // [filter]
     std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
-    std::string variant = "dissipative";  // "dissipative" (default), "paper" or "gain" (K(x^), docs/method.md §16)
+    std::string variant = "gain";  // "gain" (K(x^), docs/method.md §16; default where it applies), "dissipative" or "paper"
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
@@ -114,6 +114,9 @@ struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
 
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix.
 RunConfig load_run_config(ConfigDoc doc);
+/// [filter] variant when the config names none: "gain" for an H-infinity filter of at most kern::kGainMaxDim states,
+/// outputs and disturbances, else "dissipative" (checkpoints written before this default read as they were trained)
+std::string default_variant(const std::string& type, int n, int m, int nv);
 
 /// A short stable hash of the config text (FNV-1a 64, hex), stored in checkpoints.
 std::string config_hash(const std::string& text);

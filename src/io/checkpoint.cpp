@@ -238,6 +238,13 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
     std::string text = h5::read_string(file, "config");
     HINF_CHECK(config_hash(text) == h5::get_attr_string(file, "config_hash"),
                "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
+    if (!h5::exists(file, "network/storage")) {  // no storage: not a gain network, whatever the default is now
+        ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+        if (!ConfigSection(doc, "filter").has("variant")) {
+            doc.set("filter.variant=\"dissipative\"");
+            text = doc.text();
+        }
+    }
     if (h5::exists(file, "network/storage")) {
         h5::Handle net = h5::open_group(file, "network");
         if (!h5::has_attr(net.get(), "errors_per_estimate")) {  // written before errors were grouped per estimate

@@ -717,6 +717,14 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     std::vector<std::string> legacy;
     {  // a gain network written before network.storage_knots existed has one S: resume it as trained
         const RunConfig as_trained = ckpt_config(path);
+        // a network trained before `gain` became the default variant, on a config that names none
+        if (!ConfigSection(ConfigDoc::from_text(ck.config_text, path), "filter").has("variant") &&
+            as_trained.variant != default_variant(as_trained.type, as_trained.n, as_trained.m, as_trained.nv)) {
+            legacy.push_back("filter.variant=\"" + as_trained.variant + "\"");
+            ConfigDoc doc = ConfigDoc::from_text(ck.config_text, path);
+            doc.set(legacy.back());
+            ck.config_text = doc.text();
+        }
         if (as_trained.variant == "gain" &&
             as_trained.storage_knots != load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_knots)
             legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));

@@ -135,8 +135,8 @@ TEST_CASE("exported C filter of a float expression-system network matches hinf f
     TempDir d("export-expr");
     const std::string cfg = hinf::test::source_path("runs/vanderpol.toml");
     Compared c = export_and_compare(d, cfg,
-                                    "--until 0.3 --set training.samples=400 --set training.batch=200 "
-                                    "--set training.adam_steps=5",
+                                    "--until 0.3 --set filter.variant=dissipative --set training.samples=400 "
+                                    "--set training.batch=200 --set training.adam_steps=5",
                                     "dnn_dissipative_measured");
     INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale << ", after the last step " << c.final_abs);
     CHECK(c.rows == 2001);

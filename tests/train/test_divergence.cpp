@@ -18,6 +18,7 @@ namespace {
 const char* kDiverging = R"([system]
 kind = "missile"
 [filter]
+variant = "dissipative"
 t_final = 0.3
 [network]
 hidden = [8]
@@ -254,7 +255,7 @@ TEST_CASE("an h2hinf run rolled back keeps every column growing and resumes", "[
 TEST_CASE("a diverging gain run with the Riccati start names the other starts in its one line", "[train][divergence][gain]") {
     test::TempDir d("divgain");
     std::string text = kDiverging;
-    text.replace(text.find("[filter]\n"), 9, "[filter]\nvariant = \"gain\"\n");
+    text.replace(text.find("variant = \"dissipative\""), 23, "variant = \"gain\"");
     // rate 1: with its errors grouped per estimate (two here) the gain run trains through 0.3 at this size
     text.replace(text.find("learning_rate = 0.3"), 19, "learning_rate = 1.0");
     text += "acceptance_runs = 0\n";
