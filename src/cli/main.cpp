@@ -18,14 +18,16 @@ namespace {
 // The one line of an error, then the exit. Under mpirun a rank that fails alone would leave the others waiting
 // in a collective, so every failing rank ends the whole job (MPI_Abort). An error every rank meets (a bad
 // argument, a bad config) is printed by rank 0 only: the others wait a moment, in which rank 0's abort ends
-// them; a rank that fails alone still prints its line, with its rank, after that moment.
+// them; a rank that fails alone still prints its line, with its rank, after that moment. The moment is 2 s: with
+// 500 ms a rank printed its copy of a shared error in a fresh-clone CI run, where ctest -j2 ran 3 ranks and another
+// test on 2 cores and rank 0 reached the error late.
 int fail(const std::string& line, int code) {
     if (hinf::par_world_size() == 1) {
         std::cerr << line << "\n";
         return code;
     }
     if (hinf::par_world_rank() != 0) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        std::this_thread::sleep_for(std::chrono::milliseconds(2000));
         std::cerr << line << " (rank " << hinf::par_world_rank() << ")\n";
     } else {
         std::cerr << line << "\n";

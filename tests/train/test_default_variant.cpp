@@ -43,6 +43,25 @@ TEST_CASE("the default variant is gain where it applies, dissipative elsewhere",
     CHECK(load(big).variant == "dissipative");
 }
 
+TEST_CASE("a config that names no variant trains the gain filter and operates it from measurements",
+          "[cli][gain][default]") {
+    hinf::test::TempDir d("defaulttrain");
+    const std::string cfg = hinf::test::write_file(
+        d, "m.toml",
+        "[system]\nkind = \"missile\"\n[filter]\nt_final = 0.05\n[network]\nhidden = [8]\n[training]\n"
+        "samples = 40\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 5\nacceptance_runs = 0\n");
+    auto t = hinf::test::run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").variant == "gain");
+    CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").errors_per_estimate == 4);
+    auto o = hinf::test::run_hinf("operate " + cfg + " --network " + (d / "run/checkpoint.h5") + " --runs 1 --quiet --out " +
+                                  (d / "op"));
+    INFO(o.output);
+    REQUIRE(o.status == 0);
+    CHECK(o.output.find("on-line phase: measured mode, 1 run(s), filter hinf, variant gain") != std::string::npos);
+}
+
 TEST_CASE("a checkpoint from before gain became the default resumes and operates as dissipative",
           "[cli][gain][default][legacy]") {
     // fixtures written by the hinf of commit 321db3c from tests/corpus/legacy/dissipative_default.toml (no variant):
