@@ -119,8 +119,21 @@ private:
 
 }  // namespace
 
+void gain_filter_check_time(const FrozenNetwork& network, const System& here, const std::string& name) {
+    const bool discrete = network.step_config().gain.loss.discrete;
+    HINF_CHECK(discrete || !here.discrete_time(),
+               "the DNN filter '" + name + "' is a continuous-time (Euler-sampled) filter: its network was trained on a "
+               "continuous-time system, and the config's system has [system] time = \"discrete\" (train it on this "
+               "config, or filter with ekf, ukf, pf or open_loop)");
+    HINF_CHECK(!discrete || here.discrete_time(),
+               "the DNN filter '" + name + "' is a discrete-time one-step predictor: its network was trained on a "
+               "[system] time = \"discrete\" system, and the config's system is continuous-time (train it on this "
+               "config)");
+}
+
 std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
                                                const std::string& name) {
+    gain_filter_check_time(network, *model.system, name);
     return std::make_unique<GainFilter>(model, network.clone(), name);
 }
 

@@ -45,7 +45,11 @@ std::unique_ptr<OnlineFilter> make_dnn_filter(const FilterModel& model, const Fr
 /// a variant that handles m < n natively is listed in dnn.cpp's kMeasuredNative and gets "".
 std::string dnn_measured_warning(const std::string& variant, int n, int m);
 /// Variant gain: x^' = A(x^) + K(x^)(y - C(x^)) with K from the network at x^ alone (measured by construction).
+/// Refuses (gain_filter_check_time) a network trained in the other time domain than model's system.
 std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
                                                const std::string& name);
+/// One line when a gain network trained on a continuous-time system (an Euler-sampled filter) meets a config whose
+/// system is discrete-time, or the other way round (a one-step predictor): its gain means another thing there.
+void gain_filter_check_time(const FrozenNetwork& network, const System& here, const std::string& name);
 
 }  // namespace hinf

@@ -141,6 +141,7 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                                    "two --network files give the filter name '" + label + "' (same variant twice)");
                     // it filters with the model it was trained on (its checkpoint's [system], e.g. a mismatched H),
                     // which the check above ties to this config's system by kind, states and outputs
+                    gain_filter_check_time(*net, *cfg.system, label);
                     set.models.push_back(ncfg.system);
                     FilterModel trained = exact;
                     trained.system = ncfg.system.get();

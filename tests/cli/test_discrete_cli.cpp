@@ -68,7 +68,7 @@ acceptance_runs = 1
 
 }  // namespace
 
-TEST_CASE("discrete systems through compare, filter and worst; refusals in one line", "[cli][discrete]") {
+TEST_CASE("discrete systems through compare, filter and worst, and their refusals in one line", "[cli][discrete]") {
     TempDir d("cli-discrete");
     const std::string cfg = write_file(d, "ungm.toml", kSmallUngm);
 
@@ -122,7 +122,7 @@ TEST_CASE("discrete systems through compare, filter and worst; refusals in one l
     REQUIRE(w.status == 0);
 
     // refusals: training but variant gain, a record sampled at another rate, the GLF, the DNN filter
-    expect_one_line_error("train " + cfg + " --out " + (d / "t") + " --quiet",
+    expect_one_line_error("train " + cfg + " --set filter.variant=dissipative --out " + (d / "t") + " --quiet",
                           "trains the continuous-time game; for a discrete-time system use [filter] variant");
     // variant gain trains the one-step inequality (rho above the floor lambda_max(B'QB) = 1.25) and filters
     const std::string gcfg = write_file(d, "linear_gain.toml", kLinearGain);

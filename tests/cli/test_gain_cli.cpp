@@ -126,7 +126,7 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     CHECK(ok.status == 0);
 }
 
-TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes; 0 evaluations skip it",
+TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes, and 0 evaluations skip it",
           "[cli][gain][acceptance]") {
     hinf::test::TempDir d("gainworst");
     const std::string cfg = d / "vdp.toml";
