@@ -1,6 +1,7 @@
 // Parameters of the `gain` variant (issue 14, docs/method.md section 14): the scales of its gain head and storage
 // and the loss constants. Part of kern::StepConfig; the kernels are in gain.hpp.
 #pragma once
+#include <algorithm>
 #include <vector>
 
 namespace hinf::kern {
@@ -27,6 +28,14 @@ struct GainSpec {
     int m = 0;                       // outputs
     std::vector<double> dx, dy;      // error scale per state [n], innovation scale per output [m]
     std::vector<double> shift, spread;  // network input z = (x^ - shift) / spread  [n]
+    // where the filter's network input is held (network.input_box, docs/method.md section 16.10): the box of the
+    // training estimates' z, all but a share q on each side per state [n] each (empty: not held). The filter, its
+    // on-line retraining and the C export evaluate the network at input(a, x^); training samples are not held.
+    std::vector<double> zlo, zhi;
+    double input(int a, double xhat) const {
+        const double z = (xhat - shift[a]) / spread[a];
+        return zlo.empty() ? z : std::min(zhi[a], std::max(zlo[a], z));
+    }
     std::vector<double> xt0;         // [n]
     double rate = 1.0;               // K = rate * diag(dx) o diag(dy)^-1  [1/s]
     double storage_scale = 1.0;      // S = c D^-1 (M M' + eps I) D^-1

@@ -213,6 +213,9 @@ RunConfig load_run_config(ConfigDoc doc) {
     if (net.has("storage_init") && (c.variant != "gain" || c.storage_knots == 0))
         net.reject("storage_init", "initialises a time-varying storage: it needs [filter] variant = \"gain\" and "
                                    "network.storage_knots > 0 (remove the key)");
+    c.input_box = net.get_double("input_box", c.variant == "gain" ? c.input_box : 0.0, 0.0, 0.49);
+    if (net.has("input_box") && c.variant != "gain")
+        net.reject("input_box", "holds the input of [filter] variant = \"gain\"'s network only (remove the key)");
     c.chunk = static_cast<int>(net.get_int("chunk", c.chunk, 1, 4096));
     c.gemm = net.get_string("gemm", c.gemm, {"auto", "own", "openblas", "eigen"});
     net.finish();
@@ -229,7 +232,9 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.beta1 = t.get_double("beta1", c.beta1, 0.0, 0.999999999);
     c.beta2 = t.get_double("beta2", c.beta2, 0.0, 0.999999999);
     c.tau = t.get_double("tau", c.tau, 0.0, 1.0);
-    c.reset_adam = t.get_bool("reset_adam_each_step", c.reset_adam);
+    // the gain variant's samples are drawn afresh from the same distribution at every time step (method.md 16.11):
+    // its Adam keeps its moments; the chained variants restart them with k (eq. (15))
+    c.reset_adam = t.get_bool("reset_adam_each_step", c.variant != "gain");
     c.seed = static_cast<std::uint64_t>(t.get_int("seed", 1, 0, std::numeric_limits<std::int64_t>::max()));
     c.checkpoint_every = t.get_int("checkpoint_every", c.checkpoint_every, 1, 1000000000);
     c.loss_limit = t.get_double("loss_limit", c.loss_limit, 0.0, 1e300);

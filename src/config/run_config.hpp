@@ -44,13 +44,14 @@ struct TrainingConfig {
     std::string storage_init = "riccati";  // variant gain with S(t): the knots start on the game's Riccati solution along the nominal trajectory ("riccati", §16.7) or at S(0) ("flat", before 2026-11-25)
     std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
     double eps = 0.0;  // 0: auto from max_step_correction
+    double input_box = 0.005;  // variant gain: the filter holds the network's input inside the box of all but this share of the training estimates on each side of each state (0: not held, §16.10)
     int chunk = 100;
     std::string gemm = "auto";  // GEMM kernels: "auto" (own where built, else openblas), "own", "openblas", "eigen"
 
     // [training]
     std::int64_t samples = 2000, batch = 800, adam_steps = 30;
     double learning_rate = 1e-3, beta1 = 0.9, beta2 = 0.999, tau = 1e-7;
-    bool reset_adam = true;
+    bool reset_adam = true;  // training.reset_adam_each_step: default true, false for variant gain (method.md 16.11)
     std::uint64_t seed = 1;
     std::int64_t checkpoint_every = 100;
     double loss_limit = 1e30;

@@ -337,7 +337,7 @@ LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
 // Riccati-form head K = rho S(t)^-1 (H(x^)' + o .* w) with S(t) from the storage's knots (linear in t between
 // knots, M = diag(exp) + strict tril, S = c Ds^-1 (M M' + eps I) Ds^-1) and a Cholesky solve. The innovation is not
 // an input of the gain: the step multiplies it.
-LawC gain_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& P) {
+LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string& P) {
     const kern::GainSpec& g = sc.gain;
     const int n = sc.head.n, m = g.m, np = n * (n + 1) / 2;
     const bool tv = g.knots > 0;
@@ -352,6 +352,10 @@ LawC gain_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
     std::ostringstream c;
     c << "/* variant gain: the network input z = (x^ - shift) / spread (its scales from the training config) */\n"
       << array(P + "_shift", g.shift.data(), n) << array(P + "_spread", g.spread.data(), n);
+    const bool held = !g.zlo.empty();
+    if (held)
+        c << "/* the filter holds z inside the box of its training estimates (network.input_box, docs/method.md 16.10) */\n"
+          << array(P + "_zlo", g.zlo.data(), n) << array(P + "_zhi", g.zhi.data(), n);
     if (!tv || g.corr.empty()) c << array(P + "_dx", g.dx.data(), n) << array(P + "_dy", g.dy.data(), m);
     if (tv) {
         c << array(P + "_sdx", g.storage_dx(), n);
@@ -363,8 +367,11 @@ LawC gain_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
       << "    double z[" << n << "];\n"
       << "    const " << P << "_real* o;\n"
       << "    int a, q;\n"
-      << "    for (a = 0; a < " << n << "; ++a) z[a] = (xhat[a] - " << P << "_shift[a]) / " << P << "_spread[a];\n"
-      << "    o = " << P << "_forward(buf, z);\n";
+      << "    for (a = 0; a < " << n << "; ++a) z[a] = (xhat[a] - " << P << "_shift[a]) / " << P << "_spread[a];\n";
+    if (held)
+        c << "    for (a = 0; a < " << n << "; ++a) z[a] = z[a] > " << P << "_zhi[a] ? " << P << "_zhi[a] : z[a] < " << P
+          << "_zlo[a] ? " << P << "_zlo[a] : z[a];\n";
+    c << "    o = " << P << "_forward(buf, z);\n";
     if (!tv) {
         c << "    (void)t;\n"
           << "    (void)" << P << "_measurement_jacobian; /* the constant-storage head needs no dC/dx */\n"

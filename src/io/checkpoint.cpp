@@ -169,6 +169,10 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
             h5::set_attr(net.get(), "errors_per_estimate", std::int64_t(sc.gain.group));
+            if (!sc.gain.zlo.empty()) {  // where the filter holds the network's input (method.md 16.10)
+                h5::set_attr(net.get(), "input_low", sc.gain.zlo);
+                h5::set_attr(net.get(), "input_high", sc.gain.zhi);
+            }
             if (sc.gain.knots > 0) {
                 h5::set_attr(net.get(), "storage_state_scale",
                              std::vector<double>(sc.gain.storage_dx(), sc.gain.storage_dx() + cfg.n));
@@ -180,6 +184,9 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         h5::Handle adam = h5::create_group(root, "adam");
         h5::set_attr(adam.get(), "step", ck.state.adam_step);
         h5::set_attr(adam.get(), "learning_rate_scale", ck.state.learning_rate_scale);
+        // how the moments go from one time step to the next (training.reset_adam_each_step, whose default for the
+        // gain variant changed on 2026-11-26): a file without it was written with them reset
+        h5::set_attr(adam.get(), "reset_each_step", std::int64_t(cfg.reset_adam ? 1 : 0));
         write_array(adam.get(), "m", ck.adam_m, {hsize_t(ck.adam_m.size())}, "first-moment average m_k (eq. 15)");
         write_array(adam.get(), "v", ck.adam_v, {hsize_t(ck.adam_v.size())}, "second-moment average v_k (eq. 15)");
 
@@ -244,13 +251,27 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
             doc.set("filter.variant=\"dissipative\"");
             text = doc.text();
         }
-    }
-    if (h5::exists(file, "network/storage")) {
+    } else {
         h5::Handle net = h5::open_group(file, "network");
         if (!h5::has_attr(net.get(), "errors_per_estimate")) {  // written before errors were grouped per estimate
             ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
             if (!ConfigSection(doc, "sampling").has("errors_per_estimate")) {
                 doc.set("sampling.errors_per_estimate=1");
+                text = doc.text();
+            }
+        }
+        h5::Handle adam = h5::open_group(file, "adam");
+        if (!h5::has_attr(adam.get(), "reset_each_step")) {  // written when gain training reset Adam every time step
+            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+            if (!ConfigSection(doc, "training").has("reset_adam_each_step")) {
+                doc.set("training.reset_adam_each_step=true");
+                text = doc.text();
+            }
+        }
+        if (!h5::has_attr(net.get(), "input_low")) {  // written before the filter held its input (or no box drawn)
+            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+            if (!ConfigSection(doc, "network").has("input_box")) {
+                doc.set("network.input_box=0");
                 text = doc.text();
             }
         }
@@ -329,6 +350,15 @@ Checkpoint<T> ckpt_read(const std::string& path) {
                    "checkpoint '" + path + "': input standardisation does not match its config (damaged file, or "
                    "the system's model changed since training)");
         std::copy(sp.begin(), sp.end(), ck.net.theta.begin() + P);
+        if (h5::has_attr(net.get(), "input_low")) {  // the box is drawn at creation and travels with the network
+            kern::GainSpec& g = ck.net.step.gain;
+            g.zlo = h5::get_attr_doubles(net.get(), "input_low");
+            g.zhi = h5::get_attr_doubles(net.get(), "input_high");
+            bool ok = g.zlo.size() == std::size_t(cfg.n) && g.zhi.size() == std::size_t(cfg.n);
+            for (std::size_t j = 0; ok && j < g.zlo.size(); ++j) ok = g.zlo[j] <= g.zhi[j];
+            HINF_CHECK(ok, "checkpoint '" + path + "': network/input_low and input_high must be " +
+                               std::to_string(cfg.n) + " ordered bounds (damaged file)");
+        }
     }
     h5::Handle adam = h5::open_group(f.get(), "adam");
     ck.state.adam_step = h5::get_attr_int(adam.get(), "step");

@@ -389,7 +389,7 @@ public:
         const std::int64_t c = std::max<std::int64_t>(count, 0);
         z_.resize(static_cast<std::size_t>(c * n));
         for (std::int64_t i = 0; i < count; ++i)
-            for (int a = 0; a < n; ++a) z_[i * n + a] = (xhat[i * n + a] - g.shift[a]) / g.spread[a];
+            for (int a = 0; a < n; ++a) z_[i * n + a] = g.input(a, xhat[i * n + a]);
         if (g.knots > 0) {  // the Riccati-form head: the output Jacobian at each estimate
             hx_.resize(static_cast<std::size_t>(c * g.m * n));
             tt_.assign(static_cast<std::size_t>(c), t);

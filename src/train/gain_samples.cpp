@@ -47,8 +47,9 @@ void resize(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::
     s->Hx.resize(g.knots > 0 ? N * m * n : 0);
 }
 
-// the per-sample constants from s->x, s->xhat, s->t (per sample: each has its own time)
-void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::int64_t N) {
+// the per-sample constants from s->x, s->xhat, s->t (per sample: each has its own time); held: the network input
+// z in the filter's box (the on-line check and retraining evaluate the filter's network), else as drawn (training)
+void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::int64_t N, bool held) {
     const int n = s->n, nv = s->nv, m = s->m;
     const System& sys = *cfg.system;
 #pragma omp parallel for schedule(static)
@@ -64,7 +65,7 @@ void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, st
         for (int j = 0; j < n; ++j) s->dA[i * n + j] -= ah[j];
         for (int j = 0; j < m; ++j) s->dC[i * m + j] -= ch[j];
         s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
-        for (int j = 0; j < n; ++j) s->z[i * n + j] = (xh[j] - g.shift[j]) / g.spread[j];
+        for (int j = 0; j < n; ++j) s->z[i * n + j] = held ? g.input(j, xh[j]) : (xh[j] - g.shift[j]) / g.spread[j];
         if (g.knots > 0) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);
     }
 }
@@ -110,7 +111,35 @@ void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& po
         }
         s->t[i] = cfg.time_of(k);
     }
-    constants(s, cfg, g, N);
+    constants(s, cfg, g, N, false);
+}
+
+void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& pool) {
+    g->zlo.clear();
+    g->zhi.clear();
+    if (!(cfg.input_box > 0)) return;
+    const int n = cfg.n;
+    kern::GainSpec one = *g;
+    one.group = 1;  // every estimate drawn independently, as a group's first sample
+    GainSamples s;
+    gain_samples_build(&s, cfg, pool, one, kInputBoxEstimates, kInputBoxCounter);
+    g->zlo.resize(n);
+    g->zhi.resize(n);
+    std::vector<double> col(static_cast<std::size_t>(kInputBoxEstimates));
+    const double last = double(kInputBoxEstimates - 1);
+    for (int j = 0; j < n; ++j) {
+        std::int64_t cnt = 0;
+        for (std::int64_t i = 0; i < kInputBoxEstimates; ++i)
+            if (std::isfinite(s.z[i * n + j])) col[cnt++] = s.z[i * n + j];
+        if (cnt < kInputBoxEstimates) {  // a truth run that escaped: no box (say nothing; the filter is as before)
+            g->zlo.clear();
+            g->zhi.clear();
+            return;
+        }
+        std::sort(col.begin(), col.end());
+        g->zlo[j] = col[std::size_t(std::floor(cfg.input_box * last))];
+        g->zhi[j] = col[std::size_t(std::ceil((1.0 - cfg.input_box) * last))];
+    }
 }
 
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
@@ -126,7 +155,7 @@ void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec&
         }
         s->t[i] = t;
     }
-    constants(s, cfg, g, N);
+    constants(s, cfg, g, N, true);
 }
 
 }  // namespace hinf

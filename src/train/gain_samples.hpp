@@ -35,7 +35,15 @@ struct GainSamples {
 void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
                         std::int64_t N, std::uint64_t a);
 
-/// The same for errors around one known estimate x^ (on-line check and retraining): x = x^ + x~, at time t.
+/// The box where the filter holds its network's input (network.input_box = q > 0, docs/method.md section 16.10):
+/// kInputBoxEstimates estimates drawn as training draws its groups' first samples (counter kInputBoxCounter), and per
+/// state the q and 1 - q quantiles of their z, into g->zlo, g->zhi. q = 0 leaves them empty (not held).
+inline constexpr std::int64_t kInputBoxEstimates = 20000;
+inline constexpr std::uint64_t kInputBoxCounter = std::uint64_t(1) << 63;
+void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& pool);
+
+/// The same for errors around one known estimate x^ (on-line check and retraining): x = x^ + x~, at time t. Their
+/// network input z is the filter's, held in g's box (GainSpec::input); training's is as drawn.
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
                      std::int64_t N, std::uint64_t a);
 

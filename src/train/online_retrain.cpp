@@ -153,7 +153,7 @@ private:
         const int n = cfg_->n, m = cfg_->m;
         const kern::GainSpec& g = net_.step.gain;
         z_.resize(n);
-        for (int a = 0; a < n; ++a) z_[a] = (xhat_[a] - g.shift[a]) / g.spread[a];
+        for (int a = 0; a < n; ++a) z_[a] = g.input(a, xhat_[a]);
         hx_.resize(std::size_t(m) * n);
         if (g.knots > 0) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
         kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_);

@@ -148,6 +148,13 @@ public:
 
     void start_fresh() {
         ck_.net = network_create<T>(cfg_);
+        if (gain_ && cfg_.input_box > 0) {  // where the filter holds its network's input (method.md 16.10)
+            pool_ = gain_pool_build(cfg_);
+            gain_input_box(&ck_.net.step.gain, cfg_, pool_);
+            if (ck_.net.step.gain.zlo.empty())
+                std::fprintf(stderr, "hinf: note: network.input_box: a training truth run is not finite, so the "
+                                     "filter's network input is not held (the check of section 16.10 is off)\n");
+        }
         ck_.adam_m.assign(ck_.net.theta.size(), T(0));
         ck_.adam_v.assign(ck_.net.theta.size(), T(0));
         ck_.state.step = 0;
@@ -334,7 +341,7 @@ private:
                                                                          run.y.begin() + (step + 1) * m);
         std::vector<double> z(n), B(n * nv);
         for (int j = 0; j < n; ++j) {
-            z[j] = (xhat[j] - g.shift[j]) / g.spread[j];
+            z[j] = g.input(j, xhat[j]);  // the filter's input, held in the box (method.md 16.10)
             xt[j] = x[j] - xhat[j];
         }
         std::vector<double> Hx(static_cast<std::size_t>(m) * n);
@@ -725,24 +732,28 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
             doc.set(legacy.back());
             ck.config_text = doc.text();
         }
-        if (as_trained.variant == "gain" &&
-            as_trained.storage_knots != load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_knots)
-            legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));
-        if (as_trained.variant == "gain" && as_trained.storage_scaling !=
-                                                 load_run_config(ConfigDoc::from_text(ck.config_text, path)).storage_scaling)
-            legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
-        if (as_trained.variant == "gain" &&
-            as_trained.errors_per_estimate !=
-                load_run_config(ConfigDoc::from_text(ck.config_text, path)).errors_per_estimate)
-            legacy.push_back("sampling.errors_per_estimate=" + std::to_string(as_trained.errors_per_estimate));
-        if (as_trained.variant == "gain" && as_trained.storage_knots > 0) {
-            const RunConfig now = load_run_config(ConfigDoc::from_text(ck.config_text, path));
-            if (as_trained.storage_init != now.storage_init)
+        // the keys whose defaults changed since a gain file was written, as it was trained (checkpoint.cpp's
+        // effective config), when the stored config leaves them to the default
+        const RunConfig now = load_run_config(ConfigDoc::from_text(ck.config_text, path));
+        if (as_trained.variant == "gain") {
+            char v[96];
+            if (as_trained.storage_knots != now.storage_knots)
+                legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));
+            if (as_trained.storage_scaling != now.storage_scaling)
+                legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
+            if (as_trained.errors_per_estimate != now.errors_per_estimate)
+                legacy.push_back("sampling.errors_per_estimate=" + std::to_string(as_trained.errors_per_estimate));
+            if (as_trained.storage_knots > 0 && as_trained.storage_init != now.storage_init)
                 legacy.push_back("network.storage_init=\"" + as_trained.storage_init + "\"");
-            if (as_trained.margin != now.margin) {
-                char m[64];
-                std::snprintf(m, sizeof m, "objective.margin=%.17g", as_trained.margin);
-                legacy.push_back(m);
+            if (as_trained.storage_knots > 0 && as_trained.margin != now.margin) {
+                std::snprintf(v, sizeof v, "objective.margin=%.17g", as_trained.margin);
+                legacy.push_back(v);
+            }
+            if (as_trained.reset_adam != now.reset_adam)
+                legacy.push_back(std::string("training.reset_adam_each_step=") + (as_trained.reset_adam ? "true" : "false"));
+            if (as_trained.input_box != now.input_box) {
+                std::snprintf(v, sizeof v, "network.input_box=%.17g", as_trained.input_box);
+                legacy.push_back(v);
             }
         }
     }

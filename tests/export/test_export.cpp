@@ -3,6 +3,8 @@
 // network's round-off (amplified by the gain, then contracting) for a float one; built-in and expression systems,
 // both training variants. Bad use is one line.
 #include <catch2/catch.hpp>
+#include <fstream>
+#include <iterator>
 #include <sstream>
 #include <tuple>
 
@@ -110,7 +112,9 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
     // gain: the time-varying storage S(t) (its default) and the constant S (storage_knots = 0)
     const std::tuple<const char*, const char*, const char*> cases[] = {
         {"missile", "dissipative", ""}, {"missile", "paper", ""}, {"maneuvering_missile", "dissipative", ""},
-        {"missile", "gain", ""}, {"missile", "gain", "storage_knots = 0\n"}};
+        {"missile", "gain", ""}, {"missile", "gain", "storage_knots = 0\n"},
+        // a tight input box (the central 40 % of the training estimates): the C holds z where hinf does
+        {"missile", "gain", "input_box = 0.3\n"}};
     for (const auto& [kind, variant, network] : cases) {
         SECTION(std::string(kind) + " " + variant + " " + network) {
             TempDir d("export-missile");
@@ -127,6 +131,9 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
             CHECK(c.compared >= 20);
             CHECK(c.scale > 100);  // the missile's positions: a real trajectory was compared
             CHECK(c.max_abs <= 1e-11 * c.scale);
+            std::ifstream src(d / "c/hinf_filter.c");
+            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            CHECK((code.find("_zlo[a]") != std::string::npos) == (std::string(variant) == "gain"));
         }
     }
 }
