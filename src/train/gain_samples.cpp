@@ -119,27 +119,32 @@ void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& poo
     g->zhi.clear();
     if (!(cfg.input_box > 0)) return;
     const int n = cfg.n;
-    kern::GainSpec one = *g;
-    one.group = 1;  // every estimate drawn independently, as a group's first sample
+    const std::int64_t N = kInputBoxEstimates, R = std::int64_t(pool.runs.size());
+    // the estimates alone, drawn as gain_samples_build draws a group's first sample (no per-sample constants)
     GainSamples s;
-    gain_samples_build(&s, cfg, pool, one, kInputBoxEstimates, kInputBoxCounter);
-    g->zlo.resize(n);
-    g->zhi.resize(n);
-    std::vector<double> col(static_cast<std::size_t>(kInputBoxEstimates));
-    const double last = double(kInputBoxEstimates - 1);
+    s.xt.resize(static_cast<std::size_t>(N * n));
+    std::vector<double> u;
+    draw_errors(&s, cfg, *g, N, kInputBoxCounter, &u);
+    std::vector<double> z(static_cast<std::size_t>(N * n));
+    for (std::int64_t i = 0; i < N; ++i) {
+        const std::int64_t r = std::min(R - 1, std::int64_t(u[i * 3] * double(R)));
+        const std::int64_t k = std::min(pool.steps - 1, std::int64_t(u[i * 3 + 1] * double(pool.steps)));
+        const double* x = pool.runs[r].x.data() + k * n;
+        for (int j = 0; j < n; ++j) z[i * n + j] = (x[j] - s.xt[i * n + j] - g->shift[j]) / g->spread[j];
+    }
+    std::vector<double> col(static_cast<std::size_t>(N)), lo(n), hi(n);
+    const double last = double(N - 1);
     for (int j = 0; j < n; ++j) {
-        std::int64_t cnt = 0;
-        for (std::int64_t i = 0; i < kInputBoxEstimates; ++i)
-            if (std::isfinite(s.z[i * n + j])) col[cnt++] = s.z[i * n + j];
-        if (cnt < kInputBoxEstimates) {  // a truth run that escaped: no box (say nothing; the filter is as before)
-            g->zlo.clear();
-            g->zhi.clear();
-            return;
+        for (std::int64_t i = 0; i < N; ++i) {
+            col[i] = z[i * n + j];
+            if (!std::isfinite(col[i])) return;  // a truth run that escaped: no box (the trainer says so)
         }
         std::sort(col.begin(), col.end());
-        g->zlo[j] = col[std::size_t(std::floor(cfg.input_box * last))];
-        g->zhi[j] = col[std::size_t(std::ceil((1.0 - cfg.input_box) * last))];
+        lo[j] = col[std::size_t(std::floor(cfg.input_box * last))];
+        hi[j] = col[std::size_t(std::ceil((1.0 - cfg.input_box) * last))];
     }
+    g->zlo = lo;
+    g->zhi = hi;
 }
 
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,
