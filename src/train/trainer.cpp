@@ -153,7 +153,7 @@ public:
             gain_input_box(&ck_.net.step.gain, cfg_, pool_);
             if (ck_.net.step.gain.zlo.empty())
                 std::fprintf(stderr, "hinf: note: network.input_box: a training truth run is not finite, so the "
-                                     "filter's network input is not held (the check of section 16.10 is off)\n");
+                                     "filter's network input is not held (docs/method.md section 16.10)\n");
         }
         ck_.adam_m.assign(ck_.net.theta.size(), T(0));
         ck_.adam_v.assign(ck_.net.theta.size(), T(0));

@@ -159,6 +159,13 @@ TEST_CASE("discrete systems through compare, filter and worst, and their refusal
     }
     REQUIRE(xh[0].size() == 60u);
     CHECK(hinf::test::bitwise_equal(xh[0], xh[1]));
+    // the same system written in continuous time: the one-step predictor's gain means something else there
+    std::string cont_text = kLinearGain;
+    cont_text.erase(cont_text.find("time = \"discrete\"\n"), 18);
+    const std::string gcont = write_file(d, "linear_gain_cont.toml", cont_text);
+    expect_one_line_error("compare " + gcont + " --filters dnn --network " + (d / "gnet/checkpoint.h5") +
+                              " --runs 1 --quiet --out " + (d / "gc"),
+                          "is a discrete-time one-step predictor");
     std::ostringstream fast;
     fast << "t,y\n";
     for (int k = 0; k < 5; ++k) fast << 0.5 * k << ",1\n";
