@@ -239,59 +239,48 @@ std::string ckpt_precision(const std::string& path) {
 }
 
 namespace {
-// The checkpoint's config as it was trained: a `gain` network written before network.storage_knots existed (no
-// storage_knots attribute) has one constant S, which is no longer the default; say so in its config.
+// The checkpoint's config as it was trained: where a file predates a key whose default has changed (no variant and no
+// storage, no storage_knots, errors_per_estimate, input box or reset_each_step attribute, ...), its config says the
+// value the network was trained with. One parse, one re-serialisation when anything was set.
 std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
     std::string text = h5::read_string(file, "config");
     HINF_CHECK(config_hash(text) == h5::get_attr_string(file, "config_hash"),
                "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
+    ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+    bool changed = false;
+    // a key the file's config leaves to a default that has changed since it was written: the value it trained with
+    auto as_trained = [&](const char* section, const char* key, const std::string& value) {
+        if (ConfigSection(doc, section).has(key)) return;
+        doc.set(std::string(section) + "." + key + "=" + value);
+        changed = true;
+    };
     if (!h5::exists(file, "network/storage")) {  // no storage: not a gain network, whatever the default is now
-        ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-        if (!ConfigSection(doc, "filter").has("variant")) {
-            doc.set("filter.variant=\"dissipative\"");
-            text = doc.text();
-        }
+        as_trained("filter", "variant", "\"dissipative\"");
     } else {
         h5::Handle net = h5::open_group(file, "network");
-        if (!h5::has_attr(net.get(), "errors_per_estimate")) {  // written before errors were grouped per estimate
-            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-            if (!ConfigSection(doc, "sampling").has("errors_per_estimate")) {
-                doc.set("sampling.errors_per_estimate=1");
-                text = doc.text();
-            }
-        }
         h5::Handle adam = h5::open_group(file, "adam");
-        if (!h5::has_attr(adam.get(), "reset_each_step")) {  // written when gain training reset Adam every time step
-            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-            if (!ConfigSection(doc, "training").has("reset_adam_each_step")) {
-                doc.set("training.reset_adam_each_step=true");
-                text = doc.text();
-            }
-        }
-        if (!h5::has_attr(net.get(), "input_low")) {  // written before the filter held its input (or no box drawn)
-            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-            if (!ConfigSection(doc, "network").has("input_box")) {
-                doc.set("network.input_box=0");
-                text = doc.text();
-            }
-        }
-        if (!h5::has_attr(net.get(), "storage_knots")) {
-            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
+        // written before errors were grouped per estimate; when gain training reset Adam every time step; before
+        // the filter held its input (or with no box drawn)
+        if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
+        if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
+        if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
+        if (!h5::has_attr(net.get(), "storage_knots")) {  // one constant S, whatever the config says
             doc.set("network.storage_knots=0");
-            text = doc.text();
+            changed = true;
         } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
-            ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
             // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
             // before network.storage_init existed started flat and trained with the old default margin 0.02
-            if (!h5::has_attr(net.get(), "storage_state_scale")) doc.set("network.storage_scaling=\"mean\"");
-            if (!h5::has_attr(net.get(), "storage_init")) {
-                if (!ConfigSection(doc, "network").has("storage_init")) doc.set("network.storage_init=\"flat\"");
-                if (!ConfigSection(doc, "objective").has("margin")) doc.set("objective.margin=0.02");
+            if (!h5::has_attr(net.get(), "storage_state_scale")) {
+                doc.set("network.storage_scaling=\"mean\"");
+                changed = true;
             }
-            text = doc.text();
+            if (!h5::has_attr(net.get(), "storage_init")) {
+                as_trained("network", "storage_init", "\"flat\"");
+                as_trained("objective", "margin", "0.02");
+            }
         }
     }
-    return text;
+    return changed ? doc.text() : text;
 }
 }  // namespace
 
