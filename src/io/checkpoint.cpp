@@ -239,55 +239,79 @@ std::string ckpt_precision(const std::string& path) {
 }
 
 namespace {
-// The checkpoint's config as it was trained: where a file predates a key whose default has changed (no variant and no
-// storage, no storage_knots, errors_per_estimate, input box or reset_each_step attribute, ...), its config says the
-// value the network was trained with. One parse, one re-serialisation when anything was set.
-std::string ckpt_effective_config_text(hid_t file, const std::string& path) {
+// The settings a file's config leaves to a default that has changed since the file was written, as the values it was
+// trained with ("section.key=value"): no variant and no storage; no storage_knots, errors_per_estimate, input box or
+// reset_each_step attribute, ... Empty for a file of this hinf. The one list of these rules: the effective config
+// applies it, and resume records it (trainer.cpp).
+std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) {
+    std::vector<std::string> sets;
+    // a key the file's config leaves to the default: the value it trained with
+    auto as_trained = [&](const char* section, const char* key, const std::string& value) {
+        if (!ConfigSection(doc, section).has(key)) sets.push_back(std::string(section) + "." + key + "=" + value);
+    };
+    // a value the file fixes whatever its config says (a config naming that value already needs no record)
+    auto pinned = [&](const char* section, const char* key, const std::string& value) {
+        const std::string assignment = std::string(section) + "." + key + "=" + value;
+        ConfigDoc with = doc;
+        with.set(assignment);
+        if (!ConfigSection(doc, section).has(key) || with.text() != doc.text()) sets.push_back(assignment);
+    };
+    if (!h5::exists(file, "network/storage")) {
+        // no storage: not a gain network; a config naming no variant trained `dissipative`, whatever the default now
+        if (!ConfigSection(doc, "filter").has("variant")) {
+            ConfigDoc trained = doc;  // loaded as it trained (as the default now, it may not load)
+            trained.set("filter.variant=\"dissipative\"");
+            const RunConfig c = load_run_config(trained);
+            if (default_variant(c.type, c.n, c.m, c.nv) != "dissipative") sets.push_back("filter.variant=\"dissipative\"");
+        }
+        return sets;
+    }
+    h5::Handle net = h5::open_group(file, "network");
+    h5::Handle adam = h5::open_group(file, "adam");
+    if (!h5::has_attr(net.get(), "storage_knots")) {  // one constant S, whatever the config says
+        pinned("network", "storage_knots", "0");
+    } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
+        // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
+        // before network.storage_init existed started flat and trained with the old default margin 0.02
+        if (!h5::has_attr(net.get(), "storage_state_scale")) pinned("network", "storage_scaling", "\"mean\"");
+        if (!h5::has_attr(net.get(), "storage_init")) {
+            as_trained("network", "storage_init", "\"flat\"");
+            as_trained("objective", "margin", "0.02");
+        }
+    }
+    // written before errors were grouped per estimate; when gain training reset Adam every time step; before the
+    // filter held its input (or with no box drawn)
+    if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
+    if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
+    if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
+    return sets;
+}
+
+// The checkpoint's config as it was trained: the stored text with the as-trained settings applied.
+std::string ckpt_effective_config_text(hid_t file, const std::string& path, std::vector<std::string>* sets_out) {
     std::string text = h5::read_string(file, "config");
     HINF_CHECK(config_hash(text) == h5::get_attr_string(file, "config_hash"),
                "checkpoint '" + path + "': stored config does not match its hash (the file is damaged)");
     ConfigDoc doc = ConfigDoc::from_text(text, path + ":/config");
-    bool changed = false;
-    // a key the file's config leaves to a default that has changed since it was written: the value it trained with
-    auto as_trained = [&](const char* section, const char* key, const std::string& value) {
-        if (ConfigSection(doc, section).has(key)) return;
-        doc.set(std::string(section) + "." + key + "=" + value);
-        changed = true;
-    };
-    if (!h5::exists(file, "network/storage")) {  // no storage: not a gain network, whatever the default is now
-        as_trained("filter", "variant", "\"dissipative\"");
-    } else {
-        h5::Handle net = h5::open_group(file, "network");
-        h5::Handle adam = h5::open_group(file, "adam");
-        // written before errors were grouped per estimate; when gain training reset Adam every time step; before
-        // the filter held its input (or with no box drawn)
-        if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
-        if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
-        if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
-        if (!h5::has_attr(net.get(), "storage_knots")) {  // one constant S, whatever the config says
-            doc.set("network.storage_knots=0");
-            changed = true;
-        } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
-            // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
-            // before network.storage_init existed started flat and trained with the old default margin 0.02
-            if (!h5::has_attr(net.get(), "storage_state_scale")) {
-                doc.set("network.storage_scaling=\"mean\"");
-                changed = true;
-            }
-            if (!h5::has_attr(net.get(), "storage_init")) {
-                as_trained("network", "storage_init", "\"flat\"");
-                as_trained("objective", "margin", "0.02");
-            }
-        }
-    }
-    return changed ? doc.text() : text;
+    std::vector<std::string> sets = ckpt_as_trained_sets(file, doc);
+    for (const std::string& s : sets) doc.set(s);
+    if (sets_out) *sets_out = sets;
+    return sets.empty() ? text : doc.text();
 }
 }  // namespace
+
+std::vector<std::string> ckpt_as_trained(const std::string& path) {
+    ckpt_precision(path);
+    h5::Handle f = h5::open_file(path, false);
+    std::vector<std::string> sets;
+    ckpt_effective_config_text(f.get(), path, &sets);
+    return sets;
+}
 
 RunConfig ckpt_config(const std::string& path) {
     ckpt_precision(path);
     h5::Handle f = h5::open_file(path, false);
-    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f.get(), path), path + ":/config"));
+    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f.get(), path, nullptr), path + ":/config"));
 }
 
 template <typename T>

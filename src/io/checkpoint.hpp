@@ -52,8 +52,12 @@ std::string ckpt_prev_name(const std::string& path);
 /// checkpoint when that one reads back cleanly.
 void ckpt_verify(const std::string& path);
 
-/// Loads the config stored in a checkpoint.
+/// Loads the config stored in a checkpoint, as it was trained: with ckpt_as_trained's settings applied.
 RunConfig ckpt_config(const std::string& path);
+
+/// The settings an older checkpoint's config leaves to defaults that have changed since it was written, in the values
+/// it was trained with ("section.key=value"); empty for a file of this hinf. Resume records them in the config.
+std::vector<std::string> ckpt_as_trained(const std::string& path);
 
 /// Loads just the network, frozen, whatever its precision.
 std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunConfig* cfg_out = nullptr);

@@ -721,42 +721,8 @@ template <typename T>
 TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     Checkpoint<T> ck = ckpt_read<T>(path);
     const std::string old_text = ck.config_text;
-    std::vector<std::string> legacy;
-    {  // a gain network written before network.storage_knots existed has one S: resume it as trained
-        const RunConfig as_trained = ckpt_config(path);
-        // a network trained before `gain` became the default variant, on a config that names none
-        if (!ConfigSection(ConfigDoc::from_text(ck.config_text, path), "filter").has("variant") &&
-            as_trained.variant != default_variant(as_trained.type, as_trained.n, as_trained.m, as_trained.nv)) {
-            legacy.push_back("filter.variant=\"" + as_trained.variant + "\"");
-            ConfigDoc doc = ConfigDoc::from_text(ck.config_text, path);
-            doc.set(legacy.back());
-            ck.config_text = doc.text();
-        }
-        // the keys whose defaults changed since a gain file was written, as it was trained (checkpoint.cpp's
-        // effective config), when the stored config leaves them to the default
-        const RunConfig now = load_run_config(ConfigDoc::from_text(ck.config_text, path));
-        if (as_trained.variant == "gain") {
-            char v[96];
-            if (as_trained.storage_knots != now.storage_knots)
-                legacy.push_back("network.storage_knots=" + std::to_string(as_trained.storage_knots));
-            if (as_trained.storage_scaling != now.storage_scaling)
-                legacy.push_back("network.storage_scaling=\"" + as_trained.storage_scaling + "\"");
-            if (as_trained.errors_per_estimate != now.errors_per_estimate)
-                legacy.push_back("sampling.errors_per_estimate=" + std::to_string(as_trained.errors_per_estimate));
-            if (as_trained.storage_knots > 0 && as_trained.storage_init != now.storage_init)
-                legacy.push_back("network.storage_init=\"" + as_trained.storage_init + "\"");
-            if (as_trained.storage_knots > 0 && as_trained.margin != now.margin) {
-                std::snprintf(v, sizeof v, "objective.margin=%.17g", as_trained.margin);
-                legacy.push_back(v);
-            }
-            if (as_trained.reset_adam != now.reset_adam)
-                legacy.push_back(std::string("training.reset_adam_each_step=") + (as_trained.reset_adam ? "true" : "false"));
-            if (as_trained.input_box != now.input_box) {
-                std::snprintf(v, sizeof v, "network.input_box=%.17g", as_trained.input_box);
-                legacy.push_back(v);
-            }
-        }
-    }
+    // the settings an older file leaves to defaults that have changed since: resumed as trained, and recorded
+    const std::vector<std::string> legacy = ckpt_as_trained(path);
     if (!opt.sets.empty() || !legacy.empty())
         ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));

@@ -55,6 +55,17 @@ TEST_CASE("a config that names no variant trains the gain filter and operates it
     REQUIRE(t.status == 0);
     CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").variant == "gain");
     CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").errors_per_estimate == 4);
+    CHECK(hinf::ckpt_as_trained(d / "run/checkpoint.h5").empty());  // a file of this hinf: nothing read as legacy
+    // nor for a network without a storage whose config names no variant (the mixed filter's default is dissipative)
+    const std::string mixed = hinf::test::write_file(
+        d, "h2.toml",
+        "[system]\nkind = \"missile\"\n[filter]\ntype = \"h2hinf\"\nt_final = 0.05\n[network]\nhidden = [8]\n"
+        "[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 5\nacceptance_runs = 0\n");
+    auto t2 = hinf::test::run_hinf("train " + mixed + " --out " + (d / "mixed") + " --quiet");
+    INFO(t2.output);
+    REQUIRE(t2.status == 0);
+    CHECK(hinf::ckpt_config(d / "mixed/checkpoint.h5").variant == "dissipative");
+    CHECK(hinf::ckpt_as_trained(d / "mixed/checkpoint.h5").empty());
     auto o = hinf::test::run_hinf("operate " + cfg + " --network " + (d / "run/checkpoint.h5") + " --runs 1 --quiet --out " +
                                   (d / "op"));
     INFO(o.output);
@@ -83,7 +94,9 @@ TEST_CASE("a checkpoint from before gain became the default resumes and operates
     hinf::h5::Handle want = hinf::h5::open_file(source_path("tests/corpus/legacy/dissipative_default_full.h5"), false);
     for (const char* name : {"network/layer_1/W", "network/layer_2/W", "adam/m", "adam/v"})
         CHECK(hinf::h5::read_doubles(got.get(), name) == hinf::h5::read_doubles(want.get(), name));
-    CHECK(hinf::h5::read_string(got.get(), "config").find("filter.variant=\"dissipative\"") != std::string::npos);
+    CHECK(hinf::h5::read_string(got.get(), "config").find("# hinf resume at step 5: --set filter.variant=\"dissipative\"\n") !=
+          std::string::npos);
+    CHECK(hinf::ckpt_as_trained(dir + "/checkpoint.h5").empty());  // the resumed file names its variant
     // operated with the old config (no variant, so measured by default now): the dissipative network's filter
     auto o = hinf::test::run_hinf("operate " + source_path("tests/corpus/legacy/dissipative_default.toml") +
                                   " --network " + dir + "/checkpoint.h5 --runs 1 --quiet --out " + (d / "op"));
