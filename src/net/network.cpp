@@ -307,6 +307,36 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
         for (int e = 0; e < np; ++e) knots[std::int64_t(next) * np + e] = knots[std::int64_t(next - 1) * np + e];
     return r;
 }
+
+// The largest correction step of the initial head (o = 0, K = rho S(t)^-1 H') along the noise-free trajectory from
+// x0: the largest eigenvalue of dt K H (discrete time: of K H), real and >= 0 (K H is similar to the symmetric
+// rho S^-1/2 H'H S^-1/2). Above 2 the sampled correction overshoots: x~ <- (I - dt K H) x~ grows along it.
+struct HeadStep {
+    double largest = 0, at = 0;
+};
+template <typename T>
+HeadStep riccati_head_step(const T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
+    using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int n = cfg.n, m = cfg.m;
+    const System& sys = *cfg.system;
+    const double scale = sys.discrete_time() ? 1.0 : cfg.dt;
+    std::vector<double> x = cfg.x0;
+    RowMat S(n, n), H(m, n);
+    HeadStep h;
+    for (std::int64_t k = 0; k < cfg.steps_until(); ++k) {
+        const double t = cfg.time_of(k);
+        kern::storage_tv_forward(S.data(), nullptr, knots, t, g, n);
+        sys.measurement_jacobian(H.data(), x.data(), t);
+        if (!S.allFinite() || !H.allFinite()) break;
+        Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(Eigen::MatrixXd(H.transpose() * H),
+                                                                      Eigen::MatrixXd(S));
+        if (es.info() != Eigen::Success) break;
+        const double l = scale * cfg.rho * es.eigenvalues().maxCoeff();
+        if (l > h.largest) h = {l, t};
+        system_advance(sys, x.data(), x.data(), nullptr, t, cfg.dt);
+    }
+    return h;
+}
 }  // namespace
 
 template <typename T>
@@ -329,6 +359,23 @@ Network<T> network_create(const RunConfig& cfg) {
     if (g.enabled && g.knots > 0 && cfg.storage_init == "riccati") {
         T* knots = net.theta.data() + sh.param_count();
         const RiccatiStart r = riccati_knots(knots, cfg, g);
+        // between two knots far apart (each a Cholesky factor, interpolated linearly) S(t) can be nearly singular
+        // although both knots are not: then the initial filter itself overshoots and training diverges in its first
+        // steps (a stiff 16-state spring chain, docs/method.md section 16.7). Start flat there instead.
+        // (only where the flat start's own head does not overshoot: a short run's large rate can make both do)
+        const HeadStep hs = riccati_head_step(knots, cfg, g);
+        const std::vector<T> flat(static_cast<std::size_t>(g.storage_params(cfg.n)), T(0));
+        if (hs.largest > 2.0 && riccati_head_step(flat.data(), cfg, g).largest <= 2.0) {
+            std::fill(knots, knots + g.storage_params(cfg.n), T(0));
+            std::fprintf(stderr,
+                         "hinf: note: network.storage_init = \"riccati\": between its knots the storage gives the "
+                         "linearised filter a correction step (largest eigenvalue of %sK H) of %.3g at t = %.4g s; above "
+                         "2 the sampled filter overshoots (the %d knots' Cholesky factors are too far apart to "
+                         "interpolate). The knots start flat instead; more knots (network.storage_knots) may keep the "
+                         "Riccati start (docs/method.md section 16.7)\n",
+                         cfg.system->discrete_time() ? "" : "dt ", hs.largest, hs.at, g.knots);
+            return net;
+        }
         if (r.stopped >= 0)
             std::fprintf(stderr,
                          "hinf: note: network.storage_init = \"riccati\": the game's Riccati equation stopped at "
