@@ -63,21 +63,13 @@ std::string config_hash(const std::string& text) {
 }
 
 // Defaults for a system of one's own (not the built-in missiles), from its own scales (docs/method.md §
-// "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor is a
-// tenth of the initial error per component (the missile's 20 m is ~0.2 % of its 10 km error), or a thousandth
-// of the state's size where the initial error is zero.
+// "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor in
+// error_floor_default (run_config.hpp).
 std::vector<std::int64_t> own_hidden_default(int n) {
     const std::int64_t outputs = std::int64_t(n) * (n + 1) / 2;
     return {std::max<std::int64_t>(64, 2 * outputs), std::max<std::int64_t>(32, outputs)};
 }
-std::vector<double> own_error_floor_default(const RunConfig& c) {
-    std::vector<double> floor(std::size_t(c.n));
-    for (int i = 0; i < c.n; ++i) {
-        const double e = std::fabs(c.x0[i] - c.xhat0[i]);
-        floor[i] = e > 0 ? 0.1 * e : 1e-3 * std::max(1.0, std::fabs(c.x0[i]));
-    }
-    return floor;
-}
+bool own_system(const RunConfig& c) { return c.system->name() != "missile" && c.system->name() != "maneuvering_missile"; }
 
 // f, g, h and the Jacobians must be finite at the true and estimated initial states (t = 0): an expression
 // singular there (1/p at p = 0, log(-1)) is named here, not met as a "divergence at step 0".
@@ -115,6 +107,45 @@ void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
                           "expression is singular there (e.g. 1/p at p = 0, log of a negative number, 1/t at t = 0); "
                           "move the initial state or guard the expression");
     }
+}
+
+void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<double>* sd) {
+    const int n = c.n;
+    const std::int64_t steps = c.steps_until();
+    std::vector<double> x = c.x0, sum(n, 0.0), sum2(n, 0.0);
+    for (std::int64_t k = 0; k <= steps; ++k) {
+        for (int j = 0; j < n; ++j) {
+            sum[j] += x[j];
+            sum2[j] += x[j] * x[j];
+        }
+        if (k < steps) system_advance(*c.system, x.data(), x.data(), nullptr, c.time_of(k), c.dt);
+    }
+    mean->resize(n);
+    sd->resize(n);
+    const double cnt = double(steps + 1);
+    for (int j = 0; j < n; ++j) {
+        (*mean)[j] = sum[j] / cnt;
+        (*sd)[j] = std::sqrt(std::max(0.0, sum2[j] / cnt - (*mean)[j] * (*mean)[j]));
+    }
+}
+
+// the missile's 20 m is ~0.2 % of its 10 km initial error. A state the filter starts right about still moves, by its
+// process noise and through the others: its errors are not a thousandth of its size (an 8-mass spring chain started
+// at rest, docs/method.md section 16.4: MSE -3.3 dB with that floor on its velocities, -10.5 dB with this one)
+std::vector<double> error_floor_default(const RunConfig& c, bool before) {
+    if (!own_system(c)) return std::vector<double>(std::size_t(c.n), 20.0);
+    std::vector<double> floor(std::size_t(c.n)), mean, sd;
+    for (int i = 0; i < c.n; ++i) {
+        const double e = std::fabs(c.x0[i] - c.xhat0[i]);
+        if (e > 0) {
+            floor[i] = 0.1 * e;
+            continue;
+        }
+        if (!before && sd.empty()) nominal_moments(c, &mean, &sd);
+        const double s = before ? 0.0 : sd[i];
+        floor[i] = s > 0 && std::isfinite(s) ? 0.1 * s : 1e-3 * std::max(1.0, std::fabs(c.x0[i]));
+    }
+    return floor;
 }
 
 std::string default_variant(const std::string& type, int n, int m, int nv) {
@@ -182,7 +213,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     f.finish();
 
     // A system of one's own gets defaults from its own scales, never the missile's (own_system_defaults)
-    const bool own = c.system->name() != "missile" && c.system->name() != "maneuvering_missile";
+    const bool own = own_system(c);
     ConfigSection net(doc, "network");
     std::vector<std::int64_t> hidden =
         net.get_ints("hidden", own ? own_hidden_default(n) : std::vector<std::int64_t>{256, 128, 32}, 1, 65536);
@@ -291,7 +322,7 @@ RunConfig load_run_config(ConfigDoc doc) {
                                             " must divide training.samples = " + std::to_string(c.samples) +
                                             " and training.batch = " + std::to_string(c.batch) +
                                             " (each estimate keeps all its errors in one minibatch)");
-    c.error_floor = s.get_doubles("error_floor", own ? own_error_floor_default(c) : std::vector<double>(n, 20.0), n);
+    c.error_floor = s.get_doubles("error_floor", error_floor_default(c), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");
     s.finish();

@@ -165,6 +165,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "input_shift", sc.gain.shift);
             h5::set_attr(net.get(), "input_spread", sc.gain.spread);
             h5::set_attr(net.get(), "error_scale", sc.gain.dx);
+            h5::set_attr(net.get(), "error_floor", cfg.error_floor);  // (and: written after the floor's 2026-11-27 rule)
             h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
@@ -284,6 +285,21 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
     if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
     if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
     if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
+    // written before a state started without error got a floor from its motion (error_floor_default): the network's
+    // error scale is the old floor's
+    if (!h5::has_attr(net.get(), "error_floor") && !ConfigSection(doc, "sampling").has("error_floor")) {
+        const RunConfig c = load_run_config(doc);
+        const std::vector<double> was = error_floor_default(c, true);
+        if (was != c.error_floor) {
+            std::string v = "[";
+            char b[32];
+            for (std::size_t i = 0; i < was.size(); ++i) {
+                std::snprintf(b, sizeof b, "%.17g", was[i]);
+                v += (i ? ", " : "") + std::string(b);
+            }
+            sets.push_back("sampling.error_floor=" + v + "]");
+        }
+    }
     return sets;
 }
 

@@ -58,22 +58,11 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
         if (!(g.dy[j] > 0) || !std::isfinite(g.dy[j])) g.dy[j] = 1.0;
     }
     // the noise-free trajectory: where the estimates will be
-    const std::int64_t steps = cfg.steps_until();
-    std::vector<double> x = cfg.x0, sum(n, 0.0), sum2(n, 0.0);
-    for (std::int64_t k = 0; k <= steps; ++k) {
-        for (int j = 0; j < n; ++j) {
-            sum[j] += x[j];
-            sum2[j] += x[j] * x[j];
-        }
-        if (k < steps) system_advance(sys, x.data(), x.data(), nullptr, cfg.time_of(k), cfg.dt);
-    }
-    g.shift.resize(n);
+    std::vector<double> sd;
+    nominal_moments(cfg, &g.shift, &sd);
     g.spread.resize(n);
-    const double cnt = double(steps + 1);
     for (int j = 0; j < n; ++j) {
-        g.shift[j] = sum[j] / cnt;
-        const double var = std::max(0.0, sum2[j] / cnt - g.shift[j] * g.shift[j]);
-        g.spread[j] = std::sqrt(var) + g.dx[j];
+        g.spread[j] = sd[j] + g.dx[j];
         if (!std::isfinite(g.shift[j]) || !std::isfinite(g.spread[j])) {  // a trajectory that escapes: no shift
             g.shift[j] = 0.0;
             g.spread[j] = g.dx[j];
