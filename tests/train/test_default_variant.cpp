@@ -46,24 +46,23 @@ TEST_CASE("the default variant is gain where it applies, dissipative elsewhere",
 TEST_CASE("a config that names no variant trains the gain filter and operates it from measurements",
           "[cli][gain][default]") {
     hinf::test::TempDir d("defaulttrain");
-    const std::string cfg = hinf::test::write_file(
-        d, "m.toml",
-        "[system]\nkind = \"missile\"\n[filter]\nt_final = 0.05\n[network]\nhidden = [8]\n[training]\n"
-        "samples = 40\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 5\nacceptance_runs = 0\n");
-    auto t = hinf::test::run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
-    INFO(t.output);
-    REQUIRE(t.status == 0);
+    // a tiny missile run of the given [filter] lines, trained into DIR/out
+    auto train = [&d](const std::string& filter, const std::string& out) {
+        const std::string cfg = hinf::test::write_file(
+            d, out + ".toml",
+            "[system]\nkind = \"missile\"\n[filter]\n" + filter + "t_final = 0.05\n[network]\nhidden = [8]\n"
+            "[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 5\nacceptance_runs = 0\n");
+        auto t = hinf::test::run_hinf("train " + cfg + " --out " + (d / out) + " --quiet");
+        INFO(t.output);
+        REQUIRE(t.status == 0);
+        return cfg;
+    };
+    const std::string cfg = train("", "run");
     CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").variant == "gain");
     CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").errors_per_estimate == 4);
     CHECK(hinf::ckpt_as_trained(d / "run/checkpoint.h5").empty());  // a file of this hinf: nothing read as legacy
     // nor for a network without a storage whose config names no variant (the mixed filter's default is dissipative)
-    const std::string mixed = hinf::test::write_file(
-        d, "h2.toml",
-        "[system]\nkind = \"missile\"\n[filter]\ntype = \"h2hinf\"\nt_final = 0.05\n[network]\nhidden = [8]\n"
-        "[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\ncheckpoint_every = 5\nacceptance_runs = 0\n");
-    auto t2 = hinf::test::run_hinf("train " + mixed + " --out " + (d / "mixed") + " --quiet");
-    INFO(t2.output);
-    REQUIRE(t2.status == 0);
+    train("type = \"h2hinf\"\n", "mixed");
     CHECK(hinf::ckpt_config(d / "mixed/checkpoint.h5").variant == "dissipative");
     CHECK(hinf::ckpt_as_trained(d / "mixed/checkpoint.h5").empty());
     auto o = hinf::test::run_hinf("operate " + cfg + " --network " + (d / "run/checkpoint.h5") + " --runs 1 --quiet --out " +
