@@ -131,7 +131,7 @@ void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<
 
 // the missile's 20 m is ~0.2 % of its 10 km initial error. A state the filter starts right about still moves, by its
 // process noise and through the others: its errors are not a thousandth of its size (an 8-mass spring chain started
-// at rest, docs/method.md section 16.4: MSE -3.3 dB with that floor on its velocities, -10.5 dB with this one)
+// at rest, docs/method.md section 14: MSE -3.3 dB with that floor on its velocities, -8.6 dB with this one)
 std::vector<double> error_floor_default(const RunConfig& c, bool before) {
     if (!own_system(c)) return std::vector<double>(std::size_t(c.n), 20.0);
     std::vector<double> floor(std::size_t(c.n)), mean, sd;
