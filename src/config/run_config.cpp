@@ -109,9 +109,9 @@ void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
     }
 }
 
-void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<double>* sd) {
+void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<double>* sd, std::int64_t max_steps) {
     const int n = c.n;
-    const std::int64_t steps = c.steps_until();
+    const std::int64_t steps = max_steps >= 0 ? std::min(max_steps, c.steps_until()) : c.steps_until();
     std::vector<double> x = c.x0, sum(n, 0.0), sum2(n, 0.0);
     for (std::int64_t k = 0; k <= steps; ++k) {
         for (int j = 0; j < n; ++j) {
@@ -141,7 +141,8 @@ std::vector<double> error_floor_default(const RunConfig& c, bool before) {
             floor[i] = 0.1 * e;
             continue;
         }
-        if (!before && sd.empty()) nominal_moments(c, &mean, &sd);
+        // (over the first 10^4 steps at most: reading a config stays quick whatever its horizon)
+        if (!before && sd.empty()) nominal_moments(c, &mean, &sd, 10000);
         const double s = before ? 0.0 : sd[i];
         floor[i] = s > 0 && std::isfinite(s) ? 0.1 * s : 1e-3 * std::max(1.0, std::fabs(c.x0[i]));
     }

@@ -120,12 +120,13 @@ RunConfig load_run_config(ConfigDoc doc);
 std::string default_variant(const std::string& type, int n, int m, int nv);
 
 /// Mean and standard deviation per state of the noise-free trajectory from x0 over [0, t_final] (steps_until() + 1
-/// points, the one step system_advance): where the estimates will be (the gain variant's input standardisation) and
-/// how far a state moves (the default error floor).
-void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<double>* sd);
+/// points, the one step system_advance), or over its first max_steps steps when that is fewer: where the estimates
+/// will be (the gain variant's input standardisation) and how far a state moves (the default error floor).
+void nominal_moments(const RunConfig& c, std::vector<double>* mean, std::vector<double>* sd, std::int64_t max_steps = -1);
 
 /// The default sampling.error_floor of a system of one's own (docs/formats.md): a tenth of the initial error per
-/// component; where that is zero, a tenth of the state's standard deviation along the noise-free trajectory, or a
+/// component; where that is zero, a tenth of the state's standard deviation along the noise-free trajectory (its
+/// first 10^4 steps at most), or a
 /// thousandth of its size where that is zero too (or not finite). `before`: the rule of checkpoints written before
 /// 2026-11-27, a thousandth of the size wherever the initial error is zero. Missiles: 20 per state.
 std::vector<double> error_floor_default(const RunConfig& c, bool before = false);
