@@ -140,6 +140,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
                                         : sc.head.kind == kern::HEAD_GRADIENT ? "gradient"
                                                                               : "quadratic");
         h5::set_attr(net.get(), "input_scale", sc.input_scale);
+        h5::set_attr(net.get(), "error_floor", cfg.error_floor);  // (and: written after the floor's 2026-11-27 rule)
         h5::set_attr(net.get(), "output_scale", sc.head.scale);
         h5::set_attr(net.get(), "eps", sc.head.eps);
         h5::set_attr(net.get(), "meaning",
@@ -165,7 +166,6 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "input_shift", sc.gain.shift);
             h5::set_attr(net.get(), "input_spread", sc.gain.spread);
             h5::set_attr(net.get(), "error_scale", sc.gain.dx);
-            h5::set_attr(net.get(), "error_floor", cfg.error_floor);  // (and: written after the floor's 2026-11-27 rule)
             h5::set_attr(net.get(), "innovation_scale", sc.gain.dy);
             h5::set_attr(net.get(), "gain_rate", sc.gain.rate);
             h5::set_attr(net.get(), "storage_scale", sc.gain.storage_scale);
@@ -257,6 +257,7 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
         with.set(assignment);
         if (!ConfigSection(doc, section).has(key) || with.text() != doc.text()) sets.push_back(assignment);
     };
+    h5::Handle net = h5::open_group(file, "network");
     if (!h5::exists(file, "network/storage")) {
         // no storage: not a gain network; a config naming no variant trained `dissipative`, whatever the default now
         if (!ConfigSection(doc, "filter").has("variant")) {
@@ -265,30 +266,31 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
             const RunConfig c = load_run_config(trained);
             if (default_variant(c.type, c.n, c.m, c.nv) != "dissipative") sets.push_back("filter.variant=\"dissipative\"");
         }
-        return sets;
-    }
-    h5::Handle net = h5::open_group(file, "network");
-    h5::Handle adam = h5::open_group(file, "adam");
-    if (!h5::has_attr(net.get(), "storage_knots")) {  // one constant S, whatever the config says
-        pinned("network", "storage_knots", "0");
-    } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
-        // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
-        // before network.storage_init existed started flat and trained with the old default margin 0.02
-        if (!h5::has_attr(net.get(), "storage_state_scale")) pinned("network", "storage_scaling", "\"mean\"");
-        if (!h5::has_attr(net.get(), "storage_init")) {
-            as_trained("network", "storage_init", "\"flat\"");
-            as_trained("objective", "margin", "0.02");
+    } else {
+        h5::Handle adam = h5::open_group(file, "adam");
+        if (!h5::has_attr(net.get(), "storage_knots")) {  // one constant S, whatever the config says
+            pinned("network", "storage_knots", "0");
+        } else if (h5::get_attr_int(net.get(), "storage_knots") > 0) {
+            // an S(t) network written before network.storage_scaling existed has the one-scalar scale; one written
+            // before network.storage_init existed started flat and trained with the old default margin 0.02
+            if (!h5::has_attr(net.get(), "storage_state_scale")) pinned("network", "storage_scaling", "\"mean\"");
+            if (!h5::has_attr(net.get(), "storage_init")) {
+                as_trained("network", "storage_init", "\"flat\"");
+                as_trained("objective", "margin", "0.02");
+            }
         }
+        // written before errors were grouped per estimate; when gain training reset Adam every time step; before the
+        // filter held its input (or with no box drawn)
+        if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
+        if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
+        if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
     }
-    // written before errors were grouped per estimate; when gain training reset Adam every time step; before the
-    // filter held its input (or with no box drawn)
-    if (!h5::has_attr(net.get(), "errors_per_estimate")) as_trained("sampling", "errors_per_estimate", "1");
-    if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
-    if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
-    // written before a state started without error got a floor from its motion (error_floor_default): the network's
-    // error scale is the old floor's
+    // written before a state started without error got a floor from its motion (error_floor_default): the samples,
+    // and a gain network's error scale, were the old floor's
     if (!h5::has_attr(net.get(), "error_floor") && !ConfigSection(doc, "sampling").has("error_floor")) {
-        const RunConfig c = load_run_config(doc);
+        ConfigDoc trained = doc;
+        for (const std::string& a : sets) trained.set(a);
+        const RunConfig c = load_run_config(trained);
         const std::vector<double> was = error_floor_default(c, true);
         if (was != c.error_floor) {
             std::string v = "[";

@@ -79,40 +79,48 @@ noise_std = 0.1
     CHECK(c.error_floor[2] == 3e-3);  // c does not move: a thousandth of its size
     CHECK(hinf::error_floor_default(c, true) == std::vector<double>{0.1, 1e-3, 3e-3});
 
-    // a gain file written before the rule: trained with the old floor, a config naming none, no error_floor attribute
-    // (made here from a run with that floor set, its config put back to the text without it)
+    // a file written before the rule, for the gain variant (its error scale) and for dissipative (its samples):
+    // trained with the old floor, a config naming none, no error_floor attribute (made here from a run with that
+    // floor set, its config put back to the text without it)
     hinf::test::TempDir d("floor");
-    const std::string cfg = hinf::test::write_file(d, "t.toml", text + "[sampling]\nerror_floor = [0.1, 0.001, 0.003]\n");
-    auto t = run_hinf("train " + cfg + " --until 0.2 --out " + (d / "run") + " --quiet");
-    INFO(t.output);
-    REQUIRE(t.status == 0);
-    const std::string ck = d / "run/checkpoint.h5";
-    CHECK(hinf::ckpt_as_trained(ck).empty());
-    {
-        hinf::h5::Handle f = hinf::h5::open_file(ck, true);
-        REQUIRE(H5Ldelete(f.get(), "config", H5P_DEFAULT) >= 0);
-        hinf::h5::write_string(f.get(), "config", text);
-        REQUIRE(H5Adelete(f.get(), "config_hash") >= 0);
-        hinf::h5::set_attr(f.get(), "config_hash", hinf::config_hash(text));
-        REQUIRE(H5Adelete(f.get(), "content_digest") >= 0);  // it covers the config (files without one still read)
-        hinf::h5::Handle net = hinf::h5::open_group(f.get(), "network");
-        REQUIRE(H5Adelete(net.get(), "error_floor") >= 0);
-        for (const char* name : {"trajectory.h5", "trajectory.ckpt.h5"})  // the run's config there: the same text
-            if (std::filesystem::exists(d / "run/" + name))
-                hinf::h5::set_text(hinf::h5::open_file(d / "run/" + name, true).get(), "config", text);
+    for (const std::string variant : {"gain", "dissipative"}) {
+        INFO("variant " << variant);
+        std::string plain = text;
+        if (variant != "gain") plain.replace(plain.find("[filter]\n"), 9, "[filter]\nvariant = \"" + variant + "\"\n");
+        const std::string run = d / variant;
+        const std::string cfg =
+            hinf::test::write_file(d, variant + ".toml", plain + "[sampling]\nerror_floor = [0.1, 0.001, 0.003]\n");
+        auto t = run_hinf("train " + cfg + " --until 0.2 --out " + run + " --quiet");
+        INFO(t.output);
+        REQUIRE(t.status == 0);
+        const std::string ck = run + "/checkpoint.h5";
+        CHECK(hinf::ckpt_as_trained(ck).empty());
+        {
+            hinf::h5::Handle f = hinf::h5::open_file(ck, true);
+            REQUIRE(H5Ldelete(f.get(), "config", H5P_DEFAULT) >= 0);
+            hinf::h5::write_string(f.get(), "config", plain);
+            REQUIRE(H5Adelete(f.get(), "config_hash") >= 0);
+            hinf::h5::set_attr(f.get(), "config_hash", hinf::config_hash(plain));
+            REQUIRE(H5Adelete(f.get(), "content_digest") >= 0);  // it covers the config (files without one still read)
+            hinf::h5::Handle net = hinf::h5::open_group(f.get(), "network");
+            REQUIRE(H5Adelete(net.get(), "error_floor") >= 0);
+            for (const char* name : {"/trajectory.h5", "/trajectory.ckpt.h5"})  // the run's config there: the same
+                if (std::filesystem::exists(run + name))
+                    hinf::h5::set_text(hinf::h5::open_file(run + name, true).get(), "config", plain);
+        }
+        const std::string set = "sampling.error_floor=[0.10000000000000001, 0.001, 0.0030000000000000001]";
+        CHECK(hinf::ckpt_as_trained(ck) == std::vector<std::string>{set});
+        CHECK(hinf::ckpt_config(ck).error_floor == std::vector<double>{0.1, 1e-3, 3e-3});
+        // it loads and resumes as trained (a gain network's input standardisation, checked on load, was made with
+        // the old floor), and compares with the config as the user has it (no floor named)
+        auto r = run_hinf("resume " + ck + " --until 0.3 --quiet");
+        INFO(r.output);
+        CHECK(r.status == 0);
+        CHECK(hinf::h5::read_string(hinf::h5::open_file(ck, false).get(), "config").find("--set " + set) !=
+              std::string::npos);
+        auto cmp = run_hinf("compare " + hinf::test::write_file(d, variant + "_plain.toml", plain) + " --network " +
+                            ck + " --filters dnn --runs 1 --quiet --out " + (d / (variant + "_cmp")));
+        INFO(cmp.output);
+        CHECK(cmp.status == 0);
     }
-    const std::string set = "sampling.error_floor=[0.10000000000000001, 0.001, 0.0030000000000000001]";
-    CHECK(hinf::ckpt_as_trained(ck) == std::vector<std::string>{set});
-    CHECK(hinf::ckpt_config(ck).error_floor == std::vector<double>{0.1, 1e-3, 3e-3});
-    // its input standardisation (checked on load) was made with the old floor: it loads and resumes as trained
-    auto r = run_hinf("resume " + ck + " --until 0.3 --quiet");
-    INFO(r.output);
-    CHECK(r.status == 0);
-    CHECK(hinf::h5::read_string(hinf::h5::open_file(ck, false).get(), "config").find("--set " + set) !=
-          std::string::npos);
-    // and compares with the config as the user has it (no floor named)
-    auto cmp = run_hinf("compare " + hinf::test::write_file(d, "plain.toml", text) + " --network " + ck +
-                        " --filters dnn --runs 1 --quiet --out " + (d / "cmp"));
-    INFO(cmp.output);
-    CHECK(cmp.status == 0);
 }
