@@ -40,7 +40,7 @@ TEST_CASE("a gain checkpoint with a constant S from before storage_knots loads a
     CHECK(text.find("# hinf resume at step 30: --set network.storage_knots=0") != std::string::npos);
 }
 
-TEST_CASE("a state started without error gets an error floor from its motion; older gain files keep theirs",
+TEST_CASE("a state started without error gets an error floor from its motion, and older files keep theirs",
           "[config][gain][legacy]") {
     // p starts with an error of 1, w (its velocity) and c (a constant) with none
     const std::string text = R"([system]
