@@ -212,6 +212,8 @@ namespace {
 // about rate dt / S^, stays within the sampled-data cap kappa (objective.max_step_correction).
 struct RiccatiStart {
     double held = -1;     // first time the floor held the information (negative: never)
+    int held_knot = 0;    // the first knot made after the floor held (0: never held)
+    double floor = 0;     // the floor, in S's scale (the flat start is 1 + eps there)
     double stopped = -1;  // time the recursion stopped (a non-finite trajectory or Jacobian, a singular step): the
                           // later knots keep the last knot's values (negative: it ran to the end)
 };
@@ -226,7 +228,9 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
     const Mat Q = Eigen::Map<const RowMat>(cfg.Q.data(), n, n);
     RiccatiStart r;
     double& held = r.held;
+    int next = 1;  // knot 0 is the flat S(0)
     const double lo = std::max(2.0 * g.eps, g.loss.dt > 0 ? g.rate * g.loss.dt / g.loss.kappa : 0.0);
+    r.floor = lo;
     // X (an information matrix, S / rho) with the eigenvalues of its scaled form (rho / c) Ds X Ds held >= lo
     // (X itself where they already are: the same bits)
     auto hold = [&](const Mat& X, double t) -> Mat {
@@ -234,7 +238,10 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
         const Mat Xs = 0.5 * (X + X.transpose());
         Eigen::SelfAdjointEigenSolver<Mat> es((rho / c) * D * Xs * D);
         if (es.info() != Eigen::Success || es.eigenvalues().minCoeff() >= lo) return X;
-        if (held < 0) held = t;
+        if (held < 0) {
+            held = t;
+            r.held_knot = next;
+        }
         const Eigen::VectorXd l = es.eigenvalues().cwiseMax(lo);
         return (c / rho) * Di * (es.eigenvectors() * l.asDiagonal() * es.eigenvectors().transpose()) * Di;
     };
@@ -243,7 +250,6 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
     const std::int64_t steps = cfg.steps_until();
     std::vector<double> x = cfg.x0;
     RowMat H(m, n), F(n, n), G(n, nv);
-    int next = 1;  // knot 0 is the flat S(0)
     for (std::int64_t k = 0; k < steps && next <= J && r.stopped < 0; ++k) {
         const double t = cfg.time_of(k);
         sys.measurement_jacobian(H.data(), x.data(), t);
@@ -297,35 +303,6 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
     return r;
 }
 
-// The largest correction step of the initial head (o = 0, K = rho S(t)^-1 H') along the noise-free trajectory from
-// x0: the largest eigenvalue of dt K H (discrete time: of K H), real and >= 0 (K H is similar to the symmetric
-// rho S^-1/2 H'H S^-1/2). Above 2 the sampled correction overshoots: x~ <- (I - dt K H) x~ grows along it.
-struct HeadStep {
-    double largest = 0, at = 0;
-};
-template <typename T>
-HeadStep riccati_head_step(const T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
-    using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    const int n = cfg.n, m = cfg.m;
-    const System& sys = *cfg.system;
-    const double scale = sys.discrete_time() ? 1.0 : cfg.dt;
-    std::vector<double> x = cfg.x0;
-    RowMat S(n, n), H(m, n);
-    HeadStep h;
-    for (std::int64_t k = 0; k < cfg.steps_until(); ++k) {
-        const double t = cfg.time_of(k);
-        kern::storage_tv_forward(S.data(), nullptr, knots, t, g, n);
-        sys.measurement_jacobian(H.data(), x.data(), t);
-        if (!S.allFinite() || !H.allFinite()) break;
-        Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(Eigen::MatrixXd(H.transpose() * H),
-                                                                      Eigen::MatrixXd(S));
-        if (es.info() != Eigen::Success) break;
-        const double l = scale * cfg.rho * es.eigenvalues().maxCoeff();
-        if (l > h.largest) h = {l, t};
-        system_advance(sys, x.data(), x.data(), nullptr, t, cfg.dt);
-    }
-    return h;
-}
 }  // namespace
 
 template <typename T>
@@ -348,21 +325,20 @@ Network<T> network_create(const RunConfig& cfg) {
     if (g.enabled && g.knots > 0 && cfg.storage_init == "riccati") {
         T* knots = net.theta.data() + sh.param_count();
         const RiccatiStart r = riccati_knots(knots, cfg, g);
-        // between two knots far apart (each a Cholesky factor, interpolated linearly) S(t) can be nearly singular
-        // although both knots are not: then the initial filter itself overshoots and training diverges in its first
-        // steps (a stiff 16-state spring chain, docs/method.md section 16.7). Start flat there instead.
-        // (only where the flat start's own head does not overshoot: a short run's large rate can make both do)
-        const HeadStep hs = riccati_head_step(knots, cfg, g);
-        const std::vector<T> flat(static_cast<std::size_t>(g.storage_params(cfg.n)), T(0));
-        if (hs.largest > 2.0 && riccati_head_step(flat.data(), cfg, g).largest <= 2.0) {
+        // held before its first knot: every knot after S(0) sits at the floor, where the gain is at the sampled-data
+        // cap, and none carries the game's solution (there is none of level rho from this start, or none within the
+        // cap). Such a start was far worse than the flat one (a stiff spring chain, continuous Lorenz-63 with x
+        // measured: docs/method.md section 16.7); start flat -- unless the flat start is itself below the floor (a
+        // short run's large rate: its gain beyond the cap; the held knots are then the safer start)
+        if (r.held >= 0 && r.held_knot <= 1 && 1.0 + g.eps > r.floor) {
             std::fill(knots, knots + g.storage_params(cfg.n), T(0));
             std::fprintf(stderr,
-                         "hinf: note: network.storage_init = \"riccati\": between its knots the storage gives the "
-                         "linearised filter a correction step (largest eigenvalue of %sK H) of %.3g at t = %.4g s; above "
-                         "2 the sampled filter overshoots (the %d knots' Cholesky factors are too far apart to "
-                         "interpolate). The knots start flat instead; more knots (network.storage_knots) may keep the "
-                         "Riccati start (docs/method.md section 16.7)\n",
-                         cfg.system->discrete_time() ? "" : "dt ", hs.largest, hs.at, g.knots);
+                         "hinf: note: network.storage_init = \"riccati\": the game's Riccati equation falls to the "
+                         "storage's floor from t = %.4g s, before its first knot (t = %.4g s): no H-infinity filter of "
+                         "level rho = %g from this start for the linearised system, or none whose gain stays within the "
+                         "sampled-data cap. The knots start flat instead; a larger rho, or network.storage_knots = 0 (a "
+                         "constant storage), may do better on this system (docs/method.md section 16.7)\n",
+                         r.held, g.knot_span / g.knots, cfg.rho);
             return net;
         }
         if (r.stopped >= 0)
@@ -376,8 +352,8 @@ Network<T> network_create(const RunConfig& cfg) {
                          "hinf: note: network.storage_init = \"riccati\": from t = %.4g s the game's Riccati equation "
                          "falls to the storage's floor (on its way to losing definiteness: no H-infinity filter of level "
                          "rho = %g from this start for the linearised system, or a gain beyond the sampled-data cap); "
-                         "it is held there. Compare network.storage_knots = 0 (a constant storage) on this system: on "
-                         "continuous Lorenz-63 it did better (docs/method.md section 16.7)\n",
+                         "it is held there. Where the filter does poorly, compare network.storage_init = \"flat\" and "
+                         "network.storage_knots = 0 (a constant storage) (docs/method.md section 16.7)\n",
                          r.held, cfg.rho);
     }
     return net;
