@@ -62,7 +62,9 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     CHECK(t.output.find("acceptance (5 measured runs") != std::string::npos);
     CHECK(t.output.find("worst ratio found") != std::string::npos);
     {  // the acceptance's worst-case search: its figures in the checkpoint, its search in acceptance/worst.h5
-        const Acceptance a = read_acceptance(net, 0.5);
+        // a gain run keeps its best validated checkpoint by default (training.select_every, method.md 16.9), and
+        // the acceptance check judges that one
+        const Acceptance a = read_acceptance(d / "run/best.h5", 0.5);
         CHECK(a.worst_evals > 0);
         CHECK(a.worst_evals <= 240);  // training.acceptance_worst_evals' default bounds the DNN filter's search
         CHECK(std::isfinite(a.worst_ratio));
@@ -137,7 +139,7 @@ TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Ca
         " --set filter.rho=0.01 --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet" + sets);
     INFO(t.output);
-    const Acceptance a = read_acceptance(d / "run/checkpoint.h5", 0.01);
+    const Acceptance a = read_acceptance(d / "run/best.h5", 0.01);
     CHECK(mc_passes(a));
     CHECK(a.worst_evals > 0);
     CHECK(a.worst_ratio > 0.01);
@@ -151,7 +153,7 @@ TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Ca
     INFO(off.output);
     CHECK(off.status == 0);
     CHECK(off.output.find("worst-case search off") != std::string::npos);
-    const Acceptance b = read_acceptance(d / "off/checkpoint.h5", 0.01);
+    const Acceptance b = read_acceptance(d / "off/best.h5", 0.01);
     CHECK(b.worst_evals == 0);
     CHECK(std::isnan(b.worst_ratio));
     CHECK(b.verdict == "pass");
@@ -168,8 +170,8 @@ TEST_CASE("acceptance: the worst-case search gives the same bits on 1 and 2 thre
     INFO(one.output << two.output);
     REQUIRE(one.status == 0);
     REQUIRE(two.status == 0);
-    const Acceptance a = read_acceptance(d / "one/checkpoint.h5", 0.5);
-    const Acceptance b = read_acceptance(d / "two/checkpoint.h5", 0.5);
+    const Acceptance a = read_acceptance(d / "one/best.h5", 0.5);
+    const Acceptance b = read_acceptance(d / "two/best.h5", 0.5);
     CHECK(a.worst_evals > 0);
     CHECK(a.worst_evals == b.worst_evals);
     CHECK(same_bits(a.worst_ratio, b.worst_ratio));

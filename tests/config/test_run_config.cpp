@@ -50,3 +50,17 @@ TEST_CASE("the built-in missile keeps its documented defaults", "[config][defaul
     CHECK(c.error_floor == std::vector<double>(6, 20.0));
     CHECK(c.hidden == std::vector<int>{256, 128, 32});
 }
+
+TEST_CASE("variant gain keeps its best validated checkpoint by default, about ten validations a run",
+          "[config][defaults][select]") {
+    // the missile: 7000 steps, checkpoints every 100 -> every 700 steps; another variant: off
+    const std::string missile = "[system]\nkind = \"missile\"\n[filter]\nvariant = ";
+    CHECK(load_run_config(ConfigDoc::from_text(missile + "\"gain\"\n", "m.toml")).select_every == 700);
+    CHECK(load_run_config(ConfigDoc::from_text(missile + "\"dissipative\"\n", "m.toml")).select_every == 0);
+    // a run shorter than ten checkpoints validates every checkpoint; a multiple of checkpoint_every always
+    const std::string shorter = missile + "\"gain\"\nt_final = 3\n[training]\ncheckpoint_every = 40\n";
+    CHECK(load_run_config(ConfigDoc::from_text(shorter, "m.toml")).select_every == 40);
+    // the user's value wins, 0 included
+    CHECK(load_run_config(ConfigDoc::from_text(missile + "\"gain\"\n[training]\nselect_every = 0\n", "m.toml"))
+              .select_every == 0);
+}
