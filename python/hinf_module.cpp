@@ -99,6 +99,11 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["fraction_steps_violation_ok"] = r.fraction_steps_violation_ok;
     d["mean_cosine"] = r.mean_cosine;
     d["checkpoint"] = r.checkpoint;
+    d["best_checkpoint"] = r.best_checkpoint.empty() ? py::object(py::none()) : py::object(py::str(r.best_checkpoint));
+    d["best_step"] = r.best_step;
+    d["acceptance"] = r.acceptance.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance));
+    d["acceptance_checkpoint"] = r.acceptance_checkpoint;
+    d["acceptance_line"] = r.acceptance_line;
     return d;
 }
 

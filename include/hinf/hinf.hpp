@@ -170,7 +170,14 @@ struct TrainReport {
     double median_rel_residual = 0;
     double fraction_steps_violation_ok = 0;  ///< share of time steps with <= 1 % of samples violating HJIE <= 0
     double mean_cosine = 0;                  ///< mean cos(p, x~)
-    std::string checkpoint;                  ///< DIR/checkpoint.h5
+    std::string checkpoint;                  ///< DIR/checkpoint.h5 (the last network: the point to resume from)
+    /// variant gain keeps its best validated checkpoint (training.select_every, docs/method.md 16.9): DIR/best.h5,
+    /// the network to use, and its step ("" and -1: no selection, or none kept)
+    std::string best_checkpoint;
+    std::int64_t best_step = -1;
+    /// the acceptance check at t_final (docs/method.md 16.5): "pass", "fail", or "" where it did not run (a run
+    /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line
+    std::string acceptance, acceptance_checkpoint, acceptance_line;
 };
 
 /// Trains a network for cfg (the offline phase, as `hinf train`).

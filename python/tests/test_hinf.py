@@ -228,3 +228,19 @@ def test_callback_exception_stops_training_and_keeps_checkpoint(tmp_path):
     assert os.path.exists(ckpt)
     report = hinf.resume(ckpt, until=0.1)
     assert report["first_step"] == 4 and report["last_step"] == 10
+
+
+def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
+    """A gain run to t_final keeps best.h5 and judges it, as `hinf train` does (docs/method.md 16.5, 16.9)."""
+    cfg = hinf.Config(VANDERPOL, set=SMALL + ["filter.t_final=0.3", "training.checkpoint_every=10",
+                                              "training.select_runs=2"])
+    report = hinf.train(cfg, str(tmp_path / "run"))
+    assert report["best_checkpoint"] == str(tmp_path / "run" / "best.h5")
+    assert os.path.exists(report["best_checkpoint"])
+    assert report["best_step"] > 0 and report["best_step"] % 10 == 0
+    assert report["acceptance"] in ("pass", "fail")
+    assert report["acceptance_checkpoint"] == report["best_checkpoint"]
+    assert report["acceptance_line"].startswith("acceptance (")
+    # stopped before t_final: no check
+    early = hinf.train(cfg, str(tmp_path / "early"), until=0.1)
+    assert early["acceptance"] is None

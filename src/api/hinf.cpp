@@ -9,6 +9,7 @@
 #include <mutex>
 
 #include "config/run_config.hpp"
+#include "eval/acceptance.hpp"
 #include "eval/filter_recorded.hpp"
 #include "filters/factory.hpp"
 #include "hinf/config.hpp"
@@ -366,6 +367,21 @@ TrainReport report_of(const TrainSummary& s, const std::string& dir) {
     r.checkpoint = dir + "/checkpoint.h5";
     return r;
 }
+
+// the selection's and the acceptance check's results, as `hinf train`/`resume` print them
+void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, const TrainSummary& s,
+                   const Selection* best, bool resumed, bool quiet) {
+    if (best != nullptr && best->step >= 0) {
+        r.best_checkpoint = dir + "/best.h5";
+        r.best_step = best->step;
+    }
+    const AcceptanceOutcome a = acceptance_after(c, dir, s, best, resumed, quiet);
+    if (a.ran) {
+        r.acceptance = a.pass ? "pass" : "fail";
+        r.acceptance_checkpoint = a.file;
+        r.acceptance_line = a.line;
+    }
+}
 }  // namespace
 
 TrainReport train(const Config& cfg, const TrainSettings& settings) {
@@ -374,12 +390,23 @@ TrainReport train(const Config& cfg, const TrainSettings& settings) {
     HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
                settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +
                    settings.out_dir + "/checkpoint.h5\"), or start afresh with force or another out_dir");
-    return report_of(train_start(c, train_options(settings)), settings.out_dir);
+    TrainOptions opt = train_options(settings);
+    const std::shared_ptr<Selection> best = selection_begin(c, settings.out_dir, /*fresh=*/true, opt);
+    const TrainSummary s = train_start(c, opt);
+    TrainReport r = report_of(s, settings.out_dir);
+    finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
+    return r;
 }
 
 TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings) {
     std::string dir = std::filesystem::path(checkpoint_path).parent_path().string();
-    return report_of(train_resume(checkpoint_path, train_options(settings)), dir.empty() ? "." : dir);
+    if (dir.empty()) dir = ".";
+    TrainOptions opt = train_options(settings);
+    const std::shared_ptr<Selection> best = selection_begin(ckpt_config(checkpoint_path), dir, /*fresh=*/false, opt);
+    const TrainSummary s = train_resume(checkpoint_path, opt);
+    TrainReport r = report_of(s, dir);
+    finish_report(r, ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
+    return r;
 }
 
 }  // namespace hinf

@@ -10,10 +10,7 @@
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
-#include "eval/operate.hpp"
-#include "eval/worst.hpp"
-#include "filters/factory.hpp"
-#include "hinf/h5.hpp"
+#include "eval/acceptance.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
 #include "par/par.hpp"
@@ -61,211 +58,6 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
     std::printf("files: %s/trajectory.h5 %s/checkpoint.h5\n", dir.c_str(), dir.c_str());
 }
 
-// The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
-// (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
-// budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
-// energy-pulse scenario and, where the network gives dV/dx~ (not variant gain), the game's own worst case.
-struct AcceptanceWorst {
-    double ratio = NAN, ekf_ratio = NAN;  // the largest ratio found for the DNN filter and for the EKF
-    std::int64_t evals = 0;               // the DNN filter's objective evaluations, all its restarts
-    bool diverged = false;                // the DNN filter diverged under its worst signals (replay)
-    double wall_seconds = 0;
-    std::string skipped;                  // why no search ran ("" when it ran)
-};
-
-AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir,
-                                 bool quiet) {
-    AcceptanceWorst a;
-    const std::int64_t K = cfg.steps_until();
-    if (K < 2) {
-        a.skipped = "skipped: the horizon is shorter than two time steps";
-        return a;
-    }
-    if (!(cfg.disturbance_std * cfg.disturbance_std * cfg.nv + cfg.noise_std * cfg.noise_std * cfg.m > 0)) {
-        a.skipped = "skipped: no energy budget ([online] disturbance_std and noise_std are 0)";
-        return a;
-    }
-    RunConfig ncfg;
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
-    const bool game = !net->step_config().gain.enabled;
-    WorstOptions wo;
-    wo.random_starts = 2;
-    wo.scenario_starts = {"energy_pulse"};
-    wo.pieces = int(std::min<std::int64_t>(wo.pieces, K));  // a short horizon has fewer steps than pieces
-    wo.game_start = game;
-    const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0);
-    wo.evals = int(std::max<std::int64_t>(1, cfg.acceptance_worst_evals / restarts));
-    wo.quiet = quiet;
-    const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
-    FilterSet set = build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
-    std::vector<const OnlineFilter*> filters;
-    for (const auto& f : set.filters) filters.push_back(f.get());
-    std::vector<WorstGame> games(filters.size());
-    if (game) games[0] = WorstGame{net.get(), ncfg.rho};  // filters[0]: the DNN filter (dnn before ekf)
-    const WorstResult r = worst_search(cfg, filters, games, wo);
-    worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
-    a.ratio = r.filters[0].worst.ratio;
-    a.ekf_ratio = r.filters[1].worst.ratio;
-    for (const auto& rs : r.filters[0].restarts) a.evals += rs.evals;
-    a.diverged = r.cross.diverged_at[0] >= 0;  // row 0 (the DNN filter's worst set), column 0 (the DNN filter)
-    a.wall_seconds = r.wall_seconds;
-    return a;
-}
-
-// A Monte Carlo of the checkpoint at `path` as the filter a user runs: `measured`, the network as trained (on-line
-// retraining is hinf operate's), `runs` runs on the noise of `seed`; operate.h5 goes to out_dir.
-OperateSummary measured_validation(const RunConfig& cfg, const std::string& path, const std::string& out_dir,
-                                   std::int64_t runs, std::uint64_t seed, bool quiet) {
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path);
-    OperateOptions oo;
-    oo.out_dir = out_dir;
-    oo.mode = "measured";
-    oo.runs = runs;
-    oo.quiet = quiet;
-    std::filesystem::create_directories(oo.out_dir);
-    RunConfig plain = cfg;
-    plain.retrain = false;
-    plain.online_seed = seed;
-    return operate_run(plain, *net, path, oo);
-}
-
-// The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
-// [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
-// verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
-// Printed, written into the checkpoint's root attributes, DIR/acceptance/operate.h5 and DIR/acceptance/worst.h5.
-// Returns true when it passes.
-bool acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, const std::string& file = "checkpoint.h5") {
-    const std::string path = dir + "/" + file;
-    const std::string out = dir + "/acceptance";
-    const OperateSummary s = measured_validation(cfg, path, out, cfg.acceptance_runs, cfg.online_seed, quiet);
-    RunConfig plain = cfg;
-    plain.retrain = false;
-    // the H-infinity bound is int x~'Qx~ <= V(x~(0)) + rho int (v'v + n'n): the ratio less V(x~(0)) where V is defined
-    const double ratio = std::isfinite(s.attenuation_ratio_minus_v0) ? s.attenuation_ratio_minus_v0 : s.attenuation_ratio;
-    const bool mc_pass = s.diverged_runs == 0 && ratio <= cfg.rho;
-    const bool search = cfg.acceptance_worst_evals > 0;
-    AcceptanceWorst w;
-    std::filesystem::remove(out + "/worst.h5");  // a file from an earlier check must not outlive its verdict
-    if (search) w = acceptance_worst(plain, path, out, quiet);
-    // from x~(0) = 0 the bound is the plain ratio: worst ratio found <= rho (NaN fails)
-    const bool worst_pass = !search || !w.skipped.empty() || (!w.diverged && w.ratio <= cfg.rho);
-    const bool pass = mc_pass && worst_pass;
-    {
-        h5::Handle f = h5::open_file(path, true);
-        h5::set_attr(f.get(), "acceptance_verdict", pass ? "pass" : "fail");
-        h5::set_attr(f.get(), "acceptance_runs", s.runs);
-        h5::set_attr(f.get(), "acceptance_attenuation_ratio", s.attenuation_ratio);
-        h5::set_attr(f.get(), "acceptance_attenuation_ratio_minus_v0", s.attenuation_ratio_minus_v0);
-        h5::set_attr(f.get(), "acceptance_rmse_position", s.rmse_position);
-        h5::set_attr(f.get(), "acceptance_diverged_runs", static_cast<std::int64_t>(s.diverged_runs));
-        // 0 evaluations: no search ran, the worst-case figures are NaN
-        h5::set_attr(f.get(), "acceptance_worst_evals", w.evals);
-        h5::set_attr(f.get(), "acceptance_worst_ratio", w.ratio);
-        h5::set_attr(f.get(), "acceptance_worst_ratio_ekf", w.ekf_ratio);
-        h5::set_attr(f.get(), "acceptance_worst_diverged", static_cast<std::int64_t>(w.diverged ? 1 : 0));
-    }
-    std::string worst_text = "worst-case search off (training.acceptance_worst_evals = 0)";
-    if (search && !w.skipped.empty()) worst_text = "worst-case search " + w.skipped;
-    else if (search) {
-        char line[300];
-        std::snprintf(line, sizeof line, "worst ratio found %.4g%s (EKF %.4g; %lld evaluations, %.1f s)", w.ratio,
-                      w.diverged ? ", diverged" : "", w.ekf_ratio, static_cast<long long>(w.evals), w.wall_seconds);
-        worst_text = line;
-    }
-    std::printf("acceptance (%lld measured runs, [online] noise): attenuation ratio %.4g, less V(x~(0)) %.4g (rho %.4g), "
-                "position RMSE %.4g, diverged %lld; %s: %s; files: %s/operate.h5%s\n",
-                static_cast<long long>(s.runs), s.attenuation_ratio, s.attenuation_ratio_minus_v0, cfg.rho, s.rmse_position,
-                static_cast<long long>(s.diverged_runs), worst_text.c_str(), pass ? "PASS" : "FAIL", out.c_str(),
-                search && w.skipped.empty() ? ", worst.h5" : "");
-    return pass;
-}
-
-
-// Checkpoint selection (training.select_every > 0, docs/method.md section 16.9): every select_every time steps the
-// checkpoint just written is run as a filter, `measured`, for training.select_runs runs on noise of its own (a seed
-// derived from training.seed, never the [online] seed the figures are measured on), and the one with the lowest
-// settled Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) over t >= settle_time (the whole run when that
-// is empty) is kept as DIR/best.h5 with its score, step and time in root attributes; DIR/select.csv has one row
-// per validation (step, t, score, kept). A diverged run scores +inf.
-// The training itself does not change: the validation only reads checkpoints.
-struct Selection {
-    double score = INFINITY;
-    std::int64_t step = -1;
-};
-
-std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the training seed, another constant
-    std::uint64_t z = training_seed + 0xD1B54A32D192ED03ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (z ^ (z >> 31)) >> 1;
-}
-
-double select_score(const RunConfig& cfg, const std::string& path, const std::string& dir) {
-    const OperateSummary s = measured_validation(cfg, path, dir + "/select", cfg.select_runs, select_seed(cfg.seed), true);
-    if (s.diverged_runs > 0) return INFINITY;
-    const bool settled = !s.error_mean_settled.empty() && std::isfinite(s.error_mean_settled[0]);
-    const std::vector<double>& mean = settled ? s.error_mean_settled : s.error_mean;
-    const std::vector<double>& sd = settled ? s.error_std_settled : s.error_std;
-    double score = 0;
-    for (int j = 0; j < cfg.n; ++j) score += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
-    return std::isfinite(score) ? score : INFINITY;
-}
-
-// The step callback: validates at multiples of select_every that wrote a checkpoint, and at t_final (not at an
-// --until stop, so that a run split there validates the same steps as one run)
-std::function<void(const TrainStepInfo&)> select_on_step(const RunConfig& cfg, const std::string& dir,
-                                                         std::shared_ptr<Selection> best) {
-    return [cfg, dir, best](const TrainStepInfo& info) {
-        const bool at = (info.step % cfg.select_every == 0 && info.step % cfg.checkpoint_every == 0) ||
-                        (info.step == info.last_step && info.step == cfg.steps_until());
-        if (!at || info.step == best->step) return;
-        const std::string ck = dir + "/checkpoint.h5";
-        const double score = select_score(cfg, ck, dir);
-        const bool better = score < best->score;
-        {  // every validation, one row: the validation curve
-            const std::string csv = dir + "/select.csv";
-            const bool head = !std::filesystem::exists(csv);
-            std::FILE* f = std::fopen(csv.c_str(), "a");
-            HINF_CHECK(f != nullptr, "cannot append to " + csv + " (check the directory's permissions and free space)");
-            if (head) std::fprintf(f, "step,t,score,kept\n");
-            std::fprintf(f, "%lld,%.17g,%.17g,%d\n", static_cast<long long>(info.step), info.t, score, better ? 1 : 0);
-            std::fclose(f);
-        }
-        if (!better) return;
-        const std::string tmp = dir + "/best.h5.tmp";
-        std::filesystem::copy_file(ck, tmp, std::filesystem::copy_options::overwrite_existing);
-        {
-            h5::Handle f = h5::open_file(tmp, true);
-            h5::set_attr(f.get(), "select_score", score);
-            h5::set_attr(f.get(), "select_step", info.step);
-            h5::set_attr(f.get(), "select_time", info.t);
-            h5::set_attr(f.get(), "select_runs", cfg.select_runs);
-        }
-        std::filesystem::rename(tmp, dir + "/best.h5");
-        best->score = score;
-        best->step = info.step;
-    };
-}
-
-// A resumed run continues the selection recorded in DIR/best.h5 (so it ends with the uninterrupted run's best.h5).
-std::shared_ptr<Selection> select_state(const std::string& dir) {
-    auto best = std::make_shared<Selection>();
-    const std::string path = dir + "/best.h5";
-    if (!std::filesystem::exists(path)) return best;
-    h5::Handle f = h5::open_file(path, false);
-    best->score = h5::get_attr_double(f.get(), "select_score");
-    best->step = h5::get_attr_int(f.get(), "select_step");
-    return best;
-}
-
-void print_selection(const RunConfig& cfg, const Selection& best, const std::string& dir) {
-    if (best.step < 0)
-        std::printf("select: no checkpoint validated without divergence (%s/best.h5 not written)\n", dir.c_str());
-    else
-        std::printf("select: best validated checkpoint at step %lld (t = %.6g s): settled Q-weighted MSE %.4g over %lld "
-                    "runs; use %s/best.h5\n", static_cast<long long>(best.step), cfg.time_of(best.step), best.score,
-                    static_cast<long long>(cfg.select_runs), dir.c_str());
-}
 }  // namespace
 
 void add_train_commands(CLI::App& app) {
@@ -288,30 +80,23 @@ void add_train_commands(CLI::App& app) {
                        "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
-        std::filesystem::remove(opt.out_dir + "/best.h5");  // a fresh run: an old selection must not outlive it
-        std::filesystem::remove(opt.out_dir + "/select.csv");
-        auto best = std::make_shared<Selection>();
-        const bool select = cfg.select_every > 0 && par_world_size() == 1;
-        if (select) opt.on_step = select_on_step(cfg, opt.out_dir, best);
+        std::shared_ptr<Selection> best = selection_begin(cfg, opt.out_dir, /*fresh=*/true, opt);
         install_stop_handlers();
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, opt.out_dir);
-        if (select) print_selection(cfg, *best, opt.out_dir);
+        if (best) std::printf("%s\n", selection_line(cfg, *best, opt.out_dir).c_str());
         if (cfg.select_every > 0 && par_world_size() > 1 && par_root())
             std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");
         if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
             std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
-        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && par_world_size() == 1) {
-            const std::string accepted = select && best->step >= 0 ? "best.h5" : "checkpoint.h5";
-            const bool pass = acceptance_check(cfg, opt.out_dir, args->quiet, accepted);
-            if (!pass && cfg.require_acceptance) {
-                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/%s: "
-                                     "attenuation ratio or worst-case ratio above [filter] rho, or a diverged run); "
-                                     "training.require_acceptance is set (train longer or with another seed, or unset it)\n", opt.out_dir.c_str(),
-                             accepted.c_str());
-                throw CLI::RuntimeError(5);
-            }
+        const AcceptanceOutcome a = acceptance_after(cfg, opt.out_dir, s, best.get(), /*resumed=*/false, args->quiet);
+        if (a.ran) std::printf("%s\n", a.line.c_str());
+        if (a.ran && !a.pass && cfg.require_acceptance) {
+            std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s: attenuation ratio or "
+                                 "worst-case ratio above [filter] rho, or a diverged run); training.require_acceptance "
+                                 "is set (train longer or with another seed, or unset it)\n", a.file.c_str());
+            throw CLI::RuntimeError(5);
         }
     });
 
@@ -370,37 +155,33 @@ void add_train_commands(CLI::App& app) {
         std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
         if (dir.empty()) dir = ".";
         RunConfig before;
-        bool select = false;
+        bool readable = false;
         try {
             ckpt_verify(args->checkpoint);  // read in a child first: a damaged file may crash the HDF5 library
             before = ckpt_config(args->checkpoint);
-            select = before.select_every > 0 && par_world_size() == 1;
+            readable = true;
         } catch (const std::exception&) {
             // a checkpoint that cannot be read: train_resume says so, with its hint about checkpoint.prev.h5
         }
-        std::shared_ptr<Selection> best = select ? select_state(dir) : std::make_shared<Selection>();
-        if (select) opt.on_step = select_on_step(before, dir, best);
+        std::shared_ptr<Selection> best = readable ? selection_begin(before, dir, /*fresh=*/false, opt) : nullptr;
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         print_summary(s, dir);
-        if (select) print_selection(before, *best, dir);
+        if (best) std::printf("%s\n", selection_line(before, *best, dir).c_str());
         if (!args->sets.empty()) {
             std::string changed;
             for (const auto& v : args->sets) changed += " " + v;
             std::printf("changed on resume at step %lld:%s (recorded as a '# hinf resume' line in the config of the "
                         "checkpoint and trajectory)\n", static_cast<long long>(s.first_step), changed.c_str());
         }
-        RunConfig cfg = ckpt_config(args->checkpoint);
-        if (cfg.acceptance_runs > 0 && s.last_step == cfg.steps_until() && s.last_step > s.first_step &&
-            par_world_size() == 1) {
-            const std::string accepted = select && best->step >= 0 ? "best.h5" : "checkpoint.h5";
-            const bool pass = acceptance_check(cfg, dir, args->quiet, accepted);
-            if (!pass && cfg.require_acceptance) {
-                std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s/%s); "
-                                     "training.require_acceptance is set\n", dir.c_str(), accepted.c_str());
-                throw CLI::RuntimeError(5);
-            }
+        const RunConfig after = ckpt_config(args->checkpoint);  // with the keys changed on resume
+        const AcceptanceOutcome a = acceptance_after(after, dir, s, best.get(), /*resumed=*/true, args->quiet);
+        if (a.ran) std::printf("%s\n", a.line.c_str());
+        if (a.ran && !a.pass && after.require_acceptance) {
+            std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s); "
+                                 "training.require_acceptance is set\n", a.file.c_str());
+            throw CLI::RuntimeError(5);
         }
     });
 }

@@ -136,3 +136,36 @@ TEST_CASE("library: bad use throws hinf::Error with one line", "[api]") {
     CHECK(one_line_error([&] { hinf::Filter::create(cfg, "dnn", o); }, "was trained for the system 'expr'"));
     CHECK(one_line_error([&] { hinf::train(other, s); }, "already holds a run"));
 }
+
+TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with the acceptance check, as hinf train",
+          "[api][select][acceptance]") {
+    TempDir d("apiselect");
+    const std::string path = write_file(d, "vdp.toml", hinf::test::tiny_vdp_gain_config("0.3", "select_runs = 2\n"));
+    const hinf::Config cfg = hinf::Config::load(path);
+    hinf::TrainSettings s;
+    s.out_dir = d / "run";
+    s.until = 0.15;  // stopped before t_final: a selection so far, no acceptance check
+    hinf::TrainReport r = hinf::train(cfg, s);
+    REQUIRE_FALSE(r.diverged);
+    CHECK(r.acceptance.empty());
+    s.until = -1;
+    r = hinf::resume(r.checkpoint, s);  // continues the selection, then the check at t_final
+    REQUIRE_FALSE(r.diverged);
+    REQUIRE(r.best_checkpoint == d / "run/best.h5");
+    CHECK(r.best_step > 0);
+    CHECK(r.best_step % 10 == 0);  // validated checkpoints only (checkpoint_every = 10)
+    REQUIRE((r.acceptance == "pass" || r.acceptance == "fail"));
+    CHECK(r.acceptance_checkpoint == r.best_checkpoint);
+    CHECK(r.acceptance_line.rfind("acceptance (5 measured runs", 0) == 0);
+    hinf::h5::Handle f = hinf::h5::open_file(r.best_checkpoint, false);
+    CHECK(hinf::h5::get_attr_string(f.get(), "acceptance_verdict") == r.acceptance);
+    CHECK(hinf::h5::get_attr_int(f.get(), "select_step") == r.best_step);
+    // the program gives the same selection and verdict for the same config in one run
+    auto cli = run_hinf("train " + path + " --out " + (d / "cli") + " --quiet");
+    INFO(cli.output);
+    REQUIRE(cli.status == 0);
+    hinf::h5::Handle g = hinf::h5::open_file(d / "cli/best.h5", false);
+    CHECK(hinf::h5::get_attr_int(g.get(), "select_step") == r.best_step);
+    CHECK(hinf::h5::get_attr_string(g.get(), "acceptance_verdict") == r.acceptance);
+    CHECK(cli.output.find(r.acceptance_line.substr(0, 60)) != std::string::npos);
+}

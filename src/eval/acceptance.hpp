@@ -1,0 +1,42 @@
+// What a training run does around the trainer, for `hinf train`/`resume` and the library's hinf::train/resume alike:
+// keeping the best validated checkpoint (training.select_every, docs/method.md section 16.9) and the acceptance
+// check at t_final (a validation Monte Carlo and a short worst-case search, section 16.5). Both run the checkpoints
+// as the filter a user runs (operate's engine, `measured`); neither changes the training.
+#pragma once
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "config/run_config.hpp"
+#include "train/trainer.hpp"
+
+namespace hinf {
+
+/// The selection so far: the best score and its step (-1: none yet).
+struct Selection {
+    double score = std::numeric_limits<double>::infinity();
+    std::int64_t step = -1;
+};
+
+/// Starts the selection of a run in `dir` when cfg.select_every > 0 and the job is one process (null otherwise):
+/// a fresh run removes an earlier run's best.h5 and select.csv, a resumed one continues from its best.h5. Chains
+/// the validation after opt.on_step (the caller's progress callback, if any).
+std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt);
+/// The one summary line of a selection ("select: best validated checkpoint at step ...").
+std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir);
+
+/// The acceptance check's outcome.
+struct AcceptanceOutcome {
+    bool ran = false;   // it ran (the run reached t_final on one process, training.acceptance_runs > 0)
+    bool pass = false;  // no run diverged, attenuation ratio <= rho, worst ratio found <= rho without divergence
+    std::string file;   // the checkpoint judged: DIR/best.h5 where a selection kept one, else DIR/checkpoint.h5
+    std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
+};
+/// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
+/// trained at least one step), on one process, with cfg.acceptance_runs > 0; its verdict and figures are written
+/// into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
+AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
+                                   const Selection* best, bool resumed, bool quiet);
+
+}  // namespace hinf
