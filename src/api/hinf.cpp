@@ -402,7 +402,14 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     std::string dir = std::filesystem::path(checkpoint_path).parent_path().string();
     if (dir.empty()) dir = ".";
     TrainOptions opt = train_options(settings);
-    const std::shared_ptr<Selection> best = selection_begin(ckpt_config(checkpoint_path), dir, /*fresh=*/false, opt);
+    // the selection reads the file's config; a file that cannot be read is train_resume's to report (with its hint
+    // about checkpoint.prev.h5), and it is read in a child first: a damaged file may crash the HDF5 library
+    std::shared_ptr<Selection> best;
+    try {
+        ckpt_verify(checkpoint_path);
+        best = selection_begin(ckpt_config(checkpoint_path), dir, /*fresh=*/false, opt);
+    } catch (const std::exception&) {
+    }
     const TrainSummary s = train_resume(checkpoint_path, opt);
     TrainReport r = report_of(s, dir);
     finish_report(r, ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
