@@ -286,8 +286,11 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
         if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
     }
     // written before a state started without error got a floor from its motion (error_floor_default): the samples,
-    // and a gain network's error scale, were the old floor's
-    if (!h5::has_attr(net.get(), "error_floor") && !ConfigSection(doc, "sampling").has("error_floor")) {
+    // and a gain network's error scale, were the old floor's. The missiles' floor never changed (20 m), so their
+    // config is not loaded again here (loading one of the own systems walks its nominal trajectory)
+    const std::string kind = ConfigSection(doc, "system").get_string("kind", "missile");
+    if (kind != "missile" && kind != "maneuvering_missile" && !h5::has_attr(net.get(), "error_floor") &&
+        !ConfigSection(doc, "sampling").has("error_floor")) {
         ConfigDoc trained = doc;
         for (const std::string& a : sets) trained.set(a);
         const RunConfig c = load_run_config(trained);
