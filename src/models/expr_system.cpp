@@ -29,6 +29,22 @@ struct ExprSystem::Workspace {
 };
 
 namespace {
+// Each thread keeps the workspaces it released last (two systems: a truth and a filter's model), so that the
+// one-state calls made from every OpenMP thread (training's per-sample f, g, h, each at its own t) take no lock;
+// the shared pool is the fallback. A workspace reads only its own buffer, so one cached here never depends on
+// its system; one whose system is gone (its mark expired) is dropped when the slot is needed.
+struct CachedWorkspace {
+    std::weak_ptr<const char> owner;
+    std::unique_ptr<ExprSystem::Workspace> ws;
+};
+thread_local CachedWorkspace t_workspaces[2];
+
+bool same_owner(const std::weak_ptr<const char>& a, const std::shared_ptr<const char>& b) {
+    return !a.owner_before(b) && !b.owner_before(a);
+}
+}  // namespace
+
+namespace {
 
 // step(s) = 1 for s >= 0, else 0: a switch such as the missile's atmosphere at 9144 m (z >= 9144 is the
 // upper layer). Its derivative is zero except at the switch itself, where it does not exist: the Jacobians
@@ -501,6 +517,8 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
 }
 
 std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
+    for (CachedWorkspace& c : t_workspaces)
+        if (c.ws && same_owner(c.owner, alive_)) return std::move(c.ws);
     {
         std::lock_guard<std::mutex> lock(pool_mutex_);
         if (!pool_.empty()) {
@@ -525,6 +543,12 @@ std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
 }
 
 void ExprSystem::workspace_release(std::unique_ptr<Workspace> ws) const {
+    for (CachedWorkspace& c : t_workspaces)
+        if (!c.ws || c.owner.expired()) {
+            c.owner = alive_;
+            c.ws = std::move(ws);
+            return;
+        }
     std::lock_guard<std::mutex> lock(pool_mutex_);
     pool_.push_back(std::move(ws));
 }

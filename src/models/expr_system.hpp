@@ -77,6 +77,9 @@ class ExprSystem : public System {
     std::vector<std::string> programs_;          // the texts of the non-constant entries
     mutable std::mutex pool_mutex_;
     mutable std::vector<std::unique_ptr<Workspace>> pool_;  // idle workspaces
+    // this system's mark in the threads' workspace caches (expr_system.cpp): a cached workspace whose mark has
+    // expired belonged to a system that is gone and is dropped
+    std::shared_ptr<const char> alive_ = std::make_shared<const char>('\0');
 };
 
 /// "GiNaC 1.8.6 (parse, differentiate), muParser 2.3.3 (evaluate)": the libraries doing the work.

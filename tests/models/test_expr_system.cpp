@@ -217,6 +217,37 @@ TEST_CASE("expression systems evaluate alike from several threads at once", "[mo
     CHECK(test::bitwise_equal(serial, parallel));
 }
 
+TEST_CASE("a thread's cached workspace serves only its own system, also after another system is gone",
+          "[model][expr]") {
+    auto make = [](double a) {  // f = a*p: the value tells the systems apart
+        ConfigDoc doc = ConfigDoc::from_text("[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 1\n"
+                                             "measurements = 1\nparameters = { a = " + std::to_string(a) + " }\n"
+                                             "f = [\"a*p\", \"w*p\"]\ng = [[\"0\"], [\"1\"]]\nh = [\"p + a\"]\n",
+                                             "cache.toml");
+        return make_system(doc);
+    };
+    const double x[2] = {1.5, 2.0};
+    auto f0 = [&x](const System& s) {
+        double a[2];
+        s.drift(a, x, 0.0, 1);
+        return a[0];
+    };
+    std::unique_ptr<System> A = make(2), B = make(3);
+    CHECK(f0(*A) == 3.0);
+    CHECK(f0(*B) == 4.5);
+    A.reset();  // its workspace stays in this thread's cache, marked expired
+    std::unique_ptr<System> C = make(5), D = make(7);  // more systems than a thread caches
+    for (int round = 0; round < 3; ++round) {
+        CHECK(f0(*C) == 7.5);
+        CHECK(f0(*B) == 4.5);
+        CHECK(f0(*D) == 10.5);
+    }
+    std::vector<double> got(300);
+#pragma omp parallel for num_threads(3) schedule(dynamic)
+    for (int i = 0; i < 300; ++i) got[std::size_t(i)] = f0(i % 3 == 0 ? *B : i % 3 == 1 ? *C : *D);
+    for (int i = 0; i < 300; ++i) CHECK(got[std::size_t(i)] == (i % 3 == 0 ? 4.5 : i % 3 == 1 ? 7.5 : 10.5));
+}
+
 TEST_CASE("expression missile trains like the built-in missile for 20 time steps, to float round-off",
           "[train][expr]") {
     // Tolerance: the two systems differ by a few double ulps (test above); the network computes in float, so
