@@ -404,15 +404,20 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     TrainOptions opt = train_options(settings);
     // the selection reads the file's config; a file that cannot be read is train_resume's to report (with its hint
     // about checkpoint.prev.h5), and it is read in a child first: a damaged file may crash the HDF5 library
+    // (the library's resume changes no keys, so the config read here is the one the run ends with)
+    RunConfig c;
+    bool readable = false;
     std::shared_ptr<Selection> best;
     try {
         ckpt_verify(checkpoint_path);
-        best = selection_begin(ckpt_config(checkpoint_path), dir, /*fresh=*/false, opt);
+        c = ckpt_config(checkpoint_path);
+        readable = true;
+        best = selection_begin(c, dir, /*fresh=*/false, opt);
     } catch (const std::exception&) {
     }
     const TrainSummary s = train_resume(checkpoint_path, opt);
     TrainReport r = report_of(s, dir);
-    finish_report(r, ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
+    finish_report(r, readable ? c : ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
     return r;
 }
 
