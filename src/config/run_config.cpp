@@ -286,6 +286,7 @@ RunConfig load_run_config(ConfigDoc doc) {
                             : 0;
     c.select_every = t.get_int("select_every", select_default, 0, 1000000000);
     c.select_runs = t.get_int("select_runs", c.select_runs, 1, 100000);
+    c.select_rule = t.get_string("select_rule", c.select_rule, {"one_se", "lowest"});
     if (c.select_every > 0 && c.select_every % c.checkpoint_every != 0)
         t.reject("select_every", "= " + std::to_string(c.select_every) + " must be a multiple of training.checkpoint_every = " +
                                      std::to_string(c.checkpoint_every) + " (the selection validates written checkpoints)");

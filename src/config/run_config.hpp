@@ -62,6 +62,8 @@ struct TrainingConfig {
     bool require_acceptance = false;     // exit 5 when the acceptance check fails
     std::int64_t select_every = 0;       // keep the best validated checkpoint as DIR/best.h5 every this many steps (0: off)
     std::int64_t select_runs = 5;        // its validation Monte Carlo's runs
+    std::string select_rule = "one_se";  // "one_se": the latest checkpoint within one paired standard error of the
+                                         // lowest score; "lowest": the lowest score (docs/method.md section 16.9)
     std::int64_t acceptance_worst_evals = 240;  // the acceptance's worst-case search: evaluations per filter (0: none)
 
     // [sampling]

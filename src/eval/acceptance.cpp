@@ -149,11 +149,16 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
 
 // Checkpoint selection (training.select_every > 0, docs/method.md section 16.9): every select_every time steps the
 // checkpoint just written is run as a filter, `measured`, for training.select_runs runs on noise of its own (a seed
-// derived from training.seed, never the [online] seed the figures are measured on), and the one with the lowest
-// settled Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) over t >= settle_time (the whole run when that
-// is empty) is kept as DIR/best.h5 with its score, step and time in root attributes; DIR/select.csv has one row
-// per validation (step, t, score, kept). A diverged run scores +inf.
-// The training itself does not change: the validation only reads checkpoints.
+// derived from training.seed, never the [online] seed the figures are measured on), and scored by its settled
+// Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) over t >= settle_time (the whole run when that is
+// empty); a diverged run scores +inf. Every validation runs on the same noise, so the runs pair. Which checkpoint is
+// kept as DIR/best.h5 (root attributes: its score, step, time, per-run scores, and the lowest's):
+// - select_rule = "lowest": the lowest score;
+// - select_rule = "one_se" (default): the latest checkpoint whose mean run-by-run excess over the lowest so far is at
+//   most its standard error; a later checkpoint has trained on more of the horizon, and the average-case score
+//   alone once kept an early one with twice the later ones' worst case (section 16.9).
+// DIR/select.csv has one row per validation (step, t, score, diff and se against the lowest before it, lowest,
+// kept). The training itself does not change: the validation only reads checkpoints.
 
 std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the training seed, another constant
     std::uint64_t z = training_seed + 0xD1B54A32D192ED03ull;
@@ -162,15 +167,28 @@ std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the t
     return (z ^ (z >> 31)) >> 1;
 }
 
-double select_score(const RunConfig& cfg, const std::string& path, const std::string& dir) {
+struct SelectScore {
+    double score = INFINITY;       // over all runs (pooled)
+    std::vector<double> runs;      // each run's, +inf for a diverged run
+};
+
+SelectScore select_score(const RunConfig& cfg, const std::string& path, const std::string& dir) {
     const OperateSummary s = measured_validation(cfg, path, dir + "/select", cfg.select_runs, select_seed(cfg.seed), true);
-    if (s.diverged_runs > 0) return INFINITY;
+    SelectScore v;
+    const int n = cfg.n;
+    for (std::int64_t r = 0; r < s.runs; ++r) {
+        double q = 0;
+        for (int j = 0; j < n; ++j) q += cfg.Q[std::size_t(j) * n + j] * s.run_mse_settled[std::size_t(r) * n + j];
+        v.runs.push_back(std::isfinite(q) ? q : INFINITY);
+    }
+    if (s.diverged_runs > 0) return v;
     const bool settled = !s.error_mean_settled.empty() && std::isfinite(s.error_mean_settled[0]);
     const std::vector<double>& mean = settled ? s.error_mean_settled : s.error_mean;
     const std::vector<double>& sd = settled ? s.error_std_settled : s.error_std;
     double score = 0;
-    for (int j = 0; j < cfg.n; ++j) score += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
-    return std::isfinite(score) ? score : INFINITY;
+    for (int j = 0; j < n; ++j) score += cfg.Q[std::size_t(j) * n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
+    v.score = std::isfinite(score) ? score : INFINITY;
+    return v;
 }
 
 // The step callback: validates at multiples of select_every that wrote a checkpoint, and at t_final (not at an
@@ -182,34 +200,49 @@ std::function<void(const TrainStepInfo&)> select_on_step(const RunConfig& cfg, c
                         (info.step == info.last_step && info.step == cfg.steps_until());
         if (!at || info.step == best->step) return;
         const std::string ck = dir + "/checkpoint.h5";
-        const double score = select_score(cfg, ck, dir);
-        const bool better = score < best->score;
+        const SelectScore v = select_score(cfg, ck, dir);
+        const bool lowest = v.score < best->lowest_score;
+        const PairedDifference d = paired_difference(v.runs, best->lowest_run_scores);
+        const bool keep = select_keeps(cfg.select_rule, v.score, lowest, d);
         {  // every validation, one row: the validation curve
             const std::string csv = dir + "/select.csv";
             const bool head = !std::filesystem::exists(csv);
             std::FILE* f = std::fopen(csv.c_str(), "a");
             HINF_CHECK(f != nullptr, "cannot append to " + csv + " (check the directory's permissions and free space)");
-            if (head) std::fprintf(f, "step,t,score,kept\n");
-            std::fprintf(f, "%lld,%.17g,%.17g,%d\n", static_cast<long long>(info.step), info.t, score, better ? 1 : 0);
+            if (head) std::fprintf(f, "step,t,score,diff,se,lowest,kept\n");
+            std::fprintf(f, "%lld,%.17g,%.17g,%.17g,%.17g,%d,%d\n", static_cast<long long>(info.step), info.t, v.score,
+                         d.mean, d.se, lowest ? 1 : 0, keep ? 1 : 0);
             std::fclose(f);
         }
-        if (!better) return;
+        if (!keep) return;
+        if (lowest) {
+            best->lowest_score = v.score;
+            best->lowest_step = info.step;
+            best->lowest_run_scores = v.runs;
+        }
+        best->score = v.score;
+        best->step = info.step;
+        best->run_scores = v.runs;
         const std::string tmp = dir + "/best.h5.tmp";
         std::filesystem::copy_file(ck, tmp, std::filesystem::copy_options::overwrite_existing);
         {
             h5::Handle f = h5::open_file(tmp, true);
-            h5::set_attr(f.get(), "select_score", score);
-            h5::set_attr(f.get(), "select_step", info.step);
+            h5::set_attr(f.get(), "select_score", best->score);
+            h5::set_attr(f.get(), "select_step", best->step);
             h5::set_attr(f.get(), "select_time", info.t);
             h5::set_attr(f.get(), "select_runs", cfg.select_runs);
+            h5::set_attr(f.get(), "select_rule", cfg.select_rule);
+            h5::set_attr(f.get(), "select_run_scores", best->run_scores);
+            h5::set_attr(f.get(), "select_lowest_score", best->lowest_score);
+            h5::set_attr(f.get(), "select_lowest_step", best->lowest_step);
+            h5::set_attr(f.get(), "select_lowest_run_scores", best->lowest_run_scores);
         }
         std::filesystem::rename(tmp, dir + "/best.h5");
-        best->score = score;
-        best->step = info.step;
     };
 }
 
 // A resumed run continues the selection recorded in DIR/best.h5 (so it ends with the uninterrupted run's best.h5).
+// A best.h5 written before the lowest was recorded: its checkpoint is the lowest, without per-run scores.
 std::shared_ptr<Selection> select_state(const std::string& dir) {
     auto best = std::make_shared<Selection>();
     const std::string path = dir + "/best.h5";
@@ -217,21 +250,59 @@ std::shared_ptr<Selection> select_state(const std::string& dir) {
     h5::Handle f = h5::open_file(path, false);
     best->score = h5::get_attr_double(f.get(), "select_score");
     best->step = h5::get_attr_int(f.get(), "select_step");
+    best->lowest_score = best->score;
+    best->lowest_step = best->step;
+    if (h5::has_attr(f.get(), "select_lowest_step")) {
+        best->run_scores = h5::get_attr_doubles(f.get(), "select_run_scores");
+        best->lowest_score = h5::get_attr_double(f.get(), "select_lowest_score");
+        best->lowest_step = h5::get_attr_int(f.get(), "select_lowest_step");
+        best->lowest_run_scores = h5::get_attr_doubles(f.get(), "select_lowest_run_scores");
+    }
     return best;
 }
 }  // namespace
+
+PairedDifference paired_difference(const std::vector<double>& a, const std::vector<double>& b) {
+    PairedDifference d;
+    const std::size_t R = a.size();
+    if (R < 2 || b.size() != R) return d;
+    double sum = 0;
+    for (std::size_t r = 0; r < R; ++r) {
+        if (!std::isfinite(a[r]) || !std::isfinite(b[r])) return d;
+        sum += a[r] - b[r];
+    }
+    const double mean = sum / double(R);
+    double ss = 0;
+    for (std::size_t r = 0; r < R; ++r) ss += (a[r] - b[r] - mean) * (a[r] - b[r] - mean);
+    d.mean = mean;
+    d.se = std::sqrt(ss / double(R - 1) / double(R));
+    return d;
+}
+
+bool select_keeps(const std::string& rule, double score, bool lowest, const PairedDifference& d) {
+    // NaN (no lowest yet, a diverged run, a lowest without per-run scores) keeps nothing by the rule
+    return lowest || (rule == "one_se" && std::isfinite(score) && d.mean <= d.se);
+}
 
 std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir) {
     char line[1024];
     if (best.step < 0)
         std::snprintf(line, sizeof line, "select: no checkpoint validated without divergence (%s/best.h5 not written)",
                       dir.c_str());
-    else
+    else if (best.step == best.lowest_step)
         std::snprintf(line, sizeof line,
                       "select: best validated checkpoint at step %lld (t = %.6g s): settled Q-weighted MSE %.4g over "
                       "%lld runs; use %s/best.h5",
                       static_cast<long long>(best.step), cfg.time_of(best.step), best.score,
                       static_cast<long long>(cfg.select_runs), dir.c_str());
+    else
+        std::snprintf(line, sizeof line,
+                      "select: best validated checkpoint at step %lld (t = %.6g s): settled Q-weighted MSE %.4g over "
+                      "%lld runs, within one paired standard error of the lowest (%.4g at step %lld), and trained "
+                      "longer; use %s/best.h5",
+                      static_cast<long long>(best.step), cfg.time_of(best.step), best.score,
+                      static_cast<long long>(cfg.select_runs), best.lowest_score,
+                      static_cast<long long>(best.lowest_step), dir.c_str());
     return line;
 }
 

@@ -7,17 +7,36 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "config/run_config.hpp"
 #include "train/trainer.hpp"
 
 namespace hinf {
 
-/// The selection so far: the best score and its step (-1: none yet).
+/// The selection so far: the kept checkpoint (DIR/best.h5) and the lowest-scoring one, each with its score, step
+/// (-1: none yet) and per-run scores (the same validation noise at every step, so runs pair). Under
+/// training.select_rule = "lowest" they are the same checkpoint.
 struct Selection {
     double score = std::numeric_limits<double>::infinity();
     std::int64_t step = -1;
+    std::vector<double> run_scores;
+    double lowest_score = std::numeric_limits<double>::infinity();
+    std::int64_t lowest_step = -1;
+    std::vector<double> lowest_run_scores;  // empty after resuming a best.h5 written before they were kept
 };
+
+/// The mean of the run-by-run differences a[r] - b[r] and its standard error (sample standard deviation / sqrt(R)).
+/// Both NaN unless a and b have the same size R >= 2 and every entry is finite.
+struct PairedDifference {
+    double mean = std::numeric_limits<double>::quiet_NaN();
+    double se = std::numeric_limits<double>::quiet_NaN();
+};
+PairedDifference paired_difference(const std::vector<double>& a, const std::vector<double>& b);
+/// The selection rule: a validation scoring `score` (+inf: a run diverged) is kept when it is the lowest so far, or,
+/// under rule "one_se", when its paired excess over the lowest so far is at most its standard error (d.mean <= d.se;
+/// NaN keeps nothing).
+bool select_keeps(const std::string& rule, double score, bool lowest, const PairedDifference& d);
 
 /// Starts the selection of a run in `dir` when cfg.select_every > 0 and the job is one process (null otherwise):
 /// a fresh run removes an earlier run's best.h5 and select.csv, a resumed one continues from its best.h5. Chains

@@ -214,6 +214,11 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
             sq[i] += D[r].err_sq_settled[i];
         }
         set_count += D[r].settled_steps;
+        for (int i = 0; i < n; ++i) {
+            const bool settled = D[r].settled_steps > 0;
+            const double mse = settled ? D[r].err_sq_settled[i] / D[r].settled_steps : D[r].err_sq[i] / double(steps);
+            sum.run_mse_settled.push_back(D[r].diverged_at >= 0 ? INFINITY : mse);
+        }
         hji_v += D[r].observed[0];
         hji_n += D[r].observed[1];
         chk_v += D[r].observed.size() > 3 ? D[r].observed[2] : 0.0;

@@ -29,6 +29,9 @@ struct OperateSummary {
     std::vector<double> error_mean, error_std;  // per state, time average over [0, T], mean over runs
     std::vector<double> error_mean_settled, error_std_settled;  // over t >= settle_time
     std::vector<double> error_mean_open_loop, error_std_open_loop;
+    // [runs x n] each run's mean square error per state over t >= settle_time (over [0, T] when no step is settled);
+    // +inf in every state of a diverged run. The checkpoint selection pairs validations run by run with it.
+    std::vector<double> run_mse_settled;
     double rmse_position = 0, rmse_position_open_loop = 0;
     double online_check_violation_fraction = NAN;  // variant gain: share of sampled errors at x^ violating (14.1)
     double online_hji_violation_fraction = 0;  // share of on-line steps where HJIE(p(x~), x, x^) > 0.01 S

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "helpers.hpp"
+#include "eval/acceptance.hpp"
 #include "hinf/h5.hpp"
 
 using hinf::test::run_hinf;
@@ -182,20 +183,27 @@ TEST_CASE("acceptance: the worst-case search gives the same bits on 1 and 2 thre
 namespace {
 struct SelectRow {
     std::int64_t step = 0;
-    double score = 0;
-    int kept = 0;
+    double score = 0, diff = 0, se = 0;
+    int lowest = 0, kept = 0;
 };
-std::vector<SelectRow> read_select_csv(const std::string& path) {
+std::vector<SelectRow> read_select_csv(const std::string& path) {  // step,t,score,diff,se,lowest,kept
     std::ifstream in(path);
     std::vector<SelectRow> rows;
     std::string line;
-    std::getline(in, line);  // header
+    std::getline(in, line);
+    REQUIRE(line == "step,t,score,diff,se,lowest,kept");
     while (std::getline(in, line)) {
-        SelectRow r;
-        double t = 0;
-        char c1 = 0, c2 = 0, c3 = 0;
+        std::vector<std::string> cell;
         std::istringstream ls(line);
-        ls >> r.step >> c1 >> t >> c2 >> r.score >> c3 >> r.kept;
+        for (std::string c; std::getline(ls, c, ',');) cell.push_back(c);
+        REQUIRE(cell.size() == 7);
+        SelectRow r;
+        r.step = std::stoll(cell[0]);
+        r.score = std::strtod(cell[2].c_str(), nullptr);  // strtod reads "nan" and "inf"
+        r.diff = std::strtod(cell[3].c_str(), nullptr);
+        r.se = std::strtod(cell[4].c_str(), nullptr);
+        r.lowest = std::stoi(cell[5]);
+        r.kept = std::stoi(cell[6]);
         rows.push_back(r);
     }
     return rows;
@@ -215,19 +223,33 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
     INFO(t.output);
     REQUIRE(t.status == 0);
     CHECK(t.output.find("select: best validated checkpoint at step") != std::string::npos);
-    // one validation per 10 steps, and the kept one is the lowest score of them
+    // one validation per 10 steps; the lowest is the running minimum, and the rule (select_rule = "one_se", the
+    // default) keeps a row when it is the lowest so far or its paired excess over that lowest is within one
+    // standard error; best.h5 is the last kept row
     const std::vector<SelectRow> rows = read_select_csv(d / "run/select.csv");
     REQUIRE(rows.size() == 5);
-    std::size_t arg = 0;
+    std::size_t arg = 0, kept = 0;
     for (std::size_t r = 0; r < rows.size(); ++r) {
+        INFO("row " << r);
         CHECK(rows[r].step == std::int64_t(10 * (r + 1)));
-        if (rows[r].score < rows[arg].score) arg = r;
+        const bool lowest = r == 0 ? std::isfinite(rows[r].score) : rows[r].score < rows[arg].score;
+        CHECK(rows[r].lowest == (lowest ? 1 : 0));
+        CHECK(rows[r].kept == ((lowest || rows[r].diff <= rows[r].se) ? 1 : 0));  // NaN compares false
+        if (r > 0 && std::isfinite(rows[r].score)) {  // the paired mean difference equals the difference of means
+            CHECK(rows[r].se >= 0);
+            CHECK(rows[r].diff == Approx(rows[r].score - rows[arg].score).epsilon(1e-9).margin(1e-15));
+        }
+        if (lowest) arg = r;
+        if (rows[r].kept == 1) kept = r;
     }
     hinf::h5::Handle b = hinf::h5::open_file(d / "run/best.h5", false);
     const std::int64_t step = hinf::h5::get_attr_int(b.get(), "select_step");
-    CHECK(step == rows[arg].step);
-    CHECK(same_bits(hinf::h5::get_attr_double(b.get(), "select_score"), rows[arg].score));
-    CHECK(rows[arg].kept == 1);
+    CHECK(step == rows[kept].step);
+    CHECK(same_bits(hinf::h5::get_attr_double(b.get(), "select_score"), rows[kept].score));
+    CHECK(hinf::h5::get_attr_int(b.get(), "select_lowest_step") == rows[arg].step);
+    CHECK(same_bits(hinf::h5::get_attr_double(b.get(), "select_lowest_score"), rows[arg].score));
+    CHECK(hinf::h5::get_attr_doubles(b.get(), "select_run_scores").size() == 2);
+    CHECK(hinf::h5::get_attr_string(b.get(), "select_rule") == "one_se");
     // the acceptance check ran on best.h5 (its attributes are there)
     CHECK(hinf::h5::has_attr(b.get(), "acceptance_verdict"));
     // best.h5 holds the network of that step: the same training stopped there gives the same parameters
@@ -250,4 +272,89 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
         CHECK(same_bits(again[r].score, rows[r].score));
     }
     CHECK(content_digest(d / "split/best.h5") == content_digest(d / "run/best.h5"));
+}
+
+namespace {
+// select.csv against the rule row by row; returns {the last kept row, the lowest row}
+std::pair<std::size_t, std::size_t> check_select_rows(const std::vector<SelectRow>& rows, bool one_se) {
+    std::size_t arg = 0, kept = 0;
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        INFO("row " << r);
+        const bool lowest = r == 0 ? std::isfinite(rows[r].score) : rows[r].score < rows[arg].score;
+        CHECK(rows[r].lowest == (lowest ? 1 : 0));
+        CHECK(rows[r].kept == ((lowest || (one_se && rows[r].diff <= rows[r].se)) ? 1 : 0));
+        if (lowest) arg = r;
+        if (rows[r].kept == 1) kept = r;
+    }
+    return {kept, arg};
+}
+}  // namespace
+
+TEST_CASE("training.select_rule one_se keeps a later checkpoint within one paired standard error, also when resumed",
+          "[cli][gain][select]") {
+    // a learning rate of 1e-12: the network barely moves, so the validations differ by rounding-size amounts and the
+    // rule meets every case (lowest, within one standard error, beyond it)
+    hinf::test::TempDir d("gainselect_se");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("0.5", "select_every = 10\nselect_runs = 3\nlearning_rate = 1e-12\n");
+    const std::string quiet = " --quiet --set training.acceptance_worst_evals=0 --set training.acceptance_runs=0";
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + quiet);
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    const std::vector<SelectRow> rows = read_select_csv(d / "run/select.csv");
+    REQUIRE(rows.size() == 5);
+    const auto [kept, arg] = check_select_rows(rows, true);
+    hinf::h5::Handle b = hinf::h5::open_file(d / "run/best.h5", false);
+    CHECK(hinf::h5::get_attr_int(b.get(), "select_step") == rows[kept].step);
+    CHECK(hinf::h5::get_attr_int(b.get(), "select_lowest_step") == rows[arg].step);
+    CHECK(hinf::h5::get_attr_doubles(b.get(), "select_lowest_run_scores").size() == 3);
+    if (kept != arg) CHECK(t.output.find("within one paired standard error of the lowest") != std::string::npos);
+    // split between validations and resumed: the same rows and the same best.h5 (the lowest's per-run scores
+    // travel in best.h5)
+    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + quiet + " --until 0.15");
+    INFO(half.output);
+    REQUIRE(half.status == 0);
+    auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
+    INFO(rest.output);
+    REQUIRE(rest.status == 0);
+    const std::vector<SelectRow> again = read_select_csv(d / "split/select.csv");
+    REQUIRE(again.size() == rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        CHECK(same_bits(again[r].score, rows[r].score));
+        CHECK(again[r].kept == rows[r].kept);
+    }
+    CHECK(content_digest(d / "split/best.h5") == content_digest(d / "run/best.h5"));
+    // select_rule = "lowest": the same validations, and best.h5 is the lowest
+    auto low = run_hinf("train " + cfg + " --out " + (d / "low") + quiet + " --set training.select_rule=lowest");
+    INFO(low.output);
+    REQUIRE(low.status == 0);
+    const std::vector<SelectRow> lrows = read_select_csv(d / "low/select.csv");
+    REQUIRE(lrows.size() == rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) CHECK(same_bits(lrows[r].score, rows[r].score));
+    const auto [lkept, larg] = check_select_rows(lrows, false);
+    CHECK(lkept == arg);
+    CHECK(larg == arg);
+    hinf::h5::Handle lb = hinf::h5::open_file(d / "low/best.h5", false);
+    CHECK(hinf::h5::get_attr_int(lb.get(), "select_step") == rows[arg].step);
+}
+
+TEST_CASE("paired_difference: the mean run-by-run difference and its standard error, NaN without two finite pairs",
+          "[select]") {
+    const hinf::PairedDifference d = hinf::paired_difference({3.0, 5.0, 4.0}, {1.0, 2.0, 3.0});  // differences 2, 3, 1
+    CHECK(d.mean == Approx(2.0));
+    CHECK(d.se == Approx(std::sqrt(1.0 / 3.0)));  // sample sd 1, over sqrt(3)
+    CHECK(hinf::paired_difference({1.0, 2.0}, {1.0, 2.0}).se == 0.0);
+    CHECK(std::isnan(hinf::paired_difference({1.0}, {0.0}).mean));              // one run: no standard error
+    CHECK(std::isnan(hinf::paired_difference({1.0, 2.0}, {0.0}).mean));         // different runs
+    CHECK(std::isnan(hinf::paired_difference({1.0, INFINITY}, {0.0, 1.0}).se));  // a diverged run
+    CHECK(std::isnan(hinf::paired_difference({1.0, 2.0}, {}).mean));             // no lowest yet
+    // the rule: the lowest is always kept; within one standard error only under one_se
+    CHECK(hinf::select_keeps("lowest", 1.0, true, d));
+    CHECK(hinf::select_keeps("one_se", 1.0, true, hinf::PairedDifference{}));
+    CHECK(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{0.5, 0.5}));
+    CHECK(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{0.0, 0.0}));  // the same scores: the later
+    CHECK_FALSE(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{0.6, 0.5}));
+    CHECK_FALSE(hinf::select_keeps("lowest", 1.0, false, hinf::PairedDifference{0.0, 0.5}));
+    CHECK_FALSE(hinf::select_keeps("one_se", INFINITY, false, hinf::PairedDifference{0.0, 0.5}));
+    CHECK_FALSE(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{}));  // no per-run scores: strict
 }
