@@ -543,6 +543,13 @@ std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
 }
 
 void ExprSystem::workspace_release(std::unique_ptr<Workspace> ws) const {
+    // first the slot it came from: the owner stays, so the steady state writes no reference count (the threads
+    // would otherwise bounce the system's control block between their caches at every evaluate)
+    for (CachedWorkspace& c : t_workspaces)
+        if (!c.ws && same_owner(c.owner, alive_)) {
+            c.ws = std::move(ws);
+            return;
+        }
     for (CachedWorkspace& c : t_workspaces)
         if (!c.ws || c.owner.expired()) {
             c.owner = alive_;
@@ -567,20 +574,34 @@ void ExprSystem::evaluate(double* out, const std::vector<Compiled>& exprs, const
             for (std::int64_t k = 0; k < k_count; ++k) out[s * k_count + k] = exprs[k].value;
         return;
     }
-    const bool split = count >= 256 && !omp_in_parallel();
-#pragma omp parallel if (split)
-    {
-        std::unique_ptr<Workspace> ws = workspace_acquire();
-        double* point = ws->point.data();
+    // the states [begin, end) through one workspace
+    auto run = [&](Workspace& ws, std::int64_t begin, std::int64_t end) {
+        double* point = ws.point.data();
         point[n_] = t;
         point[n_ + 1] = discrete_ ? std::nearbyint(t / period_) : 0.0;  // t = k dt, so k is exact after rounding
-#pragma omp for schedule(static)
-        for (std::int64_t s = 0; s < count; ++s) {
+        for (std::int64_t s = begin; s < end; ++s) {
             for (int j = 0; j < n_; ++j) point[j] = x[s * n_ + j];
             double* o = out + s * k_count;
             for (std::int64_t k = 0; k < k_count; ++k)
-                o[k] = exprs[k].constant ? exprs[k].value : ws->parsers[exprs[k].program]->Eval();
+                o[k] = exprs[k].constant ? exprs[k].value : ws.parsers[exprs[k].program]->Eval();
         }
+    };
+    if (count < 256 || omp_in_parallel()) {
+        // serial, and outside any OpenMP construct: `omp parallel if (false)` still builds a one-thread team, and
+        // libgomp allocates it on the heap each time, once per sample in gain training's per-sample calls
+        std::unique_ptr<Workspace> ws = workspace_acquire();
+        run(*ws, 0, count);
+        workspace_release(std::move(ws));
+        return;
+    }
+#pragma omp parallel
+    {
+        std::unique_ptr<Workspace> ws = workspace_acquire();
+        const int threads = omp_get_num_threads(), me = omp_get_thread_num();
+        // the contiguous blocks of schedule(static)
+        const std::int64_t chunk = count / threads, extra = count % threads;
+        const std::int64_t begin = me * chunk + std::min<std::int64_t>(me, extra);
+        run(*ws, begin, begin + chunk + (me < extra ? 1 : 0));
         workspace_release(std::move(ws));
     }
 }
