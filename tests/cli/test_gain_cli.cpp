@@ -208,6 +208,30 @@ std::vector<SelectRow> read_select_csv(const std::string& path) {  // step,t,sco
     }
     return rows;
 }
+// select.csv against the rule row by row; returns {the last kept row, the lowest row}
+std::pair<std::size_t, std::size_t> check_select_rows(const std::vector<SelectRow>& rows, bool one_se) {
+    std::size_t arg = 0, kept = 0;
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+        INFO("row " << r);
+        const bool lowest = r == 0 ? std::isfinite(rows[r].score) : rows[r].score < rows[arg].score;
+        CHECK(rows[r].lowest == (lowest ? 1 : 0));
+        CHECK(rows[r].kept == ((lowest || (one_se && rows[r].diff <= rows[r].se)) ? 1 : 0));
+        if (lowest) arg = r;
+        if (rows[r].kept == 1) kept = r;
+    }
+    return {kept, arg};
+}
+// the run of `cfg` stopped at `until` and resumed in `dir`: its select.csv
+std::vector<SelectRow> split_and_resume(const std::string& cfg, const std::string& dir, const std::string& args,
+                                        const std::string& until) {
+    auto half = run_hinf("train " + cfg + " --out " + dir + args + " --until " + until);
+    INFO(half.output);
+    REQUIRE(half.status == 0);
+    auto rest = run_hinf("resume " + dir + "/checkpoint.h5 --quiet");
+    INFO(rest.output);
+    REQUIRE(rest.status == 0);
+    return read_select_csv(dir + "/select.csv");
+}
 std::string content_digest(const std::string& checkpoint) {  // the digest of the network, optimiser and state
     hinf::h5::Handle f = hinf::h5::open_file(checkpoint, false);
     return hinf::h5::get_attr_string(f.get(), "content_digest");
@@ -228,19 +252,16 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
     // standard error; best.h5 is the last kept row
     const std::vector<SelectRow> rows = read_select_csv(d / "run/select.csv");
     REQUIRE(rows.size() == 5);
-    std::size_t arg = 0, kept = 0;
+    const auto [kept, arg] = check_select_rows(rows, true);
+    double lowest = rows[0].score;
     for (std::size_t r = 0; r < rows.size(); ++r) {
         INFO("row " << r);
         CHECK(rows[r].step == std::int64_t(10 * (r + 1)));
-        const bool lowest = r == 0 ? std::isfinite(rows[r].score) : rows[r].score < rows[arg].score;
-        CHECK(rows[r].lowest == (lowest ? 1 : 0));
-        CHECK(rows[r].kept == ((lowest || rows[r].diff <= rows[r].se) ? 1 : 0));  // NaN compares false
         if (r > 0 && std::isfinite(rows[r].score)) {  // the paired mean difference equals the difference of means
             CHECK(rows[r].se >= 0);
-            CHECK(rows[r].diff == Approx(rows[r].score - rows[arg].score).epsilon(1e-9).margin(1e-15));
+            CHECK(rows[r].diff == Approx(rows[r].score - lowest).epsilon(1e-9).margin(1e-15));
         }
-        if (lowest) arg = r;
-        if (rows[r].kept == 1) kept = r;
+        lowest = std::min(lowest, rows[r].score);
     }
     hinf::h5::Handle b = hinf::h5::open_file(d / "run/best.h5", false);
     const std::int64_t step = hinf::h5::get_attr_int(b.get(), "select_step");
@@ -259,13 +280,8 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
     REQUIRE(stop.status == 0);
     CHECK(content_digest(d / "run/best.h5") == content_digest(d / "stop/checkpoint.h5"));
     // interrupted at t = 0.25 (between validations) and resumed: the same validation curve and the same best.h5
-    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + " --quiet --until 0.25 --set training.acceptance_worst_evals=0");
-    INFO(half.output);
-    REQUIRE(half.status == 0);
-    auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
-    INFO(rest.output);
-    REQUIRE(rest.status == 0);
-    const std::vector<SelectRow> again = read_select_csv(d / "split/select.csv");
+    const std::vector<SelectRow> again =
+        split_and_resume(cfg, d / "split", " --quiet --set training.acceptance_worst_evals=0", "0.25");
     REQUIRE(again.size() == rows.size());
     for (std::size_t r = 0; r < rows.size(); ++r) {
         CHECK(again[r].step == rows[r].step);
@@ -273,22 +289,6 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
     }
     CHECK(content_digest(d / "split/best.h5") == content_digest(d / "run/best.h5"));
 }
-
-namespace {
-// select.csv against the rule row by row; returns {the last kept row, the lowest row}
-std::pair<std::size_t, std::size_t> check_select_rows(const std::vector<SelectRow>& rows, bool one_se) {
-    std::size_t arg = 0, kept = 0;
-    for (std::size_t r = 0; r < rows.size(); ++r) {
-        INFO("row " << r);
-        const bool lowest = r == 0 ? std::isfinite(rows[r].score) : rows[r].score < rows[arg].score;
-        CHECK(rows[r].lowest == (lowest ? 1 : 0));
-        CHECK(rows[r].kept == ((lowest || (one_se && rows[r].diff <= rows[r].se)) ? 1 : 0));
-        if (lowest) arg = r;
-        if (rows[r].kept == 1) kept = r;
-    }
-    return {kept, arg};
-}
-}  // namespace
 
 TEST_CASE("training.select_rule one_se keeps a later checkpoint within one paired standard error, also when resumed",
           "[cli][gain][select]") {
@@ -311,13 +311,7 @@ TEST_CASE("training.select_rule one_se keeps a later checkpoint within one paire
     if (kept != arg) CHECK(t.output.find("within one paired standard error of the lowest") != std::string::npos);
     // split between validations and resumed: the same rows and the same best.h5 (the lowest's per-run scores
     // travel in best.h5)
-    auto half = run_hinf("train " + cfg + " --out " + (d / "split") + quiet + " --until 0.15");
-    INFO(half.output);
-    REQUIRE(half.status == 0);
-    auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
-    INFO(rest.output);
-    REQUIRE(rest.status == 0);
-    const std::vector<SelectRow> again = read_select_csv(d / "split/select.csv");
+    const std::vector<SelectRow> again = split_and_resume(cfg, d / "split", quiet, "0.15");
     REQUIRE(again.size() == rows.size());
     for (std::size_t r = 0; r < rows.size(); ++r) {
         CHECK(same_bits(again[r].score, rows[r].score));
