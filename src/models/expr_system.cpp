@@ -42,9 +42,7 @@ thread_local CachedWorkspace t_workspaces[2];
 bool same_owner(const std::weak_ptr<const char>& a, const std::shared_ptr<const char>& b) {
     return !a.owner_before(b) && !b.owner_before(a);
 }
-}  // namespace
 
-namespace {
 
 // step(s) = 1 for s >= 0, else 0: a switch such as the missile's atmosphere at 9144 m (z >= 9144 is the
 // upper layer). Its derivative is zero except at the switch itself, where it does not exist: the Jacobians

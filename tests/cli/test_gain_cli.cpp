@@ -292,8 +292,9 @@ TEST_CASE("training.select_every keeps the best validated checkpoint as best.h5,
 
 TEST_CASE("training.select_rule one_se keeps a later checkpoint within one paired standard error, also when resumed",
           "[cli][gain][select]") {
-    // a learning rate of 1e-12: the network barely moves, so the validations differ by rounding-size amounts and the
-    // rule meets every case (lowest, within one standard error, beyond it)
+    // a learning rate of 1e-12: the network barely moves, so the validations differ by rounding-size amounts; on this
+    // machine's Release build the rule meets every case (lowest, within one standard error, beyond it), but which
+    // case a row meets depends on rounding, so the checks are the rule's invariants (select_keeps has unit checks)
     hinf::test::TempDir d("gainselect_se");
     const std::string cfg = d / "vdp.toml";
     std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("0.5", "select_every = 10\nselect_runs = 3\nlearning_rate = 1e-12\n");
