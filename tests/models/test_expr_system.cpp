@@ -219,14 +219,14 @@ TEST_CASE("expression systems evaluate alike from several threads at once", "[mo
 
 TEST_CASE("a large batch split over threads equals one state at a time, for any thread count", "[model][expr]") {
     // outside a parallel region a batch of >= 256 states is cut into contiguous blocks, one per thread; an uneven
-    // count and several thread counts check the blocks cover every state once
+    // count (1001 = 3 * 333 + 2 = 4 * 250 + 1) and several thread counts check the blocks cover every state once
     std::unique_ptr<System> ex = expr_missile();
     const std::int64_t count = 1001;
     const std::vector<double> x = missile_states(count, 5);
     std::vector<double> one(x.size());
     for (std::int64_t s = 0; s < count; ++s) ex->drift(&one[s * 6], &x[s * 6], 0.5, 1);
     const int before = omp_get_max_threads();
-    for (int threads : {1, 2, 3, 7}) {
+    for (int threads : {1, 2, 3, 4}) {  // not more: clang's libomp leaks its team bookkeeping (LSan) when a team grows past 4
         INFO(threads << " threads");
         omp_set_num_threads(threads);
         std::vector<double> batch(x.size(), NAN);
