@@ -38,6 +38,11 @@ public:
     int disturbances() const;  ///< nv
     double dt() const;         ///< [filter] dt [s]
     double t_final() const;    ///< [filter] t_final [s]
+    /// [filter] rho, the attenuation level it trains at (a system of one's own naming none: 1.25 rho_bound())
+    double rho() const;
+    /// rho*, the smallest level any filter can promise for the system linearised along its noise-free trajectory
+    /// (docs/method.md 16.12; computed on each call, as `hinf rho`); 0 where no level brackets
+    double rho_bound() const;
     std::string system() const;                    ///< "missile", "maneuvering_missile" or "expr"
     std::vector<std::string> state_names() const;  ///< n names
     std::vector<std::string> state_units() const;  ///< n units

@@ -244,3 +244,16 @@ def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     # stopped before t_final: no check
     early = hinf.train(cfg, str(tmp_path / "early"), until=0.1)
     assert early["acceptance"] is None
+
+
+def test_rho_and_its_bound_match_hinf_rho():
+    """The level a config trains at and the linearised game's smallest level, as `hinf rho` prints them (method 16.12)."""
+    cfg = hinf.Config(VANDERPOL)
+    assert cfg.rho == 0.5  # named in the config
+    out = subprocess.run([hinf_cli(), "rho", VANDERPOL], capture_output=True, text=True, check=True).stdout
+    assert out.startswith("rho* = %.4g:" % cfg.rho_bound)
+    assert 1.3 < cfg.rho_bound < 1.5  # 1.38 as dt -> 0 (scripts/vdp-rho-bound)
+    text = open(VANDERPOL).read().replace("rho = 0.5", "")
+    own = hinf.Config.from_text(text, "no_rho.toml")
+    assert own.rho == 1.25 * own.rho_bound  # a config naming no rho: 1.25 rho*
+    assert "rho = " in own.text  # written into the effective config

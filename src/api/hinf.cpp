@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "config/game_level.hpp"
 #include "config/run_config.hpp"
 #include "eval/acceptance.hpp"
 #include "eval/filter_recorded.hpp"
@@ -63,6 +64,11 @@ int Config::outputs() const { return run_config(*this).m; }
 int Config::disturbances() const { return run_config(*this).nv; }
 double Config::dt() const { return run_config(*this).dt; }
 double Config::t_final() const { return run_config(*this).t_final; }
+double Config::rho() const { return run_config(*this).rho; }
+double Config::rho_bound() const {
+    const GameLevel g = game_level_bound(run_config(*this));
+    return g.bracketed ? g.bound : 0.0;
+}
 std::string Config::system() const { return run_config(*this).system->name(); }
 std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }
 std::vector<std::string> Config::state_units() const { return run_config(*this).system->state_units(); }

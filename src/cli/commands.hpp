@@ -18,5 +18,7 @@ void add_filter_command(CLI::App& app);
 void add_worst_command(CLI::App& app);
 // export: a trained DNN filter as dependency-free C99 (docs/export.md)
 void add_export_command(CLI::App& app);
+/// `hinf rho`: the smallest attenuation level of the linearised game (src/cli/rho_cmd.cpp).
+void add_rho_command(CLI::App& app);
 
 }  // namespace hinf::cli

@@ -94,6 +94,7 @@ int run(int argc, char** argv) {
     hinf::cli::add_filter_command(app);
     hinf::cli::add_worst_command(app);
     hinf::cli::add_export_command(app);
+    hinf::cli::add_rho_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::RuntimeError& e) {

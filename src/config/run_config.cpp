@@ -1,5 +1,6 @@
 // load_run_config: reads [filter], [network], [training], [sampling], [objective], [online].
 #include "config/run_config.hpp"
+#include "config/game_level.hpp"
 
 #include <cmath>
 #include <algorithm>
@@ -175,6 +176,7 @@ RunConfig load_run_config(ConfigDoc doc) {
                                 " states, outputs and disturbances (this one: " + std::to_string(c.n) + ", " +
                                 std::to_string(c.m) + ", " + std::to_string(c.nv) +
                                 "); use variant = \"dissipative\", which has no such limit");
+    const bool rho_given = f.has("rho");
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
     std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
@@ -212,6 +214,21 @@ RunConfig load_run_config(ConfigDoc doc) {
         f.reject("t_final", "= " + num(c.t_final) + " s is less than one time step dt = " +
                                 num(c.dt) + " s: nothing would run (raise t_final or lower dt)");
     f.finish();
+    // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
+    // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained
+    // with
+    if (!rho_given && c.system->name() == "expr") {
+        const GameLevel g = game_level_bound(c);
+        if (!g.bracketed)
+            f.reject("rho", g.bound > 0 ? "is not set, and the linearised game of this system has no filter of any level "
+                                          "up to " + num(g.bound) + " (hinf rho CONFIG): set it"
+                                        : "is not set, and the linearised game of this system has a filter of every level "
+                                          "down to 1e-12, so no default follows from it: set it (e.g. rho = 1 with "
+                                          "Q = I: an error energy at most the noise energy)");
+        c.rho_bound = g.bound;
+        c.rho = kAutoRhoFactor * g.bound;
+        c.rho_auto = true;
+    }
 
     // A system of one's own gets defaults from its own scales, never the missile's (own_system_defaults)
     const bool own = own_system(c);
@@ -426,6 +443,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     }
     b.finish();
 
+    if (c.rho_auto) {
+        char value[64];
+        std::snprintf(value, sizeof value, "filter.rho=%.17g", c.rho);
+        doc.set(value);
+    }
     c.doc = std::move(doc);
     return c;
 }

@@ -289,6 +289,9 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
     // and a gain network's error scale, were the old floor's. The missiles' floor never changed (20 m), so their
     // config is not loaded again here (loading one of the own systems walks its nominal trajectory)
     const std::string kind = ConfigSection(doc, "system").get_string("kind", "missile");
+    // written before a system of one's own that names no rho got 1.25 times its linearised game's level
+    // (docs/method.md section 16.12): it trained at the missile's 0.03. Every checkpoint since has its rho in its config
+    if (kind == "expr") as_trained("filter", "rho", "0.03");
     if (kind != "missile" && kind != "maneuvering_missile" && !h5::has_attr(net.get(), "error_floor") &&
         !ConfigSection(doc, "sampling").has("error_floor")) {
         ConfigDoc trained = doc;

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "adam.hpp"
+#include "config/game_level.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
@@ -680,6 +681,11 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     const RunDirLock lock(opt.out_dir, "hinf train");  // before trajectory.h5 is created (truncated)
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
+    if (cfg.rho_auto && par_root())  // after the refusals: a refused run stays one line
+        std::fprintf(stderr, "hinf: note: [filter] rho is not set: training at rho = %.4g = %g rho*, where rho* = %.4g is "
+                             "the smallest level any filter can promise for the linearised system (hinf rho %s; "
+                             "docs/method.md section 16.12)\n",
+                     cfg.rho, kAutoRhoFactor, cfg.rho_bound, cfg.doc.source().c_str());
     tr.on_step_ = opt.on_step;
     return tr.run(cfg.steps_until(opt.until), opt.quiet);
 }

@@ -1,0 +1,52 @@
+// `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp).
+#include <cstdio>
+
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
+#include "config/game_level.hpp"
+
+namespace hinf::cli {
+
+void add_rho_command(CLI::App& app) {
+    struct Args {
+        std::string config;
+        double rho = -1;
+        std::vector<std::string> sets;
+    };
+    auto a = std::make_shared<Args>();
+    CLI::App* c = app.add_subcommand(
+        "rho", "The smallest attenuation level rho* any filter can promise for the system, linearised along its "
+               "noise-free trajectory (docs/method.md section 16.12)");
+    c->add_option("config", a->config, "Scenario config (TOML), e.g. runs/vanderpol.toml")->required();
+    c->add_option("--rho", a->rho, "Also say whether, and where, the game of this level has no filter");
+    c->add_option("--set", a->sets, "Override a config key, e.g. --set filter.t_final=5 (repeatable)");
+    c->callback([a]() {
+        const RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        const GameLevel g = game_level_bound(cfg);
+        const char* horizon = cfg.system->discrete_time() ? "steps" : "s";
+        const double span = cfg.system->discrete_time() ? double(cfg.steps_until()) : cfg.t_final;
+        if (g.bracketed)
+            std::printf("rho* = %.4g: the linearised game over [0, %g] %s from x~(0) = 0 has a filter of level rho "
+                        "only for rho > rho*; no filter's worst-case attenuation ratio is below it for small "
+                        "signals\n",
+                        g.bound, span, horizon);
+        else if (g.bound > 0)
+            std::printf("rho* > %.4g: the linearised game has no filter of any level up to there\n", g.bound);
+        else
+            std::printf("rho* < 1e-12: the linearised game has a filter of every level tried\n");
+        if (cfg.rho_auto)
+            std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)\n",
+                        cfg.rho, kAutoRhoFactor);
+        else std::printf("the config's rho = %g\n", cfg.rho);
+        if (a->rho > 0) {
+            const double at = game_level_lost_at(cfg, a->rho);
+            if (at < 0) std::printf("rho = %g: a filter of this level exists for the linearised game\n", a->rho);
+            else
+                std::printf("rho = %g: the Riccati equation loses definiteness at t = %g s: no filter of this level "
+                            "for the linearised game\n",
+                            a->rho, at);
+        }
+    });
+}
+
+}  // namespace hinf::cli

@@ -1,0 +1,76 @@
+// The linearised game's smallest level (docs/method.md section 16.12).
+#include "config/game_level.hpp"
+
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Dense>
+
+namespace hinf {
+
+double game_level_lost_at(const ProblemConfig& c, double rho) {
+    using Mat = Eigen::MatrixXd;
+    using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int n = c.n, m = c.m, nv = c.nv;
+    const System& sys = *c.system;
+    const bool discrete = sys.discrete_time();
+    const double w = discrete ? 1.0 : c.dt;
+    const Mat Qr = Eigen::Map<const RowMat>(c.Q.data(), n, n) / rho;
+    const Mat I = Mat::Identity(n, n);
+    Mat P = Mat::Zero(n, n);
+    RowMat H(m, n), F(n, n), G(n, nv);
+    std::vector<double> x = c.x0;
+    const std::int64_t steps = c.steps_until();
+    for (std::int64_t k = 0; k < steps; ++k) {
+        const double t = c.time_of(k);
+        // P^1/2 of the symmetric, positive semidefinite P (P(0) = 0 and G G' are singular in general)
+        Eigen::SelfAdjointEigenSolver<Mat> es(0.5 * (P + P.transpose()));
+        if (es.info() != Eigen::Success) return -1;
+        const Mat R = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
+                      es.eigenvectors().transpose();
+        // the existence condition at step k: no error direction whose weight Q/rho outgrows what P allows
+        Eigen::LLT<Mat> cond(I - w * R * Qr * R);
+        if (cond.info() != Eigen::Success) return t;
+        sys.measurement_jacobian(H.data(), x.data(), t);
+        system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, c.dt);
+        if (!H.allFinite() || !F.allFinite() || !G.allFinite()) return -1;
+        Eigen::LLT<Mat> z(I + w * R * (Mat(H.transpose() * H) - Qr) * R);
+        if (z.info() != Eigen::Success) return t;
+        P = F * (R * z.solve(R)) * F.transpose() + G * G.transpose() / w;
+        if (!P.allFinite()) return -1;
+        system_advance(sys, x.data(), x.data(), nullptr, t, c.dt);
+        for (double v : x)
+            if (!std::isfinite(v)) return -1;
+    }
+    return -1;
+}
+
+GameLevel game_level_bound(const ProblemConfig& c, double rel_tol) {
+    GameLevel r;
+    auto holds = [&](double rho) { return game_level_lost_at(c, rho) < 0; };
+    // bracket by factors of 4 from 1, then bisect in log(rho)
+    double lo = 1.0, hi = 1.0;
+    if (holds(1.0)) {
+        while (lo > 1e-12 && holds(lo / 4)) lo /= 4;
+        if (lo <= 1e-12) return r;  // holds at every level: no bound found
+        hi = lo;
+        lo /= 4;
+    } else {
+        while (hi < 1e15 && !holds(hi * 4)) hi *= 4;
+        if (hi >= 1e15) {
+            r.bound = hi;
+            return r;
+        }
+        lo = hi;
+        hi *= 4;
+    }
+    while (hi / lo > 1 + rel_tol) {
+        const double mid = std::sqrt(lo * hi);
+        (holds(mid) ? hi : lo) = mid;
+    }
+    r.bound = hi;
+    r.bracketed = true;
+    return r;
+}
+
+}  // namespace hinf

@@ -1,0 +1,32 @@
+// The smallest attenuation level of the linearised filtering game (docs/method.md section 16.12): what a sensible rho
+// is for a system of one's own, computed from the system, never another system's value.
+#pragma once
+#include <cstdint>
+
+#include "config/run_config.hpp"
+
+namespace hinf {
+
+/// Walks the H-infinity filter's Riccati recursion of level rho for the system linearised along its noise-free
+/// trajectory from x0 over [0, t_final], from P(0) = 0 (a zero initial error, as the worst-case search starts):
+///   P+ = P^1/2 (I + w P^1/2 (H'H - Q/rho) P^1/2)^-1 P^1/2,   P <- F P+ F' + G G' / w
+/// (F, G the Jacobians of one step of system_advance, H of the output; w = dt in continuous time, 1 in discrete
+/// time), and checks the predictor's existence condition I - w P^1/2 (Q/rho) P^1/2 > 0 at every step (Hassibi, Sayed
+/// and Kailath's a-priori condition P^-1 - Q/rho > 0, here in a form that needs no inverse of a singular P).
+/// Returns the first time it fails, or a negative number when it holds over the whole horizon. A non-finite
+/// trajectory, Jacobian or P ends the walk there (counted as holding).
+double game_level_lost_at(const ProblemConfig& c, double rho);
+
+struct GameLevel {
+    double bound = 0;       // rho*: the recursion fails below it, holds above it (to rel_tol)
+    bool bracketed = false; // false: it held at every level down to 1e-12 or failed at every level up to 1e15
+};
+/// The smallest level rho* for which game_level_lost_at holds, bisected in log(rho) to a relative tolerance: a lower
+/// bound, for signals small enough that system and filter act as their linearisations, on the worst-case attenuation
+/// ratio of every smooth filter (the discrete one also >= lambda_max(B'Q B), the floor of the one-step game).
+GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01);
+
+/// The level a system of one's own trains at when its config names no [filter] rho: kAutoRhoFactor times rho*.
+constexpr double kAutoRhoFactor = 1.25;
+
+}  // namespace hinf

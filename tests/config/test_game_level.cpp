@@ -1,0 +1,106 @@
+// The linearised game's smallest level rho* (src/config/game_level.cpp, docs/method.md section 16.12) against closed
+// forms, and the default rho = 1.25 rho* of a system of one's own that names none (written into the effective config;
+// older checkpoints keep the 0.03 they trained with).
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+
+#include "config/game_level.hpp"
+#include "config/run_config.hpp"
+#include "helpers.hpp"
+#include "hinf/config.hpp"
+#include "hinf/h5.hpp"
+#include "io/checkpoint.hpp"
+
+using namespace hinf;
+using hinf::test::run_hinf;
+
+namespace {
+// x' = v (or x+ = x + v), y = x + n, Q = 1: one state, one disturbance, one output
+std::string integrator(const std::string& time, const std::string& dt, const std::string& t_final,
+                       const std::string& rho_line) {
+    return "[system]\nkind = \"expr\"\ntime = \"" + time + "\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\n"
+           "f = [\"" + std::string(time == "discrete" ? "x" : "0") + "\"]\ng = [[\"1\"]]\nh = [\"x\"]\n[filter]\n" +
+           rho_line + "Q = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\ndt = " + dt + "\nt_final = " + t_final +
+           "\n[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
+}
+RunConfig load(const std::string& text) { return load_run_config(ConfigDoc::from_text(text, "t.toml")); }
+}  // namespace
+
+TEST_CASE("rho* of a continuous integrator is the escape level of its Riccati equation", "[config][rho]") {
+    // P' = 1 - P^2 (1 - 1/rho), P(0) = 0: for rho < 1, P = tan(b t)/b with b^2 = 1/rho - 1 escapes at t = pi/(2b); over
+    // [0, T] a filter of level rho exists iff pi/(2b) > T, so rho* = 1/(1 + pi^2/(4 T^2)) (0.97592 at T = 10)
+    const RunConfig c = load(integrator("continuous", "0.001", "10", "rho = 1\n"));
+    const double T = 10, want = 1.0 / (1.0 + M_PI * M_PI / (4 * T * T));
+    const GameLevel g = game_level_bound(c, 1e-5);
+    REQUIRE(g.bracketed);
+    CHECK(g.bound == Approx(want).epsilon(2e-3));
+    // at rho = 0.9 (b = 1/3) the equation escapes at t = 3 pi / 2
+    CHECK(game_level_lost_at(c, 0.9) == Approx(1.5 * M_PI).epsilon(2e-3));
+    CHECK(game_level_lost_at(c, 1.0) < 0);
+}
+
+TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[config][rho]") {
+    // P+ = (1/P + 1 - 1/rho)^-1 + 1 with the a-priori condition 1/P > 1/rho: the stationary P = 1/2 + sqrt(1/4 + 1/u),
+    // u = 1 - 1/rho, equals rho exactly at rho = 2; below it the condition fails once P has settled, above it never
+    const RunConfig c = load(integrator("discrete", "1", "200", "rho = 3\n"));
+    const GameLevel g = game_level_bound(c, 1e-5);
+    REQUIRE(g.bracketed);
+    CHECK(g.bound == Approx(2.0).epsilon(1e-3));
+    CHECK(g.bound > 1.0);  // the one-step floor lambda_max(B'Q B) = 1 (train refuses rho <= 1)
+    CHECK(game_level_lost_at(c, 1.9) >= 0);
+    CHECK(game_level_lost_at(c, 2.1) < 0);
+}
+
+TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says so in its config",
+          "[config][rho]") {
+    const RunConfig given = load(integrator("continuous", "0.01", "10", "rho = 0.7\n"));
+    CHECK_FALSE(given.rho_auto);
+    CHECK(given.rho == 0.7);
+    const RunConfig c = load(integrator("continuous", "0.01", "10", ""));
+    REQUIRE(c.rho_auto);
+    CHECK(c.rho_bound == game_level_bound(given).bound);
+    CHECK(c.rho == kAutoRhoFactor * c.rho_bound);
+    // the effective config names the value: a checkpoint carries it, and loading that text gives the same rho
+    const RunConfig again = load(c.doc.text());
+    CHECK_FALSE(again.rho_auto);
+    CHECK(again.rho == c.rho);
+    // the missiles keep their papers' 0.03
+    CHECK(load("[system]\nkind = \"missile\"\n").rho == 0.03);
+}
+
+TEST_CASE("a checkpoint of a system naming no rho, written before the default, keeps the 0.03 it trained with",
+          "[config][rho][legacy]") {
+    hinf::test::TempDir d("rho_legacy");
+    const std::string plain = integrator("continuous", "0.01", "0.2", "") +
+                              "[network]\nhidden = [8]\n[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\n"
+                              "checkpoint_every = 10\nacceptance_runs = 0\nselect_every = 0\n";
+    // made here: a run at rho = 0.03, its config put back to the text without rho, as the hinf before wrote it
+    std::string with = plain;
+    with.replace(with.find("[filter]\n"), 9, "[filter]\nrho = 0.03\n");
+    const std::string run = d / "run";
+    auto t = run_hinf("train " + hinf::test::write_file(d, "with.toml", with) + " --until 0.1 --out " + run + " --quiet");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    const std::string ck = run + "/checkpoint.h5";
+    {
+        h5::Handle f = h5::open_file(ck, true);
+        REQUIRE(H5Ldelete(f.get(), "config", H5P_DEFAULT) >= 0);
+        h5::write_string(f.get(), "config", plain);
+        REQUIRE(H5Adelete(f.get(), "config_hash") >= 0);
+        h5::set_attr(f.get(), "config_hash", config_hash(plain));
+        REQUIRE(H5Adelete(f.get(), "content_digest") >= 0);
+        for (const char* name : {"/trajectory.h5", "/trajectory.ckpt.h5"})
+            if (std::filesystem::exists(run + name)) h5::set_text(h5::open_file(run + name, true).get(), "config", plain);
+    }
+    CHECK(ckpt_as_trained(ck) == std::vector<std::string>{"filter.rho=0.03"});
+    CHECK(ckpt_config(ck).rho == 0.03);
+    // without the record it would load at 1.25 rho* and fail its scale check; with it, it resumes and compares
+    auto r = run_hinf("resume " + ck + " --until 0.2 --quiet");
+    INFO(r.output);
+    CHECK(r.status == 0);
+    auto cmp = run_hinf("compare " + hinf::test::write_file(d, "plain.toml", plain) + " --network " + ck +
+                        " --filters dnn --runs 1 --quiet --out " + (d / "cmp"));
+    INFO(cmp.output);
+    CHECK(cmp.status == 0);
+}
