@@ -179,8 +179,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     const bool rho_given = f.has("rho");
     c.rho = f.get_double("rho", c.rho, 0.0, big);
     if (c.rho <= 0) f.reject("rho", "must be > 0 (the prescribed attenuation level, e.g. 0.03)");
+    // the error's weight: the missiles' 1e-5 I (seed 000); a system of one's own weighs each state's error alike (I),
+    // written into the effective config below (checkpoints of an expr config naming none are older: 1e-5 I)
+    const bool expr = c.system->name() == "expr", q_given = f.has("Q");
     std::vector<double> qdef(static_cast<std::size_t>(n) * n, 0.0);
-    for (int i = 0; i < n; ++i) qdef[i * n + i] = 1e-5;
+    for (int i = 0; i < n; ++i) qdef[i * n + i] = expr ? 1.0 : 1e-5;
     c.Q = f.get_matrix("Q", qdef, n, n);
     for (int i = 0; i < n; ++i) {
         if (c.Q[i * n + i] < 0) f.reject("Q", "must be positive semidefinite (negative diagonal entry)");
@@ -217,7 +220,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
     // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained
     // with
-    if (!rho_given && c.system->name() == "expr") {
+    if (!rho_given && expr) {
         const GameLevel g = game_level_bound(c);
         if (!g.bracketed)
             f.reject("rho", g.bound > 0 ? "is not set, and the linearised game of this system has no filter of any level "
@@ -447,6 +450,11 @@ RunConfig load_run_config(ConfigDoc doc) {
         char value[64];
         std::snprintf(value, sizeof value, "filter.rho=%.17g", c.rho);
         doc.set(value);
+    }
+    if (expr && !q_given) {
+        std::string ones = "filter.Q=[";
+        for (int i = 0; i < n; ++i) ones += i ? ", 1.0" : "1.0";
+        doc.set(ones + "]");
     }
     c.doc = std::move(doc);
     return c;

@@ -12,6 +12,8 @@
 #include <thread>
 #include <type_traits>
 
+#include <toml++/toml.h>
+
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
@@ -292,6 +294,13 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
     // written before a system of one's own that names no rho got 1.25 times its linearised game's level
     // (docs/method.md section 16.12): it trained at the missile's 0.03. Every checkpoint since has its rho in its config
     if (kind == "expr") as_trained("filter", "rho", "0.03");
+    // and before such a system got Q = I: it trained with the missile's 1e-5 I (one entry per [system] state)
+    if (kind == "expr" && !ConfigSection(doc, "filter").has("Q")) {
+        const toml::array* states = doc.root()["system"]["states"].as_array();
+        std::string q = "[";
+        for (std::size_t i = 0; states != nullptr && i < states->size(); ++i) q += i ? ", 1e-05" : "1e-05";
+        if (states != nullptr && !states->empty()) sets.push_back("filter.Q=" + q + "]");
+    }
     if (kind != "missile" && kind != "maneuvering_missile" && !h5::has_attr(net.get(), "error_floor") &&
         !ConfigSection(doc, "sampling").has("error_floor")) {
         ConfigDoc trained = doc;

@@ -52,7 +52,7 @@ TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[con
     CHECK(game_level_lost_at(c, 2.1) < 0);
 }
 
-TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says so in its config",
+TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says so in its config (and Q = I)",
           "[config][rho]") {
     const RunConfig given = load(integrator("continuous", "0.01", "10", "rho = 0.7\n"));
     CHECK_FALSE(given.rho_auto);
@@ -65,42 +65,62 @@ TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says
     const RunConfig again = load(c.doc.text());
     CHECK_FALSE(again.rho_auto);
     CHECK(again.rho == c.rho);
-    // the missiles keep their papers' 0.03
-    CHECK(load("[system]\nkind = \"missile\"\n").rho == 0.03);
+    // the missiles keep their papers' 0.03 and Q = 1e-5 I; a system of one's own naming no Q weighs its states alike
+    const RunConfig missile = load("[system]\nkind = \"missile\"\n");
+    CHECK(missile.rho == 0.03);
+    CHECK(missile.Q[0] == 1e-5);
+    std::string no_q = integrator("continuous", "0.01", "10", "");
+    no_q.replace(no_q.find("Q = [1.0]\n"), 10, "");
+    const RunConfig own = load(no_q);
+    CHECK(own.Q == std::vector<double>{1.0});
+    CHECK(load(own.doc.text()).Q == std::vector<double>{1.0});
+    CHECK(ConfigSection(own.doc, "filter").has("Q"));
 }
 
-TEST_CASE("a checkpoint of a system naming no rho, written before the default, keeps the 0.03 it trained with",
+TEST_CASE("a checkpoint of a system naming no rho (or no Q), written before the defaults, keeps what it trained with",
           "[config][rho][legacy]") {
     hinf::test::TempDir d("rho_legacy");
-    const std::string plain = integrator("continuous", "0.01", "0.2", "") +
-                              "[network]\nhidden = [8]\n[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\n"
-                              "checkpoint_every = 10\nacceptance_runs = 0\nselect_every = 0\n";
-    // made here: a run at rho = 0.03, its config put back to the text without rho, as the hinf before wrote it
-    std::string with = plain;
-    with.replace(with.find("[filter]\n"), 9, "[filter]\nrho = 0.03\n");
-    const std::string run = d / "run";
-    auto t = run_hinf("train " + hinf::test::write_file(d, "with.toml", with) + " --until 0.1 --out " + run + " --quiet");
-    INFO(t.output);
-    REQUIRE(t.status == 0);
-    const std::string ck = run + "/checkpoint.h5";
-    {
-        h5::Handle f = h5::open_file(ck, true);
-        REQUIRE(H5Ldelete(f.get(), "config", H5P_DEFAULT) >= 0);
-        h5::write_string(f.get(), "config", plain);
-        REQUIRE(H5Adelete(f.get(), "config_hash") >= 0);
-        h5::set_attr(f.get(), "config_hash", config_hash(plain));
-        REQUIRE(H5Adelete(f.get(), "content_digest") >= 0);
-        for (const char* name : {"/trajectory.h5", "/trajectory.ckpt.h5"})
-            if (std::filesystem::exists(run + name)) h5::set_text(h5::open_file(run + name, true).get(), "config", plain);
+    for (const bool names_q : {true, false}) {
+        INFO("the config names Q: " << names_q);
+        std::string plain = integrator("continuous", "0.01", "0.2", "") +
+                            "[network]\nhidden = [8]\n[training]\nsamples = 40\nbatch = 20\nadam_steps = 2\n"
+                            "checkpoint_every = 10\nacceptance_runs = 0\nselect_every = 0\n";
+        if (!names_q) plain.replace(plain.find("Q = [1.0]\n"), 10, "");
+        // made here: a run at rho = 0.03 (and the missile's Q = 1e-5), its config put back to the text without them,
+        // as the hinf before wrote it
+        std::string with = plain;
+        with.replace(with.find("[filter]\n"), 9, names_q ? "[filter]\nrho = 0.03\n" : "[filter]\nrho = 0.03\nQ = [1e-5]\n");
+        const std::string tag = names_q ? "q" : "noq", run = d / ("run_" + tag);
+        auto t = run_hinf("train " + hinf::test::write_file(d, tag + ".toml", with) + " --until 0.1 --out " + run +
+                          " --quiet");
+        INFO(t.output);
+        REQUIRE(t.status == 0);
+        const std::string ck = run + "/checkpoint.h5";
+        {
+            h5::Handle f = h5::open_file(ck, true);
+            REQUIRE(H5Ldelete(f.get(), "config", H5P_DEFAULT) >= 0);
+            h5::write_string(f.get(), "config", plain);
+            REQUIRE(H5Adelete(f.get(), "config_hash") >= 0);
+            h5::set_attr(f.get(), "config_hash", config_hash(plain));
+            REQUIRE(H5Adelete(f.get(), "content_digest") >= 0);
+            for (const char* name : {"/trajectory.h5", "/trajectory.ckpt.h5"})
+                if (std::filesystem::exists(run + name))
+                    h5::set_text(h5::open_file(run + name, true).get(), "config", plain);
+        }
+        std::vector<std::string> want = {"filter.rho=0.03"};
+        if (!names_q) want.push_back("filter.Q=[1e-05]");
+        CHECK(ckpt_as_trained(ck) == want);
+        const RunConfig c = ckpt_config(ck);
+        CHECK(c.rho == 0.03);
+        CHECK(c.Q == std::vector<double>{names_q ? 1.0 : 1e-5});
+        // without the record it would load at 1.25 rho* (and Q = I) and fail its scale check; with it, it resumes
+        // and compares
+        auto r = run_hinf("resume " + ck + " --until 0.2 --quiet");
+        INFO(r.output);
+        CHECK(r.status == 0);
+        auto cmp = run_hinf("compare " + hinf::test::write_file(d, tag + "_plain.toml", plain) + " --network " + ck +
+                            " --filters dnn --runs 1 --quiet --out " + (d / ("cmp_" + tag)));
+        INFO(cmp.output);
+        CHECK(cmp.status == 0);
     }
-    CHECK(ckpt_as_trained(ck) == std::vector<std::string>{"filter.rho=0.03"});
-    CHECK(ckpt_config(ck).rho == 0.03);
-    // without the record it would load at 1.25 rho* and fail its scale check; with it, it resumes and compares
-    auto r = run_hinf("resume " + ck + " --until 0.2 --quiet");
-    INFO(r.output);
-    CHECK(r.status == 0);
-    auto cmp = run_hinf("compare " + hinf::test::write_file(d, "plain.toml", plain) + " --network " + ck +
-                        " --filters dnn --runs 1 --quiet --out " + (d / "cmp"));
-    INFO(cmp.output);
-    CHECK(cmp.status == 0);
 }
