@@ -18,9 +18,10 @@ void add_rho_command(CLI::App& app) {
         "rho", "The smallest attenuation level rho* any filter can promise for the system, linearised along its "
                "noise-free trajectory (docs/method.md section 16.12)");
     c->add_option("config", a->config, "Scenario config (TOML), e.g. runs/vanderpol.toml")->required();
-    c->add_option("--rho", a->rho, "Also say whether, and where, the game of this level has no filter");
+    CLI::Option* rho = c->add_option("--rho", a->rho, "Also say whether, and where, the game of this level has no filter");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set filter.t_final=5 (repeatable)");
-    c->callback([a]() {
+    c->callback([a, rho]() {
+        HINF_CHECK(rho->count() == 0 || a->rho > 0, "--rho " + rho->as<std::string>() + ": must be > 0 (a level to check)");
         const RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         const GameLevel g = game_level_bound(cfg);
         const char* horizon = cfg.system->discrete_time() ? "steps" : "s";
@@ -34,11 +35,13 @@ void add_rho_command(CLI::App& app) {
             std::printf("rho* > %.4g: the linearised game has no filter of any level up to there\n", g.bound);
         else
             std::printf("rho* < 1e-12: the linearised game has a filter of every level tried\n");
-        if (cfg.rho_auto)
+        if (cfg.rho_auto && cfg.rho <= 0)
+            std::printf("the config names no rho, and no default follows from rho*: train refuses it until it names one\n");
+        else if (cfg.rho_auto)
             std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)\n",
                         cfg.rho, kAutoRhoFactor);
         else std::printf("the config's rho = %g\n", cfg.rho);
-        if (a->rho > 0) {
+        if (rho->count() > 0) {
             const double at = game_level_lost_at(cfg, a->rho);
             if (at < 0) std::printf("rho = %g: a filter of this level exists for the linearised game\n", a->rho);
             else

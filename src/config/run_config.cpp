@@ -222,15 +222,17 @@ RunConfig load_run_config(ConfigDoc doc) {
     // with
     if (!rho_given && expr) {
         const GameLevel g = game_level_bound(c);
-        if (!g.bracketed)
-            f.reject("rho", g.bound > 0 ? "is not set, and the linearised game of this system has no filter of any level "
-                                          "up to " + num(g.bound) + " (hinf rho CONFIG): set it"
-                                        : "is not set, and the linearised game of this system has a filter of every level "
-                                          "down to 1e-12, so no default follows from it: set it (e.g. rho = 1 with "
-                                          "Q = I: an error energy at most the noise energy)");
-        c.rho_bound = g.bound;
-        c.rho = kAutoRhoFactor * g.bound;
         c.rho_auto = true;
+        c.rho_bound = g.bracketed ? g.bound : 0.0;
+        c.rho = g.bracketed ? kAutoRhoFactor * g.bound : 0.0;
+        // no level brackets: no default follows from the system. Only what designs at a level (train, the GLF) needs
+        // one, so those refuse; compare, filter, worst with the other filters run
+        if (!g.bracketed)
+            c.rho_unset = doc.source() + ": [filter] rho is not set, and the linearised game of this system has " +
+                          (g.bound > 0 ? "no filter of any level up to " + num(g.bound)
+                                       : std::string("a filter of every level down to 1e-12")) +
+                          " (hinf rho), so no default follows from it: set it (e.g. rho = 1 with Q = I: an error "
+                          "energy at most the noise energy)";
     }
 
     // A system of one's own gets defaults from its own scales, never the missile's (own_system_defaults)
@@ -446,7 +448,7 @@ RunConfig load_run_config(ConfigDoc doc) {
     }
     b.finish();
 
-    if (c.rho_auto) {
+    if (c.rho_auto && c.rho > 0) {
         char value[64];
         std::snprintf(value, sizeof value, "filter.rho=%.17g", c.rho);
         doc.set(value);

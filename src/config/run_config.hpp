@@ -22,6 +22,7 @@ struct ProblemConfig {
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
     bool rho_auto = false;                 // an expr system naming no rho: rho = 1.25 rho_bound (config/game_level.hpp)
     double rho_bound = 0;                  // rho*, the linearised game's smallest level (set where rho_auto)
+    std::string rho_unset;                 // rho_auto with no level bracketed (rho = 0): why; train and the GLF refuse
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
     double dt = 0.01, t_final = 70.0;

@@ -77,6 +77,7 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
         if (simple != nullptr) owned.push_back(simple->make(cfg, a, told, exact));
         else if (name == "glf") {
             // seed 001's comparison filter: N vertex linearizations along the nominal trajectory, one gain
+            HINF_CHECK(cfg.rho > 0, cfg.rho_unset);  // the GLF designs at [filter] rho
             GlfDesign g = glf_design(cfg, a.glf_vertices, cfg.rho);
             if (!g.ok && cfg.rho > 0) {  // name the rho that fixes it
                 auto feasible = [&](double r) {

@@ -661,6 +661,7 @@ public:
 // dissipation inequality of a discrete system (kernels/gain_discrete.hpp, docs/method.md section 16.8); its game
 // needs rho > lambda_max(B'Q B) (S >= Q and G'S G < rho), checked here at x0.
 void train_check_time(const RunConfig& cfg) {
+    HINF_CHECK(cfg.rho > 0, cfg.rho_unset);  // a config naming no rho whose system gives no default (game_level.hpp)
     if (!cfg.system->discrete_time()) return;
     HINF_CHECK(cfg.variant == "gain",
                cfg.doc.source() + ": [system] time = \"discrete\": variant \"" + cfg.variant + "\" trains the "

@@ -77,6 +77,24 @@ TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says
     CHECK(ConfigSection(own.doc, "filter").has("Q"));
 }
 
+TEST_CASE("a system whose game gives no level: train refuses a config naming no rho, the other filters run",
+          "[config][rho]") {
+    // g = 0: no disturbance reaches the state, so the game has a filter of every level
+    const std::string path = test::source_path("tests/corpus/bad/rho_no_level.toml");
+    const RunConfig c = load_run_config(ConfigDoc::from_file(path));
+    CHECK(c.rho_auto);
+    CHECK(c.rho == 0.0);
+    CHECK(c.rho_unset.find("no default follows from it") != std::string::npos);
+    CHECK_FALSE(ConfigSection(c.doc, "filter").has("rho"));
+    hinf::test::TempDir d("rho_none");
+    auto cmp = run_hinf("compare " + path + " --filters ekf,ukf --runs 1 --quiet --out " + (d / "cmp"));
+    INFO(cmp.output);
+    CHECK(cmp.status == 0);
+    hinf::test::expect_one_line_error("compare " + path + " --filters glf --runs 1 --quiet --out " + (d / "glf"),
+                                      "no default follows from it");
+    hinf::test::expect_one_line_error("rho " + path + " --rho -1", "--rho -1: must be > 0");
+}
+
 TEST_CASE("a checkpoint of a system naming no rho (or no Q), written before the defaults, keeps what it trained with",
           "[config][rho][legacy]") {
     hinf::test::TempDir d("rho_legacy");
