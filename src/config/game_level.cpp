@@ -23,20 +23,29 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     const std::int64_t steps = c.steps_until();
     for (std::int64_t k = 0; k < steps; ++k) {
         const double t = c.time_of(k);
-        // P^1/2 of the symmetric, positive semidefinite P (P(0) = 0 and G G' are singular in general)
-        Eigen::SelfAdjointEigenSolver<Mat> es(0.5 * (P + P.transpose()));
-        if (es.info() != Eigen::Success) return -1;
-        const Mat R = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
-                      es.eigenvectors().transpose();
+        // a factor P = R R': Cholesky where P is positive definite; the symmetric square root where it is singular
+        // (P(0) = 0, and G G' in general). Any factor gives the same conditions (R = P^1/2 U with U orthogonal: the
+        // matrices below change by the congruence U) and the same P+ = R (I + w R'(H'H - Q/rho) R)^-1 R'
+        Mat R;
+        Eigen::LLT<Mat> chol(P);
+        if (chol.info() == Eigen::Success && chol.matrixL().toDenseMatrix().diagonal().minCoeff() > 0) {
+            R = chol.matrixL();
+        } else {
+            Eigen::SelfAdjointEigenSolver<Mat> es(0.5 * (P + P.transpose()));
+            if (es.info() != Eigen::Success) return -1;
+            R = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
+                es.eigenvectors().transpose();
+        }
         // the existence condition at step k: no error direction whose weight Q/rho outgrows what P allows
-        Eigen::LLT<Mat> cond(I - w * R * Qr * R);
+        Eigen::LLT<Mat> cond(I - w * R.transpose() * Qr * R);
         if (cond.info() != Eigen::Success) return t;
         sys.measurement_jacobian(H.data(), x.data(), t);
         system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, c.dt);
         if (!H.allFinite() || !F.allFinite() || !G.allFinite()) return -1;
-        Eigen::LLT<Mat> z(I + w * R * (Mat(H.transpose() * H) - Qr) * R);
+        Eigen::LLT<Mat> z(I + w * R.transpose() * (Mat(H.transpose() * H) - Qr) * R);
         if (z.info() != Eigen::Success) return t;
-        P = F * (R * z.solve(R)) * F.transpose() + G * G.transpose() / w;
+        P = F * (R * z.solve(Mat(R.transpose()))) * F.transpose() + G * G.transpose() / w;
+        P = 0.5 * (P + P.transpose()).eval();
         if (!P.allFinite()) return -1;
         system_advance(sys, x.data(), x.data(), nullptr, t, c.dt);
         for (double v : x)

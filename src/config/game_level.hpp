@@ -9,10 +9,10 @@ namespace hinf {
 
 /// Walks the H-infinity filter's Riccati recursion of level rho for the system linearised along its noise-free
 /// trajectory from x0 over [0, t_final], from P(0) = 0 (a zero initial error, as the worst-case search starts):
-///   P+ = P^1/2 (I + w P^1/2 (H'H - Q/rho) P^1/2)^-1 P^1/2,   P <- F P+ F' + G G' / w
+///   P+ = R (I + w R'(H'H - Q/rho) R)^-1 R',   P <- F P+ F' + G G' / w,   P = R R'
 /// (F, G the Jacobians of one step of system_advance, H of the output; w = dt in continuous time, 1 in discrete
-/// time), and checks the predictor's existence condition I - w P^1/2 (Q/rho) P^1/2 > 0 at every step (Hassibi, Sayed
-/// and Kailath's a-priori condition P^-1 - Q/rho > 0, here in a form that needs no inverse of a singular P).
+/// time), and checks the predictor's existence condition I - w R'(Q/rho) R > 0 at every step (Hassibi, Sayed and
+/// Kailath's a-priori condition P^-1 - Q/rho > 0, here in a form that needs no inverse of a singular P).
 /// Returns the first time it fails, or a negative number when it holds over the whole horizon. A non-finite
 /// trajectory, Jacobian or P ends the walk there (counted as holding).
 double game_level_lost_at(const ProblemConfig& c, double rho);

@@ -287,20 +287,22 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
         if (!h5::has_attr(adam.get(), "reset_each_step")) as_trained("training", "reset_adam_each_step", "true");
         if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
     }
+    const std::string kind = ConfigSection(doc, "system").get_string("kind", "missile");
+    // written before a system of one's own that names no rho got 1.25 times its linearised game's level
+    // (docs/method.md section 16.12): it trained at the missile's 0.03; and before one that names no Q got Q = I: it
+    // trained with the missile's 1e-5 I. Every checkpoint since has both in its config
+    if (kind == "expr") {
+        as_trained("filter", "rho", "0.03");
+        const toml::array* states = doc.root()["system"]["states"].as_array();
+        if (states != nullptr && !states->empty()) {
+            std::string q = "[";
+            for (std::size_t i = 0; i < states->size(); ++i) q += i ? ", 1e-05" : "1e-05";
+            as_trained("filter", "Q", q + "]");
+        }
+    }
     // written before a state started without error got a floor from its motion (error_floor_default): the samples,
     // and a gain network's error scale, were the old floor's. The missiles' floor never changed (20 m), so their
     // config is not loaded again here (loading one of the own systems walks its nominal trajectory)
-    const std::string kind = ConfigSection(doc, "system").get_string("kind", "missile");
-    // written before a system of one's own that names no rho got 1.25 times its linearised game's level
-    // (docs/method.md section 16.12): it trained at the missile's 0.03. Every checkpoint since has its rho in its config
-    if (kind == "expr") as_trained("filter", "rho", "0.03");
-    // and before such a system got Q = I: it trained with the missile's 1e-5 I (one entry per [system] state)
-    if (kind == "expr" && !ConfigSection(doc, "filter").has("Q")) {
-        const toml::array* states = doc.root()["system"]["states"].as_array();
-        std::string q = "[";
-        for (std::size_t i = 0; states != nullptr && i < states->size(); ++i) q += i ? ", 1e-05" : "1e-05";
-        if (states != nullptr && !states->empty()) sets.push_back("filter.Q=" + q + "]");
-    }
     if (kind != "missile" && kind != "maneuvering_missile" && !h5::has_attr(net.get(), "error_floor") &&
         !ConfigSection(doc, "sampling").has("error_floor")) {
         ConfigDoc trained = doc;
