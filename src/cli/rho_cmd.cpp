@@ -1,4 +1,5 @@
 // `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp).
+#include <algorithm>
 #include <cstdio>
 
 #include "cli/commands.hpp"
@@ -25,7 +26,11 @@ void add_rho_command(CLI::App& app) {
         const RunConfig cfg = load_config_with_overrides(a->config, a->sets);
         const GameLevel g = game_level_bound(cfg);
         const char* horizon = cfg.system->discrete_time() ? "steps" : "s";
-        const double span = cfg.system->discrete_time() ? double(cfg.steps_until()) : cfg.t_final;
+        const std::int64_t walked = std::min(cfg.steps_until(), kGameLevelMaxSteps);
+        const double span = cfg.system->discrete_time() ? double(walked) : cfg.time_of(walked);
+        if (walked < cfg.steps_until())
+            std::printf("(the horizon's first %lld of %lld steps: rho* over the whole horizon can only be larger)\n",
+                        static_cast<long long>(walked), static_cast<long long>(cfg.steps_until()));
         if (g.bracketed)
             std::printf("rho* = %.4g: the linearised game over [0, %g] %s from x~(0) = 0 has a filter of level rho "
                         "only for rho > rho*; no filter's worst-case attenuation ratio is below it for small "

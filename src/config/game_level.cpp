@@ -1,6 +1,7 @@
 // The linearised game's smallest level (docs/method.md section 16.12).
 #include "config/game_level.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -20,7 +21,7 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     Mat P = Mat::Zero(n, n);
     RowMat H(m, n), F(n, n), G(n, nv);
     std::vector<double> x = c.x0;
-    const std::int64_t steps = c.steps_until();
+    const std::int64_t steps = std::min(c.steps_until(), kGameLevelMaxSteps);
     for (std::int64_t k = 0; k < steps; ++k) {
         const double t = c.time_of(k);
         // a factor P = R R': Cholesky where P is positive definite; the symmetric square root where it is singular

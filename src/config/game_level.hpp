@@ -13,9 +13,14 @@ namespace hinf {
 /// (F, G the Jacobians of one step of system_advance, H of the output; w = dt in continuous time, 1 in discrete
 /// time), and checks the predictor's existence condition I - w R'(Q/rho) R > 0 at every step (Hassibi, Sayed and
 /// Kailath's a-priori condition P^-1 - Q/rho > 0, here in a form that needs no inverse of a singular P).
-/// Returns the first time it fails, or a negative number when it holds over the whole horizon. A non-finite
+/// Returns the first time it fails, or a negative number when it holds over the horizon walked. A non-finite
 /// trajectory, Jacobian or P ends the walk there (counted as holding).
 double game_level_lost_at(const ProblemConfig& c, double rho);
+
+/// The walk covers at most the horizon's first kGameLevelMaxSteps steps, so that reading a config stays quick whatever
+/// its horizon (each level tried walks them once); over a longer horizon rho* is that of its first part (a lower value:
+/// the level needed can only grow with the horizon).
+constexpr std::int64_t kGameLevelMaxSteps = 20000;
 
 struct GameLevel {
     double bound = 0;       // rho*: the recursion fails below it, holds above it (to rel_tol)

@@ -40,6 +40,15 @@ TEST_CASE("rho* of a continuous integrator is the escape level of its Riccati eq
     CHECK(game_level_lost_at(c, 1.0) < 0);
 }
 
+TEST_CASE("rho* walks at most the horizon's first kGameLevelMaxSteps steps", "[config][rho]") {
+    // reading a config stays quick whatever its horizon: a longer one gives the rho* of its first part
+    const RunConfig longer = load(integrator("continuous", "0.001", "30", "rho = 1\n"));  // 30000 steps
+    const RunConfig first = load(integrator("continuous", "0.001", "20", "rho = 1\n"));   // 20000 steps
+    REQUIRE(longer.steps_until() > kGameLevelMaxSteps);
+    REQUIRE(first.steps_until() == kGameLevelMaxSteps);
+    CHECK(game_level_bound(longer).bound == game_level_bound(first).bound);
+}
+
 TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[config][rho]") {
     // P+ = (1/P + 1 - 1/rho)^-1 + 1 with the a-priori condition 1/P > 1/rho: the stationary P = 1/2 + sqrt(1/4 + 1/u),
     // u = 1 - 1/rho, equals rho exactly at rho = 2; below it the condition fails once P has settled, above it never
