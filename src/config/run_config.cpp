@@ -199,12 +199,20 @@ RunConfig load_run_config(ConfigDoc doc) {
             f.reject("Q", "must be positive semidefinite (its smallest eigenvalue is " + num(lo) +
                               "; x~'Q x~ is the error's weight, e.g. Q = [1, 1] for the identity)");
     }
-    // the defaults are seed 000's missile; a system of one's own must say where it starts
-    if (c.system->name() == "expr")
+    // the defaults are seed 000's missile; a system of one's own must say where it starts, how often it is sampled
+    // and for how long (the missile's 0.01 s and 70 s are no default for another system)
+    if (c.system->name() == "expr") {
         for (const char* key : {"x0", "xhat0"})
             f.require(key, "is required for [system] kind = \"expr\" (" + std::to_string(n) +
                                   " numbers: the " + (std::string(key) == "x0" ? "true" : "estimated") +
                                   " initial state)");
+        const bool discrete = c.system->discrete_time();
+        f.require("dt", std::string("is required for [system] kind = \"expr\" (") +
+                            (discrete ? "the sampling period in seconds that stamps the steps, e.g. dt = 1"
+                                      : "the sampling time in seconds, e.g. dt = 0.01") + ")");
+        f.require("t_final", std::string("is required for [system] kind = \"expr\" (the horizon in seconds") +
+                                 (discrete ? ": t_final / dt steps" : "") + ", e.g. t_final = 20)");
+    }
     c.x0 = f.get_doubles("x0", {150000, 210000, 120000, -2500, -2500, -2500}, n);
     c.xhat0 = f.get_doubles("xhat0", {140000, 204000, 111000, -2200, -2800, -2100}, n);
     c.dt = f.get_double("dt", c.dt, 0.0, 1e6);

@@ -125,7 +125,7 @@ TEST_CASE("library: bad use throws hinf::Error with one line", "[api]") {
         "[system]\nkind = \"expr\"\nstates = [\"a\", \"b\", \"c\", \"d\", \"e\", \"f\"]\nmeasurements = 6\n"
         "f = [\"-a\", \"-b\", \"-c\", \"-d\", \"-e\", \"-f\"]\ng = [[\"1\"], [\"0\"], [\"0\"], [\"0\"], [\"0\"], [\"0\"]]\n"
         "h = [\"a\", \"b\", \"c\", \"d\", \"e\", \"f\"]\n[filter]\nQ = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]\nx0 = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0]\n"
-        "xhat0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nt_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
+        "xhat0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\ndt = 0.01\nt_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
         "adam_steps = 1\ncheckpoint_every = 1\n[online]\ndisturbance_std = 1\nnoise_std = 1\n",
         "other.toml");
     hinf::TrainSettings s;

@@ -178,7 +178,7 @@ TEST_CASE("discrete systems through compare, filter and worst, and their refusal
                           "the GLF design is for continuous-time systems");
     const std::string cont = write_file(d, "cont.toml",
                                         "[system]\nkind = \"expr\"\nstates = [\"x\"]\nmeasurements = 1\nf = [\"-x\"]\n"
-                                        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nx0 = [1]\nxhat0 = [0]\nt_final = 0.03\n"
+                                        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nx0 = [1]\nxhat0 = [0]\ndt = 0.01\nt_final = 0.03\n"
                                         "[online]\ndisturbance_std = 1\nnoise_std = 1\n[network]\nhidden = [8]\n[training]\nsamples = 50\nbatch = 20\nadam_steps = 2\n");
     auto t = run_hinf("train " + cont + " --out " + (d / "net") + " --quiet");
     INFO(t.output);

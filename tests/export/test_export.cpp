@@ -172,7 +172,7 @@ TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
     const std::string kw = write_file(d, "kw.toml",
                                       "[system]\nkind = \"expr\"\nstates = [\"int\"]\nmeasurements = 1\nf = [\"-int\"]\n"
                                       "g = [[\"1\"]]\nh = [\"int\"]\n[filter]\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\n"
-                                      "t_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
+                                      "dt = 0.01\nt_final = 0.02\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\n"
                                       "adam_steps = 1\ncheckpoint_every = 1\n[online]\ndisturbance_std = 1\nnoise_std = 1\n");
     auto t = run_hinf("train " + kw + " --out " + (d / "kw") + " --quiet");
     INFO(t.output);

@@ -37,7 +37,7 @@ TEST_CASE("the default variant is gain where it applies, dissipative elsewhere",
         x0 += std::string(i ? ", " : "") + "1.0";
         xh0 += std::string(i ? ", " : "") + "0.0";
     }
-    big += "]\nmeasurements = 3\n" + f + "]\n" + g + "]\n" + h + "]\n[filter]\n" + x0 + "]\n" + xh0 + "]\n" +
+    big += "]\nmeasurements = 3\n" + f + "]\n" + g + "]\n" + h + "]\n[filter]\n" + x0 + "]\n" + xh0 + "]\ndt = 0.01\nt_final = 1\n" +
            "[online]\ndisturbance_std = 1\nnoise_std = 1\n";
     CHECK(load(big).n == 33);
     CHECK(load(big).variant == "dissipative");
