@@ -8,10 +8,13 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <filesystem>
 #include <string>
 #include <sys/wait.h>
 #include <vector>
+
+#include "hinf/error.hpp"
 
 namespace hinf::test {
 
@@ -142,6 +145,19 @@ inline void expect_one_line_error(const std::string& args, const std::string& fr
     CHECK(r.output.find(fragment) != std::string::npos);
     CHECK(r.output.rfind("hinf: error: ", 0) == 0);
     CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+}
+
+/// call() throws hinf::Error whose message is one line and contains fragment.
+inline bool one_line_error(const std::function<void()>& call, const std::string& fragment) {
+    try {
+        call();
+    } catch (const hinf::Error& e) {
+        const std::string what = e.what();
+        INFO(what);
+        CHECK(what.find('\n') == std::string::npos);
+        return what.find(fragment) != std::string::npos;
+    }
+    return false;
 }
 
 template <typename T>

@@ -54,6 +54,8 @@ public:
     ConfigSection& operator=(const ConfigSection&) = delete;
 
     bool has(const std::string& key) const;
+    /// true where the key is there and holds a list.
+    bool is_list(const std::string& key) const;
     double get_double(const std::string& key, double fallback, double lo, double hi);
     std::int64_t get_int(const std::string& key, std::int64_t fallback, std::int64_t lo, std::int64_t hi);
     bool get_bool(const std::string& key, bool fallback);

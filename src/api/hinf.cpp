@@ -18,6 +18,7 @@
 #include "io/measurements.hpp"
 #include "models/system.hpp"
 #include "net/network.hpp"
+#include "sim/truth.hpp"
 #include "train/trainer.hpp"
 
 namespace hinf {
@@ -81,6 +82,7 @@ std::vector<double> Config::measure(const std::vector<double>& x, double t) cons
     check_size(x.size(), std::size_t(cfg.n), "measure: the state x");
     std::vector<double> y(cfg.m);
     cfg.system->measurement(y.data(), x.data(), t, 1);
+    outputs_to_user(cfg, y.data(), 1);  // the model's units are the noise-weighted ones ([online] noise_std list)
     return y;
 }
 
@@ -91,8 +93,9 @@ std::vector<double> Config::advance(const std::vector<double>& x, const std::vec
     HINF_CHECK(v.empty() || v.size() == std::size_t(cfg.nv),
                "advance: the disturbance v has " + std::to_string(v.size()) + " values, expected " +
                    std::to_string(cfg.nv) + " (or none for v = 0)");
-    std::vector<double> out(cfg.n);
-    system_advance(*cfg.system, out.data(), x.data(), v.empty() ? nullptr : v.data(), t, dt);
+    std::vector<double> out(cfg.n), vm = v;
+    disturbances_to_model(cfg, vm.data(), vm.empty() ? 0 : 1);  // v in the input's units ([online] disturbance_std list)
+    system_advance(*cfg.system, out.data(), x.data(), vm.empty() ? nullptr : vm.data(), t, dt);
     return out;
 }
 
@@ -183,12 +186,14 @@ struct Filter::Impl {
     // The filter set `hinf filter` builds for this one name, stepping by dt.
     FilterSet build(double step_dt) const {
         const RunConfig& c = cfg();
-        FilterModel model{c.system.get(), step_dt, c.disturbance_std, c.noise_std};
+        // as filter_cmd.cpp: EKF/UKF/PF are told the config's [baseline] model and statistics
+        FilterModel told = scenario_told_model(c, scenario_named("nominal")), model = filter_model(c);
+        told.dt = model.dt = step_dt;
         std::vector<std::string> paths;
         for (const TrainedNetwork& n : options.networks) paths.push_back(network_impl(n).path);
         return build_filter_set(c, FilterSetArgs{request, paths, "measured", options.particles, options.roughening,
                                                  options.glf_vertices},
-                                model, model);
+                                told, model);
     }
     void reset() {
         FilterStart start;
@@ -276,7 +281,9 @@ bool Filter::step(const double* y, double t) {
     Impl& im = filter_impl(*this);
     HINF_CHECK(y != nullptr, "Filter::step: no measurement");
     if (im.diverged) return false;  // frozen at its last finite estimate, as in `hinf filter`
-    const FilterStatus st = im.filter->step(FilterInput{y, t, im.steps, nullptr});
+    std::vector<double> ym(y, y + im.cfg().m);
+    outputs_to_model(im.cfg(), ym.data(), 1);  // ([online] noise_std list: the model's noise-weighted units)
+    const FilterStatus st = im.filter->step(FilterInput{ym.data(), t, im.steps, nullptr});
     ++im.steps;
     im.diverged = st != FILTER_OK;
     return !im.diverged;

@@ -11,6 +11,7 @@
 
 #include "gain.hpp"
 #include "hinf/error.hpp"
+#include "models/weighted_system.hpp"
 
 #include <toml++/toml.h>
 
@@ -150,6 +151,80 @@ std::vector<double> error_floor_default(const RunConfig& c, bool before) {
     return floor;
 }
 
+// [online] noise_std / disturbance_std: one number, or a list of one per output / input. A list (either) selects the
+// covariance-weighted game (docs/method.md section 16.13): every output and every disturbance input is then measured
+// in units of its own standard deviation, so the model's stds are 1, with y~_j = y_j / sn_j (output_weight) and
+// B~ = B diag(sv_k) (disturbance_scale); a one-number partner of a list is weighted the same way unless it is 0. Two
+// numbers keep the game in the user's units (the papers'). Sets c's four fields; read twice (before anything reads
+// the system, and with the rest of [online]), with the same result.
+void resolve_channel_stds(ConfigSection& on, ProblemConfig* pc, OnlineConfig* oc) {
+    auto list = [&](const std::string& key, int count) {
+        const std::vector<double> v = on.get_doubles(key, {}, count);
+        for (double e : v)
+            if (!(e > 0) || e > 1e12)
+                on.reject(key, "entries must be in (0, 1e12]: each is a channel's standard deviation, and a list "
+                               "measures each channel in units of its own (give a noise-free channel a small one, or "
+                               "one number for all)");
+        return v;
+    };
+    const bool noise_list = on.is_list("noise_std"), dist_list = on.is_list("disturbance_std");
+    std::vector<double> sn = noise_list ? list("noise_std", pc->m) : std::vector<double>{};
+    std::vector<double> sv = dist_list ? list("disturbance_std", pc->nv) : std::vector<double>{};
+    if (!noise_list) oc->noise_std = on.get_double("noise_std", oc->noise_std, 0.0, 1e12);
+    if (!dist_list) oc->disturbance_std = on.get_double("disturbance_std", oc->disturbance_std, 0.0, 1e12);
+    pc->output_weight.clear();
+    pc->disturbance_scale.clear();
+    if (!noise_list && !dist_list) return;
+    if (!noise_list && oc->noise_std > 0) sn.assign(std::size_t(pc->m), oc->noise_std);
+    if (!dist_list && oc->disturbance_std > 0) sv.assign(std::size_t(pc->nv), oc->disturbance_std);
+    for (double e : sn) pc->output_weight.push_back(1.0 / e);
+    pc->disturbance_scale = sv;
+    if (!sn.empty()) oc->noise_std = 1.0;
+    if (!sv.empty()) oc->disturbance_std = 1.0;
+}
+
+// [baseline] noise_std / disturbance_std in the model's units (outputs times output_weight, inputs over
+// disturbance_scale): the common value, with *weight the per-channel factors where they differ (of the largest)
+double told_stds(ConfigSection& b, const std::string& key, double fallback, int count, const std::vector<double>& unit,
+                 bool output, std::vector<double>* weight) {
+    weight->clear();
+    if (!b.has(key)) return fallback;  // the truth's (already in the model's units)
+    std::vector<double> v = b.is_list(key) ? b.get_doubles(key, {}, count)
+                                           : std::vector<double>(std::size_t(count), b.get_double(key, 0, 0.0, 1e12));
+    double top = 0;
+    bool equal = true;
+    for (std::size_t j = 0; j < v.size(); ++j) {
+        if (v[j] < 0 || v[j] > 1e12) b.reject(key, "entries must be in [0, 1e12] (standard deviations)");
+        if (!unit.empty()) v[j] = output ? v[j] * unit[j] : v[j] / unit[j];
+        top = std::max(top, v[j]);
+        equal = equal && v[j] == v[0];
+    }
+    if (equal) return v[0];
+    for (double e : v) weight->push_back(e / top);
+    return top;
+}
+
+void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows) {
+    const std::size_t m = c.output_weight.size();
+    for (std::int64_t r = 0; r < rows && m > 0; ++r)
+        for (std::size_t j = 0; j < m; ++j) y[std::size_t(r) * m + j] *= c.output_weight[j];
+}
+void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows) {
+    const std::size_t m = c.output_weight.size();
+    for (std::int64_t r = 0; r < rows && m > 0; ++r)
+        for (std::size_t j = 0; j < m; ++j) y[std::size_t(r) * m + j] /= c.output_weight[j];
+}
+void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows) {
+    const std::size_t nv = c.disturbance_scale.size();
+    for (std::int64_t r = 0; r < rows && nv > 0; ++r)
+        for (std::size_t k = 0; k < nv; ++k) v[std::size_t(r) * nv + k] /= c.disturbance_scale[k];
+}
+void disturbances_to_user(const ProblemConfig& c, double* v, std::int64_t rows) {
+    const std::size_t nv = c.disturbance_scale.size();
+    for (std::int64_t r = 0; r < rows && nv > 0; ++r)
+        for (std::size_t k = 0; k < nv; ++k) v[std::size_t(r) * nv + k] *= c.disturbance_scale[k];
+}
+
 std::string default_variant(const std::string& type, int n, int m, int nv) {
     return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";
 }
@@ -163,6 +238,15 @@ RunConfig load_run_config(ConfigDoc doc) {
     c.m = c.system->output_dim();
     const int n = c.n;
     const double big = 1e15;
+    // [online] noise_std / disturbance_std as lists: every part of hinf sees the system in units of its noise
+    // (models/weighted_system.hpp, docs/method.md section 16.13) from here on, the level rho* included
+    {
+        ConfigSection peek(doc, "online");  // read in full (and checked) below
+        resolve_channel_stds(peek, &c, &c);
+        if (!c.output_weight.empty() || !c.disturbance_scale.empty())
+            c.system = std::make_shared<WeightedSystem>(std::shared_ptr<const System>(c.system), c.output_weight,
+                                                        c.disturbance_scale);
+    }
 
     ConfigSection f(doc, "filter");
     c.type = f.get_string("type", c.type, {"hinf", "h2hinf"});
@@ -385,8 +469,9 @@ RunConfig load_run_config(ConfigDoc doc) {
 
     ConfigSection on(doc, "online");
     c.mode = on.get_string("mode", c.variant == "gain" ? "measured" : c.mode, {"oracle", "measured"});
-    c.disturbance_std = on.get_double("disturbance_std", c.disturbance_std, 0.0, 1e12);
-    c.noise_std = on.get_double("noise_std", c.noise_std, 0.0, 1e12);
+    c.disturbance_std = OnlineConfig{}.disturbance_std;  // resolved again from the defaults, as above
+    c.noise_std = OnlineConfig{}.noise_std;
+    resolve_channel_stds(on, &c, &c);
     c.runs = on.get_int("runs", c.runs, 1, 1000000);
     c.online_seed = static_cast<std::uint64_t>(on.get_int("seed", 7, 0, std::numeric_limits<std::int64_t>::max()));
     c.settle_time = on.get_double("settle_time", c.settle_time, 0.0, 1e12);
@@ -423,8 +508,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     on.finish();
 
     ConfigSection b(doc, "baseline");
-    c.told_disturbance_std = b.get_double("disturbance_std", c.disturbance_std, 0.0, 1e12);
-    c.told_noise_std = b.get_double("noise_std", c.noise_std, 0.0, 1e12);
+    c.told_disturbance_std = told_stds(b, "disturbance_std", c.disturbance_std, c.nv, c.disturbance_scale, false,
+                                       &c.told_disturbance_weight);
+    c.told_noise_std = told_stds(b, "noise_std", c.noise_std, c.m, c.output_weight, true, &c.told_noise_weight);
+    for (double w : c.told_noise_weight)
+        if (w <= 0) b.reject("noise_std", "entries must be > 0 (the EKF/UKF/PF measurement noise they are told)");
     if (c.told_noise_std <= 0) b.reject("noise_std", "must be > 0 (the EKF/UKF/PF measurement noise they are told)");
     c.initial_std = b.get_doubles("initial_std", {}, n);
     for (double v : c.initial_std)
@@ -453,6 +541,9 @@ RunConfig load_run_config(ConfigDoc doc) {
             told_doc.set("system.parameters." + p.first + "=" + value);
         }
         c.told_system = make_system(told_doc);
+        if (!c.output_weight.empty() || !c.disturbance_scale.empty())
+            c.told_system = std::make_shared<WeightedSystem>(std::shared_ptr<const System>(c.told_system),
+                                                             c.output_weight, c.disturbance_scale);
     }
     b.finish();
 

@@ -26,6 +26,9 @@ struct ProblemConfig {
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
     double dt = 0.01, t_final = 70.0;
+    /// [online] noise_std / disturbance_std given as lists that differ: `system` is seen in units of its noise
+    /// (models/weighted_system.hpp), y~_j = output_weight_j y_j and v~_k = v_k / disturbance_scale_k; empty: none.
+    std::vector<double> output_weight, disturbance_scale;
 
     /// The horizon of a run asked to stop at `until`: min(until, t_final); until < 0 means t_final.
     double final_time(double until = -1) const { return until >= 0 && until < t_final ? until : t_final; }
@@ -100,6 +103,7 @@ struct OnlineConfig {
     // [baseline]: what EKF, UKF and PF are told (their model) and how they are tuned; defaults: the truth
     std::shared_ptr<System> told_system;        // the filters' system ([baseline] parameters), else the true one
     double told_disturbance_std = -1, told_noise_std = -1;  // resolved to [online]'s when not given
+    std::vector<double> told_disturbance_weight, told_noise_weight;  // per input / output factors (FilterModel)
     std::vector<double> initial_std;            // [n] P0 = diag(initial_std^2); empty: diag(max((x0 - x^0)^2, 1))
     double ukf_alpha = 1.0, ukf_beta = 2.0, ukf_kappa = 0.0;
     std::string pf_resampling = "systematic";   // "systematic" or "stratified"
@@ -117,6 +121,13 @@ struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
     double resolved_eps() const;
     double resolved_horizon() const;
 };
+
+/// Between the user's units and the model's (ProblemConfig::output_weight, disturbance_scale), in place, for
+/// `rows` rows of m outputs (y) or nv inputs (v); no-ops where no list was given. A NaN (missing output) stays NaN.
+void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows);
+void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows);
+void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows);
+void disturbances_to_user(const ProblemConfig& c, double* v, std::int64_t rows);
 
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix.
 RunConfig load_run_config(ConfigDoc doc);

@@ -195,6 +195,8 @@ void ConfigSection::reject(const std::string& key, const std::string& problem) c
 
 bool ConfigSection::has(const std::string& key) const { return table_ && table_->get(key) != nullptr; }
 
+bool ConfigSection::is_list(const std::string& key) const { return has(key) && table_->get(key)->is_array(); }
+
 void ConfigSection::require(const std::string& key, const std::string& problem) const {
     if (has(key)) return;
     std::string near;

@@ -256,7 +256,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::write_doubles(root, "t", tt.data(), {hsize_t(steps)}, "s", "time");
     h5::write_doubles(root, "t_sub", tsub.data(), {hsize_t(nsub)}, "s", "times of error_mean_t / error_std_t");
     h5::write_doubles(root, "x", truth0.x.data(), {hsize_t(steps), hsize_t(n)}, "state units", "true state, run 0");
-    h5::write_doubles(root, "y", truth0.y.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units", "measurements, run 0");
+    std::vector<double> y_user = truth0.y;
+    outputs_to_user(cfg, y_user.data(), steps);
+    h5::write_doubles(root, "y", y_user.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units", "measurements, run 0");
     file.commit();
 
     // CSV beside it: one row per filter

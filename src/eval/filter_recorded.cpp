@@ -199,9 +199,13 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
     std::vector<double> c(m);
     std::int64_t used = 0;
     Progress progress("filter " + r.name, 0, K, quiet);
-    const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ms.y.data(), K);
+    // the filters run in the model's units (outputs weighted by their noise, ProblemConfig::output_weight);
+    // innovations are reported in the record's
+    std::vector<double> ym = ms.y;
+    outputs_to_model(cfg, ym.data(), K);
+    const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ym.data(), K);
     const unsigned char* missing = ms.missing.empty() ? nullptr : ms.missing.data();
-    StreamResult sr = filter_stream(f, ms.y.data(), m, ms.t.data(), K, nullptr, n, bound.data(), missing,
+    StreamResult sr = filter_stream(f, ym.data(), m, ms.t.data(), K, nullptr, n, bound.data(), missing,
                                     [&](std::int64_t k, const double* xh, bool frozen) {
         p.xhat.insert(p.xhat.end(), xh, xh + n);
         if (p.has_cov) {
@@ -210,6 +214,7 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
         }
         const double* y = ms.y.data() + k * m;
         sys.measurement(c.data(), xh, ms.t[k], 1);
+        outputs_to_user(cfg, c.data(), 1);
         for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);  // NaN where the measurement is missing
         if (frozen || (missing != nullptr && missing[k])) return;  // frozen, or nothing to compare with
         for (int j = 0; j < m; ++j) {

@@ -332,7 +332,9 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::write_doubles(root, "x", er.truth0.x.data(), {hsize_t(steps), hsize_t(n)}, "state units", "true state, run 0");
     h5::write_doubles(root, "xhat", D[0].xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "DNN filter estimate, run 0");
-    h5::write_doubles(root, "y", er.truth0.y.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units",
+    std::vector<double> y_user = er.truth0.y;
+    outputs_to_user(cfg, y_user.data(), steps);
+    h5::write_doubles(root, "y", y_user.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units",
                       "measurements y(t_k) = C(x(t_k)) + n_k fed to the filter, run 0 (input for `hinf filter`)");
     h5::write_doubles(root, "xhat_open_loop", O[0].xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "open-loop predictor, run 0");

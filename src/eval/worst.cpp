@@ -525,10 +525,21 @@ void write_sets_and_cross(hid_t root, const RunConfig& cfg, const std::vector<Wo
         h5::Handle g = h5::create_group(sg.get(), std::to_string(d));
         h5::set_attr(g.get(), "source", sets[d].source);
         h5::set_attr(g.get(), "ratio", sets[d].ratio);
-        h5::write_doubles(g.get(), "v", sets[d].signals.v.data(), {K, hsize_t(cfg.nv)}, "input units",
+        // with [online] std lists, in the model's units (models/weighted_system.hpp): kept so, so that a replay
+        // reads back the very signals
+        h5::write_doubles(g.get(), "v", sets[d].signals.v.data(), {K, hsize_t(cfg.nv)},
+                          cfg.disturbance_scale.empty() ? "input units" : "input units / disturbance_scale",
                           "disturbance v_k at t_k");
-        h5::write_doubles(g.get(), "n", sets[d].signals.n.data(), {K, hsize_t(cfg.m)}, "output units",
+        h5::write_doubles(g.get(), "n", sets[d].signals.n.data(), {K, hsize_t(cfg.m)},
+                          cfg.output_weight.empty() ? "output units" : "output units x output_weight",
                           "measurement noise n_k at t_k");
+        if (!cfg.output_weight.empty())
+            h5::write_doubles(g.get(), "output_weight", cfg.output_weight.data(), {hsize_t(cfg.m)}, "1",
+                              "n_j here = output_weight_j x the noise in output j's units ([online] noise_std list)");
+        if (!cfg.disturbance_scale.empty())
+            h5::write_doubles(g.get(), "disturbance_scale", cfg.disturbance_scale.data(), {hsize_t(cfg.nv)}, "1",
+                              "v_k here = the disturbance in input k's units / disturbance_scale_k ([online] "
+                              "disturbance_std list)");
     }
     const hsize_t D = hsize_t(r.sets.size()), F = hsize_t(r.filters.size());
     h5::Handle cg = h5::create_group(root, "cross");

@@ -17,6 +17,7 @@
 #include "models/expr_system.hpp"
 #include "models/maneuvering_missile.hpp"
 #include "models/missile.hpp"
+#include "models/weighted_system.hpp"
 
 namespace hinf {
 
@@ -162,7 +163,51 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
     return c.str();
 }
 
+// A system seen in units of its noise (models/weighted_system.hpp): the inner system's functions renamed
+// *_unweighted, wrapped by ones that weigh C and dC/dx by PREFIX_output_weight and scale B by
+// PREFIX_disturbance_scale; PREFIX_step weighs the y it is given (the user's units) the same way.
+std::string system_c(const System& sys, const std::string& P);
+std::string weighted_system_c(const WeightedSystem& sys, const std::string& P) {
+    std::string text = system_c(sys.inner(), P);
+    auto rename = [&](const std::string& from, const std::string& to) {
+        for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+            text.replace(at, from.size(), to);
+    };
+    const int n = sys.state_dim(), m = sys.output_dim(), nv = sys.disturbance_dim();
+    const std::vector<double>& w = sys.output_weights();
+    const std::vector<double>& u = sys.disturbance_scales();
+    std::ostringstream c;
+    if (!w.empty()) {
+        rename(P + "_measurement(", P + "_measurement_unweighted(");
+        rename(P + "_measurement_jacobian(", P + "_measurement_jacobian_unweighted(");
+        c << "/* outputs in units of their noise ([online] noise_std list): y~_j = w_j y_j */\n"
+          << "static const double " << P << "_output_weight[" << m << "] = {";
+        for (int j = 0; j < m; ++j) c << (j ? ", " : "") << lit(w[std::size_t(j)]);
+        c << "};\n\n"
+          << "static void " << P << "_measurement(double* C, const double* X, double t) {\n"
+          << "    int j;\n    " << P << "_measurement_unweighted(C, X, t);\n"
+          << "    for (j = 0; j < " << m << "; ++j) C[j] *= " << P << "_output_weight[j];\n}\n\n"
+          << "static void " << P << "_measurement_jacobian(double* H, const double* X, double t) {\n"
+          << "    int j, i;\n    " << P << "_measurement_jacobian_unweighted(H, X, t);\n"
+          << "    for (j = 0; j < " << m << "; ++j)\n        for (i = 0; i < " << n << "; ++i) H[j * " << n
+          << " + i] *= " << P << "_output_weight[j];\n}\n\n";
+    }
+    if (!u.empty()) {
+        rename(P + "_disturbance_gain(", P + "_disturbance_gain_unweighted(");
+        c << "/* disturbances in units of their std ([online] disturbance_std list): B~ = B diag(u) */\n"
+          << "static const double " << P << "_disturbance_scale[" << nv << "] = {";
+        for (int k = 0; k < nv; ++k) c << (k ? ", " : "") << lit(u[std::size_t(k)]);
+        c << "};\n\n"
+          << "static void " << P << "_disturbance_gain(double* B, const double* X, double t) {\n"
+          << "    int i, k;\n    " << P << "_disturbance_gain_unweighted(B, X, t);\n"
+          << "    for (i = 0; i < " << n << "; ++i)\n        for (k = 0; k < " << nv << "; ++k) B[i * " << nv
+          << " + k] *= " << P << "_disturbance_scale[k];\n}\n\n";
+    }
+    return text + c.str();
+}
+
 std::string system_c(const System& sys, const std::string& P) {
+    if (auto* s = dynamic_cast<const WeightedSystem*>(&sys)) return weighted_system_c(*s, P);
     if (auto* s = dynamic_cast<const ManeuveringMissileSystem*>(&sys))
         return maneuvering_missile_c(s->params(), P) + identity_jacobian_c(P);
     if (auto* s = dynamic_cast<const MissileSystem*>(&sys)) return missile_c(s->params(), P) + identity_jacobian_c(P);
@@ -563,7 +608,8 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    if (s->diverged) return 1;\n"
       << "    " << P << "_drift(a, s->xhat, t);\n"
       << "    " << P << "_measurement(ch, s->xhat, t);\n"
-      << "    for (j = 0; j < " << M << "; ++j) e[j] = y[j] - ch[j];\n"
+      << "    for (j = 0; j < " << M << "; ++j) e[j] = "
+      << (cfg.output_weight.empty() ? "" : P + "_output_weight[j] * ") << "y[j] - ch[j];\n"
       << "    " << P << "_disturbance_gain(B, s->xhat, t);\n"
       << "    " << P << "_gain(k, s->xhat, t, e, B);\n"
       << "    /* filters/filter.hpp filter_estimate_ok: finite and |x^| < 1e12; the gain finite */\n"

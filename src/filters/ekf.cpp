@@ -31,8 +31,10 @@ public:
         Vec c(m);
         sys.measurement(c.data(), x_.data(), in.t, 1);
         const double r = model_.noise_std * model_.noise_std;
+        Vec rj(m);  // R = diag(rj): sn^2 per output (model_.noise_weight)
+        for (int j = 0; j < m; ++j) rj[j] = model_.noise_std_of(j) * model_.noise_std_of(j);
         Mat S = H * P_ * H.transpose();
-        S.diagonal().array() += r;
+        S.diagonal() += rj;
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
@@ -41,7 +43,9 @@ public:
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
             xu += K * (Eigen::Map<const Vec>(in.y, m) - c);
             Mat IKH = Mat::Identity(n, n) - K * H;
-            Pu = IKH * P_ * IKH.transpose() + r * K * K.transpose();  // Joseph form: stays symmetric PSD
+            // Joseph form: stays symmetric PSD
+            Pu = model_.noise_weight.empty() ? Mat(IKH * P_ * IKH.transpose() + r * K * K.transpose())
+                                             : Mat(IKH * P_ * IKH.transpose() + K * rj.asDiagonal() * K.transpose());
         }
         // predict to t_{k+1} through the shared step: Phi = d x_next / dx, G = d x_next / dv
         RowMat F(n, n), Gr(n, nv);
@@ -49,8 +53,7 @@ public:
         Mat Phi = F, G = Gr;
         Vec xn(n);
         system_advance(sys, xn.data(), xu.data(), nullptr, in.t, model_.dt);
-        Mat Pn = Phi * Pu * Phi.transpose() +
-                 model_.disturbance_std * model_.disturbance_std * G * G.transpose();
+        Mat Pn = Phi * Pu * Phi.transpose() + process_noise(G, model_);
         Pn = 0.5 * (Pn + Pn.transpose()).eval();
         if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
         x_ = xn;

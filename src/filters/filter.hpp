@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
+
 #include "config/run_config.hpp"
 #include "models/system.hpp"
 
@@ -27,11 +29,26 @@ struct FilterModel {
     double dt = 0.01;
     double disturbance_std = 20.0;  // sv
     double noise_std = 20.0;        // sn
+    /// Per-input and per-output factors of sv and sn ([baseline] lists that differ, models/weighted_system.hpp);
+    /// empty: all 1.
+    std::vector<double> disturbance_weight, noise_weight;
+    double disturbance_std_of(int k) const {
+        return disturbance_weight.empty() ? disturbance_std : disturbance_std * disturbance_weight[std::size_t(k)];
+    }
+    double noise_std_of(int j) const { return noise_weight.empty() ? noise_std : noise_std * noise_weight[std::size_t(j)]; }
 };
+
+/// The process noise G diag(sv_k^2) G' of a step whose d x_next / dv is G [n x nv] (sv^2 G G' with one sv).
+inline Eigen::MatrixXd process_noise(const Eigen::MatrixXd& G, const FilterModel& model) {
+    if (model.disturbance_weight.empty()) return model.disturbance_std * model.disturbance_std * G * G.transpose();
+    Eigen::VectorXd q(G.cols());
+    for (int k = 0; k < int(G.cols()); ++k) q[k] = model.disturbance_std_of(k) * model.disturbance_std_of(k);
+    return G * q.asDiagonal() * G.transpose();
+}
 
 /// The exact model of cfg: its system, dt and the [online] statistics.
 inline FilterModel filter_model(const RunConfig& cfg) {
-    return FilterModel{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    return FilterModel{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std, {}, {}};
 }
 
 struct FilterStart {

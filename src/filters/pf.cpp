@@ -56,12 +56,15 @@ public:
             std::vector<double> c(static_cast<std::size_t>(np_) * m), logw(np_);
             sys.measurement(c.data(), X_.data(), in.t, np_);
             const double inv_r = 1.0 / (model_.noise_std * model_.noise_std);
+            std::vector<double> wj(m, 1.0);  // (sn / sn_j)^2 per output (model_.noise_weight)
+            for (int j = 0; j < m && !model_.noise_weight.empty(); ++j)
+                wj[j] = 1.0 / (model_.noise_weight[j] * model_.noise_weight[j]);
             double top = -INFINITY;
             for (std::int64_t p = 0; p < np_; ++p) {
                 double q = 0;
                 for (int j = 0; j < m; ++j) {
                     const double e = in.y[j] - c[p * m + j];
-                    q += e * e;
+                    q += e * e * wj[j];
                 }
                 logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
                 top = std::max(top, logw[p]);
@@ -113,7 +116,7 @@ public:
         // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
         std::vector<double> v(static_cast<std::size_t>(np_) * nv);
         kern::rng_normal(v.data(), np_ * nv, seed_, kern::RNG_STREAM_PARTICLES, run_, std::uint64_t(in.step) + 1);
-        for (double& vi : v) vi *= model_.disturbance_std;
+        for (std::size_t i = 0; i < v.size(); ++i) v[i] *= model_.disturbance_std_of(int(i % std::size_t(nv)));
         system_advance(sys, X_.data(), X_.data(), v.data(), in.t, model_.dt, np_);
         std::vector<double> xn(n);
         mean(xn);

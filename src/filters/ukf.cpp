@@ -46,7 +46,7 @@ public:
             S += wc_[s] * dz * dz.transpose();
             Pxz += wc_[s] * (X.row(s).transpose() - x_) * dz.transpose();
         }
-        S.diagonal().array() += model_.noise_std * model_.noise_std;
+        for (int j = 0; j < m; ++j) S(j, j) += model_.noise_std_of(j) * model_.noise_std_of(j);
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(Pxz.transpose()).transpose();
@@ -69,7 +69,7 @@ public:
             Pn += wc_[s] * dx * dx.transpose();
         }
         system_advance_jacobian(sys, nullptr, G.data(), xu.data(), in.t, model_.dt);
-        Pn += model_.disturbance_std * model_.disturbance_std * Mat(G) * Mat(G).transpose();
+        Pn += process_noise(Mat(G), model_);
         Pn = 0.5 * (Pn + Pn.transpose()).eval();
         if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
         x_ = xn;

@@ -8,6 +8,7 @@
 #include "hinf/h5.hpp"
 #include "hinf/hinf.hpp"
 
+using hinf::test::one_line_error;
 using hinf::test::run_hinf;
 using hinf::test::TempDir;
 using hinf::test::write_file;
@@ -38,18 +39,6 @@ void simulate(const hinf::Config& cfg, std::int64_t K, std::vector<double>* t, s
         x = cfg.advance(x, {5.0 * std::cos(0.3 * double(k))}, tk, cfg.dt());
     }
     *csv = out.str();
-}
-
-bool one_line_error(const std::function<void()>& call, const std::string& fragment) {
-    try {
-        call();
-    } catch (const hinf::Error& e) {
-        const std::string what = e.what();
-        INFO(what);
-        CHECK(what.find('\n') == std::string::npos);
-        return what.find(fragment) != std::string::npos;
-    }
-    return false;
 }
 
 }  // namespace

@@ -80,7 +80,7 @@ private:
 TEST_CASE("compare feeds every filter the identical measurement stream", "[eval][compare]") {
     RunConfig cfg = missile_config();
     TempDir d("compare-stream");
-    FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    FilterModel model = filter_model(cfg);
     auto ekf = make_ekf(model), pf = make_particle_filter(model, 50), ol = make_open_loop_filter(model);
     CompareOptions opt;
     opt.out_dir = d / "c";
@@ -114,7 +114,7 @@ TEST_CASE("compare feeds every filter the identical measurement stream", "[eval]
 TEST_CASE("compare results do not depend on the thread count", "[eval][compare][threads]") {
     RunConfig cfg = missile_config();
     TempDir d("compare-threads");
-    FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    FilterModel model = filter_model(cfg);
     std::unique_ptr<FrozenNetwork> net = network_freeze(network_create<float>(cfg));
     auto ekf = make_ekf(model), ukf = make_ukf(model), pf = make_particle_filter(model, 200),
          dnn_o = make_dnn_filter(model, *net, *make_hinf_gain_law(cfg.rho), false, "dnn_o"),

@@ -114,7 +114,9 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
         {"missile", "dissipative", ""}, {"missile", "paper", ""}, {"maneuvering_missile", "dissipative", ""},
         {"missile", "gain", ""}, {"missile", "gain", "storage_knots = 0\n"},
         // a tight input box (the central 40 % of the training estimates): the C holds z where hinf does
-        {"missile", "gain", "input_box = 0.3\n"}};
+        {"missile", "gain", "input_box = 0.3\n"},
+        // outputs of different noise ([online] noise_std list): C weighs y and C(x^) as hinf's model does
+        {"missile", "gain", "[online]\nnoise_std = [20.0, 40.0, 10.0, 5.0, 2.0, 8.0]\n"}};
     for (const auto& [kind, variant, network] : cases) {
         SECTION(std::string(kind) + " " + variant + " " + network) {
             TempDir d("export-missile");
@@ -134,6 +136,8 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
             std::ifstream src(d / "c/hinf_filter.c");
             const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
             CHECK((code.find("_zlo[a]") != std::string::npos) == (std::string(variant) == "gain"));
+            CHECK((code.find("_output_weight[j] * y[j]") != std::string::npos) ==
+                  (std::string(network).find("noise_std") != std::string::npos));
         }
     }
 }
@@ -159,6 +163,29 @@ TEST_CASE("exported C filter of a float expression-system network matches hinf f
             CHECK(c.final_abs <= 1e-6 * c.scale);
         }
     }
+}
+
+TEST_CASE("exported C filter with noise and disturbance std lists matches hinf filter to double round-off",
+          "[export][gain][channels]") {
+    // an expression system with two inputs and two outputs of different stds: C weighs y, C(x^), dC/dx and B
+    TempDir d("export-weighted");
+    const std::string cfg = write_file(
+        d, "weighted.toml",
+        "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 2\nmeasurements = 2\n"
+        "f = [\"w\", \"-p - 0.3*w + 0.1*sin(p)\"]\ng = [[\"0.2\", \"0\"], [\"1\", \"0.5\"]]\n"
+        "h = [\"p + 0.1*p^3\", \"w\"]\n[filter]\nrho = 3\nQ = [1.0, 1.0]\nx0 = [1.5, 0.0]\nxhat0 = [0.5, 0.5]\n"
+        "dt = 0.01\nt_final = 2\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\n"
+        "batch = 32\nadam_steps = 3\ncheckpoint_every = 5\n[online]\ndisturbance_std = [0.5, 2.0]\n"
+        "noise_std = [0.05, 0.4]\n");
+    Compared c = export_and_compare(d, cfg, "--until 0.1", "dnn_gain_measured");
+    INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+    CHECK(c.rows == 201);
+    CHECK(c.compared == 201);
+    CHECK(c.max_abs <= 1e-11 * c.scale);
+    std::ifstream src(d / "c/hinf_filter.c");
+    const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+    CHECK(code.find("_disturbance_scale[k]") != std::string::npos);
+    CHECK(code.find("_output_weight[j] * y[j]") != std::string::npos);
 }
 
 TEST_CASE("hinf export: bad use is one line", "[export][cli]") {

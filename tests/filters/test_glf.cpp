@@ -82,7 +82,7 @@ TEST_CASE("GLF filter runs x^+ = x^ + dt (A(x^) + L (y - C(x^)))", "[filters][gl
     d.ok = true;
     d.gain.assign(36, 0.0);
     for (int i = 0; i < 6; ++i) d.gain[i * 6 + i] = 2.0 + i;
-    FilterModel model{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std};
+    FilterModel model = filter_model(cfg);
     auto f = make_glf_filter(model, d);
     FilterStart st;
     st.xhat0 = cfg.xhat0;
