@@ -219,11 +219,6 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
     for (std::int64_t r = 0; r < rows && nv > 0; ++r)
         for (std::size_t k = 0; k < nv; ++k) v[std::size_t(r) * nv + k] /= c.disturbance_scale[k];
 }
-void disturbances_to_user(const ProblemConfig& c, double* v, std::int64_t rows) {
-    const std::size_t nv = c.disturbance_scale.size();
-    for (std::int64_t r = 0; r < rows && nv > 0; ++r)
-        for (std::size_t k = 0; k < nv; ++k) v[std::size_t(r) * nv + k] *= c.disturbance_scale[k];
-}
 
 std::string default_variant(const std::string& type, int n, int m, int nv) {
     return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";

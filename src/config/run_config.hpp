@@ -123,11 +123,11 @@ struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
 };
 
 /// Between the user's units and the model's (ProblemConfig::output_weight, disturbance_scale), in place, for
-/// `rows` rows of m outputs (y) or nv inputs (v); no-ops where no list was given. A NaN (missing output) stays NaN.
+/// `rows` rows of m outputs (y) or nv inputs (v, which only comes in: the library's Config::advance); no-ops where
+/// no list was given. A NaN (missing output) stays NaN.
 void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows);
 void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows);
 void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows);
-void disturbances_to_user(const ProblemConfig& c, double* v, std::int64_t rows);
 
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix.
 RunConfig load_run_config(ConfigDoc doc);

@@ -96,7 +96,7 @@ TEST_CASE("std lists: the truth's noise has each output's std in the user's unit
     CHECK(std::sqrt(sum2[1] / double(count)) == Approx(0.4).epsilon(0.05));
 }
 
-TEST_CASE("std lists: EKF and UKF on a record in the user's units are the Kalman filter with R = diag(sn_j^2)",
+TEST_CASE("std lists: EKF, UKF (and PF) on a record in the user's units are the Kalman filter with R = diag(sn_j^2)",
           "[config][channels][api]") {
     // the told noise differs from the truth's per output ([baseline] list), the process noise per input
     const std::string text = std::string(kLinear) + "[baseline]\nnoise_std = [0.2, 0.3]\ninitial_std = [1.0, 1.0]\n";
@@ -112,25 +112,39 @@ TEST_CASE("std lists: EKF and UKF on a record in the user's units are the Kalman
         x = cfg.advance(x, {0.3 * std::sin(0.2 * k), 1.5 * std::cos(0.5 * k)}, double(k), 1.0);
     }
     // the textbook filter in the user's units: R = diag(0.2^2, 0.3^2), Q = G diag(0.3^2, 1.5^2) G'
-    Eigen::Matrix2d F, G, H, R, Qv, P = Eigen::Matrix2d::Identity();
+    Eigen::Matrix2d F, G, H, Qv;
     F << 1, 0.1, 0, 0.95;
     G << 0.5, 0, 1, 0.2;
     H << 1, 0.5, 0, 1;
-    R = Eigen::Vector2d(0.04, 0.09).asDiagonal();
     Qv = Eigen::Vector2d(0.09, 2.25).asDiagonal();
-    Eigen::Vector2d xh(0, 0);
-    std::vector<double> want;
-    for (int k = 0; k < K; ++k) {
-        want.push_back(xh[0]);
-        want.push_back(xh[1]);
-        const Eigen::Matrix2d S = H * P * H.transpose() + R;
-        const Eigen::Matrix2d Kg = P * H.transpose() * S.inverse();
-        xh += Kg * (Eigen::Vector2d(y[2 * k], y[2 * k + 1]) - H * xh);
-        const Eigen::Matrix2d IKH = Eigen::Matrix2d::Identity() - Kg * H;
-        P = IKH * P * IKH.transpose() + Kg * R * Kg.transpose();
-        xh = F * xh;
-        P = F * P * F.transpose() + G * Qv * G.transpose();
-    }
+    auto kalman = [&](const Eigen::Matrix2d& R) {
+        Eigen::Matrix2d P = Eigen::Matrix2d::Identity();
+        Eigen::Vector2d xh(0, 0);
+        std::vector<double> out;
+        for (int k = 0; k < K; ++k) {
+            out.push_back(xh[0]);
+            out.push_back(xh[1]);
+            const Eigen::Matrix2d S = H * P * H.transpose() + R;
+            const Eigen::Matrix2d Kg = P * H.transpose() * S.inverse();
+            xh += Kg * (Eigen::Vector2d(y[2 * k], y[2 * k + 1]) - H * xh);
+            const Eigen::Matrix2d IKH = Eigen::Matrix2d::Identity() - Kg * H;
+            P = IKH * P * IKH.transpose() + Kg * R * Kg.transpose();
+            xh = F * xh;
+            P = F * P * F.transpose() + G * Qv * G.transpose();
+        }
+        return out;
+    };
+    const Eigen::Matrix2d R = Eigen::Vector2d(0.04, 0.09).asDiagonal();
+    const std::vector<double> want = kalman(R);
+    // Config::advance takes v and measure gives y in the user's units: x+ = F x + G v, y = H x
+    const std::vector<double> x1 = cfg.advance({1.0, -1.0}, {0.3, 1.5}, 0.0, 1.0);
+    const Eigen::Vector2d x1_want = F * Eigen::Vector2d(1.0, -1.0) + G * Eigen::Vector2d(0.3, 1.5);
+    CHECK(x1[0] == Approx(x1_want[0]).epsilon(1e-14));
+    CHECK(x1[1] == Approx(x1_want[1]).epsilon(1e-14));
+    const std::vector<double> y1 = cfg.measure(x1, 1.0);
+    const Eigen::Vector2d y1_want = H * x1_want;
+    CHECK(y1[0] == Approx(y1_want[0]).epsilon(1e-14));
+    CHECK(y1[1] == Approx(y1_want[1]).epsilon(1e-14));
     for (const char* name : {"ekf", "ukf"}) {
         INFO(name);
         hinf::Filter f = hinf::Filter::create(cfg, name);
@@ -147,6 +161,21 @@ TEST_CASE("std lists: EKF and UKF on a record in the user's units are the Kalman
         CHECK(tr.innovation[0] == Approx(y[0] - c0[0]).margin(1e-12));
         CHECK(tr.innovation[1] == Approx(y[1] - c0[1]).margin(1e-12));
     }
+    // the particle filter's likelihood: nearer the Kalman filter with this R than that with one std (0.3) for both
+    const std::vector<double> one_std = kalman(Eigen::Vector2d(0.09, 0.09).asDiagonal());
+    hinf::FilterOptions o;
+    o.particles = 4000;
+    const hinf::FilterTrace pf = hinf::Filter::create(cfg, "pf", o).run(t, y);
+    double to_right = 0, to_wrong = 0, apart = 0;
+    for (int k = 10; k < K; ++k)
+        for (int i = 0; i < 2; ++i) {
+            to_right = std::max(to_right, std::fabs(pf.xhat[2 * k + i] - want[2 * k + i]));
+            to_wrong = std::max(to_wrong, std::fabs(pf.xhat[2 * k + i] - one_std[2 * k + i]));
+            apart = std::max(apart, std::fabs(one_std[2 * k + i] - want[2 * k + i]));
+        }
+    INFO("PF to the right KF " << to_right << ", to the one-std KF " << to_wrong << ", the KFs apart " << apart);
+    CHECK(to_right < 0.4 * apart);
+    CHECK(to_right < to_wrong);
 }
 
 TEST_CASE("std lists: rho* of a two-sensor random walk is b^2 + 1 / sum_j sn_j^-2", "[config][channels][rho]") {
