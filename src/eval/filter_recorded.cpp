@@ -200,10 +200,11 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
     std::int64_t used = 0;
     Progress progress("filter " + r.name, 0, K, quiet);
     // the filters run in the model's units (outputs weighted by their noise, ProblemConfig::output_weight);
-    // innovations are reported in the record's
+    // innovations are reported in the record's, and the states' plausible range comes from the record's y too (the
+    // units a position and a measured range share)
     std::vector<double> ym = ms.y;
     outputs_to_model(cfg, ym.data(), K);
-    const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ym.data(), K);
+    const std::vector<double> bound = plausible_bound(cfg, start, nullptr, ms.y.data(), K);
     const unsigned char* missing = ms.missing.empty() ? nullptr : ms.missing.data();
     StreamResult sr = filter_stream(f, ym.data(), m, ms.t.data(), K, nullptr, n, bound.data(), missing,
                                     [&](std::int64_t k, const double* xh, bool frozen) {
