@@ -656,12 +656,14 @@ public:
     std::function<void(const TrainStepInfo&)> on_step_;  // TrainOptions::on_step
 };
 
+// What the game to be trained needs, checked before any file is touched: a level (a config naming no rho whose
+// system gives no default, game_level.hpp, is refused here), and the time model.
 // THE refusal of discrete-time systems for training (issue 13): every variant but `gain` trains the continuous-time
 // game (the HJI inequality with Euler-sampled steps, seed 000 eqs. (18)-(20)). Variant gain trains the one-step
 // dissipation inequality of a discrete system (kernels/gain_discrete.hpp, docs/method.md section 16.8); its game
 // needs rho > lambda_max(B'Q B) (S >= Q and G'S G < rho), checked here at x0.
-void train_check_time(const RunConfig& cfg) {
-    HINF_CHECK(cfg.rho > 0, cfg.rho_unset);  // a config naming no rho whose system gives no default (game_level.hpp)
+void train_check_game(const RunConfig& cfg) {
+    HINF_CHECK(cfg.rho > 0, cfg.rho_unset);
     if (!cfg.system->discrete_time()) return;
     HINF_CHECK(cfg.variant == "gain",
                cfg.doc.source() + ": [system] time = \"discrete\": variant \"" + cfg.variant + "\" trains the "
@@ -678,7 +680,7 @@ void train_check_time(const RunConfig& cfg) {
 
 template <typename T>
 TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
-    train_check_time(cfg);
+    train_check_game(cfg);
     const RunDirLock lock(opt.out_dir, "hinf train");  // before trajectory.h5 is created (truncated)
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_fresh();
@@ -733,7 +735,7 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     if (!opt.sets.empty() || !legacy.empty())
         ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
-    train_check_time(cfg);
+    train_check_game(cfg);
     std::int64_t last = cfg.steps_until(opt.until);
     HINF_CHECK(last > ck.state.step || opt.until < 0 || last == ck.state.step,
                "--until " + std::to_string(opt.until) + " is before the checkpoint's time " +
