@@ -3,6 +3,7 @@
 // network's round-off (amplified by the gain, then contracting) for a float one; built-in and expression systems,
 // both training variants. Bad use is one line.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -186,6 +187,40 @@ TEST_CASE("exported C filter with noise and disturbance std lists matches hinf f
     const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
     CHECK(code.find("_disturbance_scale[k]") != std::string::npos);
     CHECK(code.find("_output_weight[j] * y[j]") != std::string::npos);
+
+    // The step's gain law does not read B, so the comparison above cannot see a wrong B~: the system functions the
+    // step calls, at one state, against the weighted system written out by hand from the config above. Outputs in
+    // units of their std: w = (1/0.05, 1/0.4) = (20, 2.5); inputs: u = (0.5, 2.0). At x = (1, 2), t = 0.3:
+    //   A = (w, -p - 0.3 w + 0.1 sin p) = (2, -1.6 + 0.1 sin 1)
+    //   B~ = [[0.2, 0], [1, 0.5]] diag(0.5, 2) = [[0.1, 0], [0.5, 1]]
+    //   C~ = (20 (p + 0.1 p^3), 2.5 w) = (22, 5),  dC~/dx = [[20 (1 + 0.3 p^2), 0], [0, 2.5]] = [[26, 0], [0, 2.5]]
+    auto cc = run_command("cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -Wno-unused-function -I " + (d / "c") +
+                          " -o " + (d / "probe") + " " + hinf::test::source_path("tests/export/probe_system.c") + " -lm");
+    INFO(cc.output);
+    REQUIRE(cc.status == 0);
+    auto p = run_command(d / "probe" + std::string(" 0.3 1 2"));
+    INFO(p.output);
+    REQUIRE(p.status == 0);
+    const std::vector<std::pair<std::string, std::vector<double>>> want = {
+        {"A", {2.0, -1.6 + 0.1 * std::sin(1.0)}},
+        {"B", {0.1, 0.0, 0.5, 1.0}},
+        {"C", {22.0, 5.0}},
+        {"H", {26.0, 0.0, 0.0, 2.5}}};
+    std::istringstream in(p.output);
+    for (const auto& [name, values] : want) {
+        std::string line;
+        REQUIRE(std::getline(in, line));
+        std::istringstream cells(line);
+        std::string cell;
+        REQUIRE(std::getline(cells, cell, ','));
+        CHECK(cell == name);
+        for (double v : values) {
+            REQUIRE(std::getline(cells, cell, ','));
+            INFO(name << ": " << cell << " against " << v);
+            CHECK(std::fabs(std::stod(cell) - v) <= 1e-13 * (1 + std::fabs(v)));
+        }
+        CHECK_FALSE(std::getline(cells, cell, ','));
+    }
 }
 
 TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
