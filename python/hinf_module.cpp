@@ -104,6 +104,7 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["acceptance"] = r.acceptance.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance));
     d["acceptance_checkpoint"] = r.acceptance_checkpoint;
     d["acceptance_line"] = r.acceptance_line;
+    d["acceptance_advice"] = r.acceptance_advice.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_advice));
     return d;
 }
 

@@ -181,8 +181,9 @@ struct TrainReport {
     std::string best_checkpoint;
     std::int64_t best_step = -1;
     /// the acceptance check at t_final (docs/method.md 16.5): "pass", "fail", or "" where it did not run (a run
-    /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line
-    std::string acceptance, acceptance_checkpoint, acceptance_line;
+    /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line; after
+    /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise)
+    std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice;
 };
 
 /// Trains a network for cfg (the offline phase, as `hinf train`).

@@ -241,6 +241,8 @@ def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     assert report["acceptance"] in ("pass", "fail")
     assert report["acceptance_checkpoint"] == report["best_checkpoint"]
     assert report["acceptance_line"].startswith("acceptance (")
+    # what to try is given after a fail, and only then
+    assert (report["acceptance_advice"] is not None) == (report["acceptance"] == "fail")
     # stopped before t_final: no check
     early = hinf.train(cfg, str(tmp_path / "early"), until=0.1)
     assert early["acceptance"] is None

@@ -393,6 +393,7 @@ void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, c
         r.acceptance = a.pass ? "pass" : "fail";
         r.acceptance_checkpoint = a.file;
         r.acceptance_line = a.line;
+        r.acceptance_advice = a.advice;
     }
 }
 }  // namespace

@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 
+#include "config/game_level.hpp"
 #include "eval/operate.hpp"
 #include "eval/worst.hpp"
 #include "filters/factory.hpp"
@@ -88,6 +89,44 @@ OperateSummary measured_validation(const RunConfig& cfg, const std::string& path
     return operate_run(plain, *net, path, oo);
 }
 
+// What to try after a FAIL (printed under the acceptance line; docs/byos.md section 4), from what was measured on
+// the systems of the docs, most decisive first:
+// - a level at or below rho*, the linearised game's smallest (config/game_level.hpp): no filter keeps it for small
+//   signals (Van der Pol at 0.5, rho* 1.38: FAIL; at 1.5: PASS for seeds 1-5);
+// - a short run (fewer than kShortRunUpdates Adam updates in all): more updates per step lowered the error (the radar,
+//   100 steps: 3000 updates gave 2.0-5.7x the EKF, 30 000 gave 1.05-1.13x);
+// - always: a FAIL says the promise rho is not kept, not that the filter is worse than the EKF/UKF in the mean.
+constexpr std::int64_t kShortRunUpdates = 30000;
+
+std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
+    std::string a = "acceptance: next:";
+    char buf[512];
+    const double bound = cfg.rho_auto ? cfg.rho_bound : game_level_bound(cfg).bound;
+    if (bound > 0 && cfg.rho <= bound) {
+        std::snprintf(buf, sizeof buf,
+                      " [filter] rho = %.4g is at or below rho* = %.4g, the smallest level any filter can keep for this "
+                      "system linearised (hinf rho): train at a level above it, e.g. --set filter.rho=%.4g (%.4g "
+                      "rho*);",
+                      cfg.rho, bound, kAutoRhoFactor * bound, kAutoRhoFactor);
+        a += buf;
+    }
+    const std::int64_t steps = cfg.steps_until(), updates = steps * cfg.adam_steps;
+    if (updates < kShortRunUpdates) {
+        const std::int64_t more = (kShortRunUpdates + steps - 1) / std::max<std::int64_t>(steps, 1);
+        std::snprintf(buf, sizeof buf,
+                      " this run made %lld Adam updates (%lld time steps x training.adam_steps = %lld); a short run "
+                      "can gain from more (--set training.adam_steps=%lld, then compare both best.h5; docs/byos.md "
+                      "section 4);",
+                      static_cast<long long>(updates), static_cast<long long>(steps),
+                      static_cast<long long>(cfg.adam_steps), static_cast<long long>(more));
+        a += buf;
+    }
+    a += " compare it with the Bayesian filters before you use it: hinf compare " + cfg.doc.source() + " --network " +
+         path + " --filters dnn,ekf,ukf (with the training's --set options; a FAIL says the level rho is not kept, not "
+         "that the filter is worse than the EKF in the mean)";
+    return a;
+}
+
 // The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
 // [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
 // verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
@@ -143,6 +182,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.pass = pass;
     o.file = path;
     o.line = line;
+    if (!pass) o.advice = acceptance_advice(cfg, path);
     return o;
 }
 

@@ -51,6 +51,7 @@ struct AcceptanceOutcome {
     bool pass = false;  // no run diverged, attenuation ratio <= rho, worst ratio found <= rho without divergence
     std::string file;   // the checkpoint judged: DIR/best.h5 where a selection kept one, else DIR/checkpoint.h5
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
+    std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
 };
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
 /// trained at least one step), on one process, with cfg.acceptance_runs > 0; its verdict and figures are written

@@ -122,11 +122,24 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     CHECK(t.status == 5);
     CHECK(t.output.find("FAIL") != std::string::npos);
     CHECK(t.output.find("failed its acceptance check") != std::string::npos);
-    // a level this 0.5 s training meets (Monte Carlo ~0.5, worst case found ~1.9 when written): exit 0
+    // what to try, under the FAIL line: a level below rho* (hinf rho) and 50 steps x 2 Adam steps (a short run), each
+    // with its fix, then the comparison with the Bayesian filters on the judged checkpoint
+    const std::size_t next = t.output.find("acceptance: next:");
+    REQUIRE(next != std::string::npos);
+    const std::string advice = t.output.substr(next, t.output.find('\n', next) - next);
+    CHECK(advice.find("rho = 1e-09 is at or below rho* = ") != std::string::npos);
+    CHECK(advice.find("--set filter.rho=") != std::string::npos);
+    CHECK(advice.find("this run made 100 Adam updates (50 time steps x training.adam_steps = 2)") != std::string::npos);
+    CHECK(advice.find("--set training.adam_steps=600") != std::string::npos);
+    CHECK(advice.find("hinf compare " + cfg + " --network " + (d / "run/best.h5") + " --filters dnn,ekf,ukf") !=
+          std::string::npos);
+    // a level this 0.5 s training meets (Monte Carlo ~0.5, worst case found ~1.9 when written): exit 0, no advice
     auto ok = run_hinf("train " + cfg + " --out " + (d / "run2") +
                        " --quiet --set filter.rho=5 --set training.require_acceptance=true");
     INFO(ok.output);
     CHECK(ok.status == 0);
+    CHECK(ok.output.find("PASS") != std::string::npos);
+    CHECK(ok.output.find("acceptance: next:") == std::string::npos);
 }
 
 TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes, and 0 evaluations skip it",
