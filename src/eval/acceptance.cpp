@@ -101,7 +101,11 @@ constexpr std::int64_t kShortRunUpdates = 30000;
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
     std::string a = "acceptance: next:";
     char buf[512];
-    const double bound = cfg.rho_auto ? cfg.rho_bound : game_level_bound(cfg).bound;
+    double bound = cfg.rho_bound;  // rho_auto: computed on loading (0: not bracketed)
+    if (!cfg.rho_auto) {
+        const GameLevel g = game_level_bound(cfg);
+        bound = g.bracketed ? g.bound : 0.0;
+    }
     if (bound > 0 && cfg.rho <= bound) {
         std::snprintf(buf, sizeof buf,
                       " [filter] rho = %.4g is at or below rho* = %.4g, the smallest level any filter can keep for this "
@@ -121,7 +125,11 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
                       static_cast<long long>(cfg.adam_steps), static_cast<long long>(more));
         a += buf;
     }
-    a += " compare it with the Bayesian filters before you use it: hinf compare " + cfg.doc.source() + " --network " +
+    // the config file when training read one (a resumed run's config comes from its checkpoint)
+    const std::string& src = cfg.doc.source();
+    const bool file = src.size() > 5 && src.compare(src.size() - 5, 5, ".toml") == 0 && std::filesystem::exists(src);
+    const std::string config = file ? src : std::string("CONFIG");
+    a += " compare it with the Bayesian filters before you use it: hinf compare " + config + " --network " +
          path + " --filters dnn,ekf,ukf (with the training's --set options; a FAIL says the level rho is not kept, not "
          "that the filter is worse than the EKF in the mean)";
     return a;
