@@ -66,10 +66,7 @@ int Config::disturbances() const { return run_config(*this).nv; }
 double Config::dt() const { return run_config(*this).dt; }
 double Config::t_final() const { return run_config(*this).t_final; }
 double Config::rho() const { return run_config(*this).rho; }
-double Config::rho_bound() const {
-    const GameLevel g = game_level_bound(run_config(*this));
-    return g.bracketed ? g.bound : 0.0;
-}
+double Config::rho_bound() const { return game_level_rho_star(run_config(*this)); }
 std::string Config::system() const { return run_config(*this).system->name(); }
 std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }
 std::vector<std::string> Config::state_units() const { return run_config(*this).system->state_units(); }

@@ -55,6 +55,12 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     return -1;
 }
 
+double game_level_rho_star(const ProblemConfig& c) {
+    if (c.rho_auto) return c.rho_bound;
+    const GameLevel g = game_level_bound(c);
+    return g.bracketed ? g.bound : 0.0;
+}
+
 GameLevel game_level_bound(const ProblemConfig& c, double rel_tol) {
     GameLevel r;
     auto holds = [&](double rho) { return game_level_lost_at(c, rho) < 0; };

@@ -31,6 +31,10 @@ struct GameLevel {
 /// ratio of every smooth filter (the discrete one also >= lambda_max(B'Q B), the floor of the one-step game).
 GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01);
 
+/// rho* of a loaded config, 0 where no level is bracketed: the value loading computed for a config naming no rho
+/// (rho_auto), else game_level_bound's (one walk per level tried).
+double game_level_rho_star(const ProblemConfig& c);
+
 /// The level a system of one's own trains at when its config names no [filter] rho: kAutoRhoFactor times rho*.
 constexpr double kAutoRhoFactor = 1.25;
 

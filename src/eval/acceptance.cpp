@@ -101,11 +101,7 @@ constexpr std::int64_t kShortRunUpdates = 30000;
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
     std::string a = "acceptance: next:";
     char buf[512];
-    double bound = cfg.rho_bound;  // rho_auto: computed on loading (0: not bracketed)
-    if (!cfg.rho_auto) {
-        const GameLevel g = game_level_bound(cfg);
-        bound = g.bracketed ? g.bound : 0.0;
-    }
+    const double bound = game_level_rho_star(cfg);
     if (bound > 0 && cfg.rho <= bound) {
         std::snprintf(buf, sizeof buf,
                       " [filter] rho = %.4g is at or below rho* = %.4g, the smallest level any filter can keep for this "
