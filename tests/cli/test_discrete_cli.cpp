@@ -5,6 +5,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <regex>
 #include <sstream>
 
 #include "helpers.hpp"
@@ -211,4 +213,40 @@ TEST_CASE("the benchmark configs run: runs/ungm.toml and scripts/benchmark-loren
     std::getline(csv, row);
     CHECK(header.rfind("table,row,column_db,published_db,hinf_db", 0) == 0);
     CHECK(row.rfind("process,ekf_J2,0,-10.36,", 0) == 0);
+}
+
+TEST_CASE("scripts/benchmark-lorenz's DNN row tunes rho and the training seed and the told q together", "[cli][discrete][benchmarks]") {
+    // two candidates (seeds 1 and 2 at q_told = 0.5 q), each trained for 10 steps: the script must pass the seed and
+    // the told q to hinf train, score both on validation (and, with --dnn-test-all, on the test runs), and keep the
+    // one with the lower validation MSE
+    TempDir d("cli-bench-dnn");
+    auto l = hinf::test::run_command("cd " + hinf::test::source_path("") + " && /usr/bin/python3 scripts/benchmark-lorenz"
+                                     " --hinf " + std::string(HINF_CLI_PATH) + " --table observation --rows dnn_rotH --dnn"
+                                     " --columns 0 --runs 1 --tune-runs 1 --dnn-rho-grid 16 --dnn-seeds 1,2 --dnn-q-grid 0.5"
+                                     " --dnn-test-all --dnn-train-set filter.t_final=0.2 --out " + (d / "lorenz"));
+    INFO(l.output);
+    REQUIRE(l.status == 0);
+    CHECK(l.output.find("--set training.seed=2") != std::string::npos);
+    CHECK(l.output.find("--set filter.t_final=0.2") != std::string::npos);
+    // 0 dB: r = 1, q = 0.1, so the told q is 0.05
+    CHECK(l.output.find("--set online.disturbance_std=0.050000000000000003") != std::string::npos);
+    std::smatch m;
+    std::map<int, double> val;
+    std::string rest = l.output;
+    const std::regex cand("rho = 16, seed (\\d), q_told = 0\\.5 q: (-?[0-9.]+) dB \\(0 diverged\\), test -?[0-9.]+ dB");
+    while (std::regex_search(rest, m, cand)) {
+        val[std::stoi(m[1])] = std::stod(m[2]);
+        rest = m.suffix();
+    }
+    REQUIRE(val.size() == 2);
+    REQUIRE(val[1] != val[2]);
+    const int kept = val[1] < val[2] ? 1 : 2;
+    CHECK(l.output.find("seed " + std::to_string(kept) + ", q_told = 0.5 q, 0 diverged") != std::string::npos);
+    std::ifstream csv(d / "lorenz/lorenz_observation.csv");
+    std::string header, row;
+    std::getline(csv, header);
+    std::getline(csv, row);
+    CHECK(header.find(",training_seed,dnn_q_multiple") != std::string::npos);
+    CHECK(row.rfind("observation,dnn_rotH,0,nan,", 0) == 0);
+    CHECK(row.find("," + std::to_string(kept) + ",0.5") != std::string::npos);
 }
