@@ -249,4 +249,19 @@ TEST_CASE("scripts/benchmark-lorenz's DNN row tunes rho and the training seed an
     CHECK(header.find(",training_seed,dnn_q_multiple") != std::string::npos);
     CHECK(row.rfind("observation,dnn_rotH,0,nan,", 0) == 0);
     CHECK(row.find("," + std::to_string(kept) + ",0.5") != std::string::npos);
+
+    // bad input: one line and a non-zero exit, never a traceback
+    const std::string script = "cd " + hinf::test::source_path("") + " && /usr/bin/python3 scripts/benchmark-lorenz --hinf " +
+                               std::string(HINF_CLI_PATH) + " --out " + (d / "bad");
+    auto no_dnn = hinf::test::run_command(script + " --table observation --dnn-seeds 1,2");
+    CHECK(no_dnn.status != 0);
+    CHECK(no_dnn.output.find("--dnn-seeds: for the DNN row only; add --dnn") != std::string::npos);
+    auto bad_seed = hinf::test::run_command(script + " --dnn --table observation --dnn-seeds 1,x");
+    CHECK(bad_seed.status != 0);
+    CHECK(bad_seed.output.find("--dnn-seeds '1,x' must be comma-separated integers >= 0") != std::string::npos);
+    auto bad_set = hinf::test::run_command(script + " --table observation --rows dnn_rotH --dnn --columns 0 --runs 1"
+                                                    " --tune-runs 1 --dnn-rho-grid 16 --dnn-train-set filter.nokey=1");
+    CHECK(bad_set.status != 0);
+    CHECK(bad_set.output.find("failed with exit status 2 (its message is above)") != std::string::npos);
+    CHECK(bad_set.output.find("Traceback") == std::string::npos);
 }
