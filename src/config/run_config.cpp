@@ -151,12 +151,50 @@ std::vector<double> error_floor_default(const RunConfig& c, bool before) {
     return floor;
 }
 
-// [online] noise_std / disturbance_std: one number, or a list of one per output / input. A list (either) selects the
-// covariance-weighted game (docs/method.md section 16.13): every output and every disturbance input is then measured
-// in units of its own standard deviation, so the model's stds are 1, with y~_j = y_j / sn_j (output_weight) and
-// B~ = B diag(sv_k) (disturbance_scale); a one-number partner of a list is weighted the same way unless it is 0. Two
-// numbers keep the game in the user's units (the papers'). Sets c's four fields; read twice (before anything reads
-// the system, and with the rest of [online]), with the same result.
+// The lower Cholesky factor L (row-major, [k x k]) of the covariance `key` holds, checked symmetric and positive
+// definite.
+std::vector<double> covariance_factor(ConfigSection& s, const std::string& key, int k) {
+    const std::vector<double> c = s.get_matrix(key, {}, k, k);
+    Eigen::MatrixXd C(k, k);
+    double top = 0;
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < k; ++j) {
+            C(i, j) = c[std::size_t(i) * k + j];
+            top = std::max(top, std::fabs(C(i, j)));
+        }
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j < i; ++j)
+            if (std::fabs(C(i, j) - C(j, i)) > 1e-12 * top)
+                s.reject(key, "must be symmetric (a covariance): row " + std::to_string(i + 1) + ", column " +
+                                  std::to_string(j + 1) + " differs from row " + std::to_string(j + 1) + ", column " +
+                                  std::to_string(i + 1));
+    Eigen::LLT<Eigen::MatrixXd> llt(C);
+    const Eigen::MatrixXd L = llt.matrixL();
+    bool ok = llt.info() == Eigen::Success && top <= 1e24;
+    for (int i = 0; i < k && ok; ++i) ok = L(i, i) > 1e-12 * std::sqrt(top);
+    if (!ok)
+        s.reject(key, "must be positive definite, with entries up to 1e24 (a covariance of " + std::to_string(k) +
+                          " channels; a noise-free channel: give it a small variance)");
+    std::vector<double> out(std::size_t(k) * k, 0.0);
+    for (int i = 0; i < k; ++i)
+        for (int j = 0; j <= i; ++j) out[std::size_t(i) * k + j] = L(i, j);
+    return out;
+}
+
+std::vector<double> diagonal_matrix(const std::vector<double>& d) {
+    const std::size_t k = d.size();
+    std::vector<double> M(k * k, 0.0);
+    for (std::size_t j = 0; j < k; ++j) M[j * k + j] = d[j];
+    return M;
+}
+
+// [online] noise_std / disturbance_std: one number, or a list of one per output / input; or noise_cov /
+// disturbance_cov, a full covariance. A list or a covariance (either) selects the covariance-weighted game
+// (docs/method.md section 16.13): every output and every disturbance input is then measured in units of its own
+// noise, so the model's stds are 1, with y~ = W y (output_weight: W = diag(1 / sn_j) for a list, L_R^-1 for a
+// covariance R = L_R L_R') and B~ = B U (disturbance_scale: diag(sv_k), or L_V); a one-number partner is weighted
+// the same way unless it is 0. Two numbers keep the game in the user's units (the papers'). Sets c's four fields;
+// read twice (before anything reads the system, and with the rest of [online]), with the same result.
 void resolve_channel_stds(ConfigSection& on, ProblemConfig* pc, OnlineConfig* oc) {
     auto list = [&](const std::string& key, int count) {
         const std::vector<double> v = on.get_doubles(key, {}, count);
@@ -167,35 +205,94 @@ void resolve_channel_stds(ConfigSection& on, ProblemConfig* pc, OnlineConfig* oc
                                "one number for all)");
         return v;
     };
+    const bool noise_cov = on.has("noise_cov"), dist_cov = on.has("disturbance_cov");
+    if (noise_cov && on.has("noise_std"))
+        on.reject("noise_cov", "give noise_cov or noise_std, not both (noise_cov is the whole covariance: its "
+                               "diagonal holds the variances noise_std would give)");
+    if (dist_cov && on.has("disturbance_std"))
+        on.reject("disturbance_cov", "give disturbance_cov or disturbance_std, not both (disturbance_cov is the whole "
+                                     "covariance: its diagonal holds the variances disturbance_std would give)");
     const bool noise_list = on.is_list("noise_std"), dist_list = on.is_list("disturbance_std");
     std::vector<double> sn = noise_list ? list("noise_std", pc->m) : std::vector<double>{};
     std::vector<double> sv = dist_list ? list("disturbance_std", pc->nv) : std::vector<double>{};
-    if (!noise_list) oc->noise_std = on.get_double("noise_std", oc->noise_std, 0.0, 1e12);
-    if (!dist_list) oc->disturbance_std = on.get_double("disturbance_std", oc->disturbance_std, 0.0, 1e12);
+    std::vector<double> Ln = noise_cov ? covariance_factor(on, "noise_cov", pc->m) : std::vector<double>{};
+    std::vector<double> Lv = dist_cov ? covariance_factor(on, "disturbance_cov", pc->nv) : std::vector<double>{};
+    if (!noise_list && !noise_cov) oc->noise_std = on.get_double("noise_std", oc->noise_std, 0.0, 1e12);
+    if (!dist_list && !dist_cov) oc->disturbance_std = on.get_double("disturbance_std", oc->disturbance_std, 0.0, 1e12);
     pc->output_weight.clear();
     pc->disturbance_scale.clear();
-    if (!noise_list && !dist_list) return;
-    if (!noise_list && oc->noise_std > 0) sn.assign(std::size_t(pc->m), oc->noise_std);
-    if (!dist_list && oc->disturbance_std > 0) sv.assign(std::size_t(pc->nv), oc->disturbance_std);
-    for (double e : sn) pc->output_weight.push_back(1.0 / e);
-    pc->disturbance_scale = sv;
-    if (!sn.empty()) oc->noise_std = 1.0;
-    if (!sv.empty()) oc->disturbance_std = 1.0;
+    if (!noise_list && !dist_list && !noise_cov && !dist_cov) return;
+    if (!noise_list && !noise_cov && oc->noise_std > 0) sn.assign(std::size_t(pc->m), oc->noise_std);
+    if (!dist_list && !dist_cov && oc->disturbance_std > 0) sv.assign(std::size_t(pc->nv), oc->disturbance_std);
+    if (!sn.empty()) Ln = diagonal_matrix(sn);
+    if (!sv.empty()) Lv = diagonal_matrix(sv);
+    if (!Ln.empty()) {
+        pc->output_weight = lower_inverse(Ln, pc->m);
+        oc->noise_std = 1.0;
+    }
+    if (!Lv.empty()) {
+        pc->disturbance_scale = Lv;
+        oc->disturbance_std = 1.0;
+    }
 }
 
-// [baseline] noise_std / disturbance_std in the model's units (outputs times output_weight, inputs over
-// disturbance_scale): the common value, with *weight the per-channel factors where they differ (of the largest)
-double told_stds(ConfigSection& b, const std::string& key, double fallback, int count, const std::vector<double>& unit,
-                 bool output, std::vector<double>* weight) {
+// [baseline] noise_std / disturbance_std (one number or a list) or noise_cov / disturbance_cov, what EKF, UKF and PF
+// are told, in the model's units (y~ = W y, v~ = U^-1 v with W = `unit` for outputs, U = `unit` for inputs). Returns
+// the common std; *weight holds the per-channel factors (of the largest) where a diagonal one's entries differ, *chol
+// a Cholesky factor L (told covariance = std^2 L L') where it is correlated: a covariance on either side.
+double told_stds(ConfigSection& b, const std::string& key, const std::string& cov_key, double fallback, int count,
+                 const std::vector<double>& unit, bool output, std::vector<double>* weight, std::vector<double>* chol) {
     weight->clear();
-    if (!b.has(key)) return fallback;  // the truth's (already in the model's units)
+    chol->clear();
+    if (b.has(cov_key) && b.has(key))
+        b.reject(cov_key, "give " + cov_key + " or " + key + ", not both (" + cov_key + " is the whole covariance)");
+    if (!b.has(key) && !b.has(cov_key)) return fallback;  // the truth's (already in the model's units)
+    const auto K = std::size_t(count);
+    if (b.has(cov_key) || (!unit.empty() && !is_diagonal(unit, count))) {
+        // correlated: T~ = W T W' (outputs) or U^-1 T U^-T (inputs), T the told covariance in the user's units
+        std::vector<double> T(K * K, 0.0);
+        if (b.has(cov_key)) {
+            const std::vector<double> L = covariance_factor(b, cov_key, count);
+            for (std::size_t i = 0; i < K; ++i)
+                for (std::size_t j = 0; j < K; ++j)
+                    for (std::size_t l = 0; l <= std::min(i, j); ++l) T[i * K + j] += L[i * K + l] * L[j * K + l];
+        } else {
+            const std::vector<double> v = b.is_list(key) ? b.get_doubles(key, {}, count)
+                                                         : std::vector<double>(K, b.get_double(key, 0, 0.0, 1e12));
+            for (std::size_t j = 0; j < K; ++j) {
+                if (!(v[j] >= 0) || v[j] > 1e12) b.reject(key, "entries must be in [0, 1e12] (standard deviations)");
+                T[j * K + j] = v[j] * v[j];
+            }
+        }
+        Eigen::MatrixXd M = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            T.data(), count, count);
+        if (!unit.empty()) {
+            Eigen::MatrixXd A(count, count);  // W, or U^-1
+            const std::vector<double> Ai = output ? unit : lower_inverse(unit, count);
+            for (int i = 0; i < count; ++i)
+                for (int j = 0; j < count; ++j) A(i, j) = Ai[std::size_t(i) * K + j];
+            M = (A * M * A.transpose()).eval();
+        }
+        const double top = std::sqrt(M.diagonal().maxCoeff());
+        if (top == 0) return 0.0;  // told none at all
+        Eigen::LLT<Eigen::MatrixXd> llt(M / (top * top));
+        if (!(top > 0) || llt.info() != Eigen::Success)
+            b.reject(b.has(cov_key) ? cov_key : key, "must give a positive definite covariance, or 0 for every "
+                                                     "channel, beside a correlated [online] one (a channel told no "
+                                                     "noise: give it a small std)");
+        const Eigen::MatrixXd L = llt.matrixL();
+        chol->assign(K * K, 0.0);
+        for (int i = 0; i < count; ++i)
+            for (int j = 0; j <= i; ++j) (*chol)[std::size_t(i) * K + j] = L(i, j);
+        return top;
+    }
     std::vector<double> v = b.is_list(key) ? b.get_doubles(key, {}, count)
-                                           : std::vector<double>(std::size_t(count), b.get_double(key, 0, 0.0, 1e12));
+                                           : std::vector<double>(K, b.get_double(key, 0, 0.0, 1e12));
     double top = 0;
     bool equal = true;
     for (std::size_t j = 0; j < v.size(); ++j) {
         if (v[j] < 0 || v[j] > 1e12) b.reject(key, "entries must be in [0, 1e12] (standard deviations)");
-        if (!unit.empty()) v[j] = output ? v[j] * unit[j] : v[j] / unit[j];
+        if (!unit.empty()) v[j] = output ? v[j] * unit[j * K + j] : v[j] / unit[j * K + j];
         top = std::max(top, v[j]);
         equal = equal && v[j] == v[0];
     }
@@ -205,19 +302,17 @@ double told_stds(ConfigSection& b, const std::string& key, double fallback, int 
 }
 
 void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows) {
-    const std::size_t m = c.output_weight.size();
-    for (std::int64_t r = 0; r < rows && m > 0; ++r)
-        for (std::size_t j = 0; j < m; ++j) y[std::size_t(r) * m + j] *= c.output_weight[j];
+    const int m = c.m;
+    for (std::int64_t r = 0; r < rows && !c.output_weight.empty(); ++r) lower_multiply(c.output_weight, m, y + r * m);
 }
 void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows) {
-    const std::size_t m = c.output_weight.size();
-    for (std::int64_t r = 0; r < rows && m > 0; ++r)
-        for (std::size_t j = 0; j < m; ++j) y[std::size_t(r) * m + j] /= c.output_weight[j];
+    const int m = c.m;
+    for (std::int64_t r = 0; r < rows && !c.output_weight.empty(); ++r) lower_solve(c.output_weight, m, y + r * m);
 }
 void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows) {
-    const std::size_t nv = c.disturbance_scale.size();
-    for (std::int64_t r = 0; r < rows && nv > 0; ++r)
-        for (std::size_t k = 0; k < nv; ++k) v[std::size_t(r) * nv + k] /= c.disturbance_scale[k];
+    const int nv = c.nv;
+    for (std::int64_t r = 0; r < rows && !c.disturbance_scale.empty(); ++r)
+        lower_solve(c.disturbance_scale, nv, v + r * nv);
 }
 
 std::string default_variant(const std::string& type, int n, int m, int nv) {
@@ -486,7 +581,8 @@ RunConfig load_run_config(ConfigDoc doc) {
         // follows; hinf's defaults (20 and 4) are the missile's
         const std::string why = "is required for a system of your own ([system] kind = \"" + c.system->name() + "\") "
                                 "unless [objective] ";
-        const bool has_dist_std = on.has("disturbance_std"), has_noise_std = on.has("noise_std");
+        const bool has_dist_std = on.has("disturbance_std") || on.has("disturbance_cov"),
+                   has_noise_std = on.has("noise_std") || on.has("noise_cov");
         if (!has_dist_std && !has_dist_intensity)
             on.require("disturbance_std", why + "disturbance_intensity is given: the disturbance v's standard deviation "
                                          "per step (hinf's default 20 is the missile's)");
@@ -503,9 +599,10 @@ RunConfig load_run_config(ConfigDoc doc) {
     on.finish();
 
     ConfigSection b(doc, "baseline");
-    c.told_disturbance_std = told_stds(b, "disturbance_std", c.disturbance_std, c.nv, c.disturbance_scale, false,
-                                       &c.told_disturbance_weight);
-    c.told_noise_std = told_stds(b, "noise_std", c.noise_std, c.m, c.output_weight, true, &c.told_noise_weight);
+    c.told_disturbance_std = told_stds(b, "disturbance_std", "disturbance_cov", c.disturbance_std, c.nv,
+                                       c.disturbance_scale, false, &c.told_disturbance_weight, &c.told_disturbance_chol);
+    c.told_noise_std = told_stds(b, "noise_std", "noise_cov", c.noise_std, c.m, c.output_weight, true,
+                                 &c.told_noise_weight, &c.told_noise_chol);
     for (double w : c.told_noise_weight)
         if (w <= 0) b.reject("noise_std", "entries must be > 0 (the EKF/UKF/PF measurement noise they are told)");
     if (c.told_noise_std <= 0) b.reject("noise_std", "must be > 0 (the EKF/UKF/PF measurement noise they are told)");

@@ -26,8 +26,10 @@ struct ProblemConfig {
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n
     double dt = 0.01, t_final = 70.0;
-    /// [online] noise_std / disturbance_std given as lists that differ: `system` is seen in units of its noise
-    /// (models/weighted_system.hpp), y~_j = output_weight_j y_j and v~_k = v_k / disturbance_scale_k; empty: none.
+    /// [online] noise_std / disturbance_std given as lists, or noise_cov / disturbance_cov: `system` is seen in units
+    /// of its noise (models/weighted_system.hpp), y~ = W y and v = U v~ with W = output_weight [m x m] and
+    /// U = disturbance_scale [nv x nv], row-major and lower triangular: W = L_R^-1 and U = L_V for the covariances
+    /// R = L_R L_R' and V = L_V L_V' (diagonal for lists: W = diag(1 / sn_j), U = diag(sv_k)); empty: none.
     std::vector<double> output_weight, disturbance_scale;
 
     /// The horizon of a run asked to stop at `until`: min(until, t_final); until < 0 means t_final.
@@ -104,6 +106,7 @@ struct OnlineConfig {
     std::shared_ptr<System> told_system;        // the filters' system ([baseline] parameters), else the true one
     double told_disturbance_std = -1, told_noise_std = -1;  // resolved to [online]'s when not given
     std::vector<double> told_disturbance_weight, told_noise_weight;  // per input / output factors (FilterModel)
+    std::vector<double> told_disturbance_chol, told_noise_chol;      // correlated: Cholesky factors (FilterModel)
     std::vector<double> initial_std;            // [n] P0 = diag(initial_std^2); empty: diag(max((x0 - x^0)^2, 1))
     double ukf_alpha = 1.0, ukf_beta = 2.0, ukf_kappa = 0.0;
     std::string pf_resampling = "systematic";   // "systematic" or "stratified"
@@ -124,7 +127,8 @@ struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
 
 /// Between the user's units and the model's (ProblemConfig::output_weight, disturbance_scale), in place, for
 /// `rows` rows of m outputs (y) or nv inputs (v, which only comes in: the library's Config::advance); no-ops where
-/// no list was given. A NaN (missing output) stays NaN.
+/// no list or covariance was given. A NaN (a missing measurement) stays NaN (with a full W it
+/// spreads to the later outputs of its row).
 void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows);
 void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows);
 void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows);

@@ -165,7 +165,8 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
 
 // A system seen in units of its noise (models/weighted_system.hpp): the inner system's functions renamed
 // *_unweighted, wrapped by ones that weigh C and dC/dx by PREFIX_output_weight and scale B by
-// PREFIX_disturbance_scale; PREFIX_step weighs the y it is given (the user's units) the same way.
+// PREFIX_disturbance_scale; PREFIX_step weighs the y it is given (the user's units) the same way. A diagonal weight
+// (std lists) is written as its diagonal, a correlated one (noise_cov, disturbance_cov) as the lower-triangular matrix.
 std::string system_c(const System& sys, const std::string& P);
 std::string weighted_system_c(const WeightedSystem& sys, const std::string& P) {
     std::string text = system_c(sys.inner(), P);
@@ -174,16 +175,22 @@ std::string weighted_system_c(const WeightedSystem& sys, const std::string& P) {
             text.replace(at, from.size(), to);
     };
     const int n = sys.state_dim(), m = sys.output_dim(), nv = sys.disturbance_dim();
-    const std::vector<double>& w = sys.output_weights();
-    const std::vector<double>& u = sys.disturbance_scales();
+    const std::vector<double>& W = sys.output_weight();
+    const std::vector<double>& U = sys.disturbance_scale();
+    auto entries = [](const std::vector<double>& M, int k, bool diagonal) {
+        std::ostringstream e;
+        for (int j = 0; j < k; ++j)
+            for (int i = 0; i < k; ++i)
+                if (!diagonal || i == j)
+                    e << (j + i ? ", " : "") << lit(M[std::size_t(j) * k + i]);
+        return e.str();
+    };
     std::ostringstream c;
-    if (!w.empty()) {
+    if (!W.empty() && is_diagonal(W, m)) {
         rename(P + "_measurement(", P + "_measurement_unweighted(");
         rename(P + "_measurement_jacobian(", P + "_measurement_jacobian_unweighted(");
         c << "/* outputs in units of their noise ([online] noise_std list): y~_j = w_j y_j */\n"
-          << "static const double " << P << "_output_weight[" << m << "] = {";
-        for (int j = 0; j < m; ++j) c << (j ? ", " : "") << lit(w[std::size_t(j)]);
-        c << "};\n\n"
+          << "static const double " << P << "_output_weight[" << m << "] = {" << entries(W, m, true) << "};\n\n"
           << "static void " << P << "_measurement(double* C, const double* X, double t) {\n"
           << "    int j;\n    " << P << "_measurement_unweighted(C, X, t);\n"
           << "    for (j = 0; j < " << m << "; ++j) C[j] *= " << P << "_output_weight[j];\n}\n\n"
@@ -191,17 +198,51 @@ std::string weighted_system_c(const WeightedSystem& sys, const std::string& P) {
           << "    int j, i;\n    " << P << "_measurement_jacobian_unweighted(H, X, t);\n"
           << "    for (j = 0; j < " << m << "; ++j)\n        for (i = 0; i < " << n << "; ++i) H[j * " << n
           << " + i] *= " << P << "_output_weight[j];\n}\n\n";
+    } else if (!W.empty()) {
+        rename(P + "_measurement(", P + "_measurement_unweighted(");
+        rename(P + "_measurement_jacobian(", P + "_measurement_jacobian_unweighted(");
+        c << "/* outputs in units of their noise ([online] noise_cov R = L L'): y~ = W y, W = L^-1 lower triangular,\n"
+          << "   row-major (zero entries skipped, as models/weighted_system.cpp) */\n"
+          << "static const double " << P << "_output_weight[" << m << " * " << m << "] = {" << entries(W, m, false)
+          << "};\n\n"
+          << "static void " << P << "_weigh(double* y) {\n"
+          << "    int j, i;\n    double s;\n"
+          << "    for (j = " << m - 1 << "; j >= 0; --j) {\n        s = 0;\n"
+          << "        for (i = 0; i <= j; ++i)\n"
+          << "            if (" << P << "_output_weight[j * " << m << " + i] != 0) s += " << P << "_output_weight[j * "
+          << m << " + i] * y[i];\n        y[j] = s;\n    }\n}\n\n"
+          << "static void " << P << "_measurement(double* C, const double* X, double t) {\n"
+          << "    " << P << "_measurement_unweighted(C, X, t);\n    " << P << "_weigh(C);\n}\n\n"
+          << "static void " << P << "_measurement_jacobian(double* H, const double* X, double t) {\n"
+          << "    double col[" << m << "];\n    int j, i;\n    " << P << "_measurement_jacobian_unweighted(H, X, t);\n"
+          << "    for (i = 0; i < " << n << "; ++i) {\n"
+          << "        for (j = 0; j < " << m << "; ++j) col[j] = H[j * " << n << " + i];\n"
+          << "        " << P << "_weigh(col);\n"
+          << "        for (j = 0; j < " << m << "; ++j) H[j * " << n << " + i] = col[j];\n    }\n}\n\n";
     }
-    if (!u.empty()) {
+    if (!U.empty() && is_diagonal(U, nv)) {
         rename(P + "_disturbance_gain(", P + "_disturbance_gain_unweighted(");
         c << "/* disturbances in units of their std ([online] disturbance_std list): B~ = B diag(u) */\n"
-          << "static const double " << P << "_disturbance_scale[" << nv << "] = {";
-        for (int k = 0; k < nv; ++k) c << (k ? ", " : "") << lit(u[std::size_t(k)]);
-        c << "};\n\n"
+          << "static const double " << P << "_disturbance_scale[" << nv << "] = {" << entries(U, nv, true) << "};\n\n"
           << "static void " << P << "_disturbance_gain(double* B, const double* X, double t) {\n"
           << "    int i, k;\n    " << P << "_disturbance_gain_unweighted(B, X, t);\n"
           << "    for (i = 0; i < " << n << "; ++i)\n        for (k = 0; k < " << nv << "; ++k) B[i * " << nv
           << " + k] *= " << P << "_disturbance_scale[k];\n}\n\n";
+    } else if (!U.empty()) {
+        rename(P + "_disturbance_gain(", P + "_disturbance_gain_unweighted(");
+        c << "/* disturbances in units of their covariance ([online] disturbance_cov V = U U'): B~ = B U, U lower\n"
+          << "   triangular, row-major */\n"
+          << "static const double " << P << "_disturbance_scale[" << nv << " * " << nv << "] = {"
+          << entries(U, nv, false) << "};\n\n"
+          << "static void " << P << "_disturbance_gain(double* B, const double* X, double t) {\n"
+          << "    double row[" << nv << "], s;\n    int i, k, l;\n    " << P << "_disturbance_gain_unweighted(B, X, t);\n"
+          << "    for (i = 0; i < " << n << "; ++i) {\n"
+          << "        for (k = 0; k < " << nv << "; ++k) {\n            s = 0;\n"
+          << "            for (l = k; l < " << nv << "; ++l)\n"
+          << "                if (" << P << "_disturbance_scale[l * " << nv << " + k] != 0) s += B[i * " << nv
+          << " + l] * " << P << "_disturbance_scale[l * " << nv << " + k];\n"
+          << "            row[k] = s;\n        }\n"
+          << "        for (k = 0; k < " << nv << "; ++k) B[i * " << nv << " + k] = row[k];\n    }\n}\n\n";
     }
     return text + c.str();
 }
@@ -591,6 +632,8 @@ NetworkC<T> network_c(const Network<T>& net, const std::string& P) {
 std::string filter_c(const RunConfig& cfg, const std::string& P) {
     std::ostringstream c;
     const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
+    // a correlated output weight (noise_cov) weighs y by the matrix PREFIX_weigh (weighted_system_c)
+    const bool correlated = !cfg.output_weight.empty() && !is_diagonal(cfg.output_weight, cfg.m);
     c << "void " << P << "_init(" << P << "_state* s, const double* xhat0) {\n"
       << "    static const double config_xhat0[" << N << "] = {";
     for (int i = 0; i < cfg.n; ++i) c << (i ? ", " : "") << lit(cfg.xhat0[i]);
@@ -608,8 +651,10 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    if (s->diverged) return 1;\n"
       << "    " << P << "_drift(a, s->xhat, t);\n"
       << "    " << P << "_measurement(ch, s->xhat, t);\n"
-      << "    for (j = 0; j < " << M << "; ++j) e[j] = "
-      << (cfg.output_weight.empty() ? "" : P + "_output_weight[j] * ") << "y[j] - ch[j];\n"
+      << (correlated ? "    for (j = 0; j < " + M + "; ++j) e[j] = y[j];\n    " + P +
+                           "_weigh(e);\n    for (j = 0; j < " + M + "; ++j) e[j] -= ch[j];\n"
+                     : "    for (j = 0; j < " + M + "; ++j) e[j] = " +
+                           (cfg.output_weight.empty() ? "" : P + "_output_weight[j] * ") + "y[j] - ch[j];\n")
       << "    " << P << "_disturbance_gain(B, s->xhat, t);\n"
       << "    " << P << "_gain(k, s->xhat, t, e, B);\n"
       << "    /* filters/filter.hpp filter_estimate_ok: finite and |x^| < 1e12; the gain finite */\n"

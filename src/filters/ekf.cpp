@@ -34,7 +34,10 @@ public:
         Vec rj(m);  // R = diag(rj): sn^2 per output (model_.noise_weight)
         for (int j = 0; j < m; ++j) rj[j] = model_.noise_std_of(j) * model_.noise_std_of(j);
         Mat S = H * P_ * H.transpose();
-        S.diagonal() += rj;
+        const bool full = !model_.noise_chol.empty();  // correlated: R = noise_covariance (filters/filter.hpp)
+        const Mat R = full ? noise_covariance(model_, m) : Mat();
+        if (full) S += R;
+        else S.diagonal() += rj;
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
@@ -44,8 +47,9 @@ public:
             xu += K * (Eigen::Map<const Vec>(in.y, m) - c);
             Mat IKH = Mat::Identity(n, n) - K * H;
             // Joseph form: stays symmetric PSD
-            Pu = model_.noise_weight.empty() ? Mat(IKH * P_ * IKH.transpose() + r * K * K.transpose())
-                                             : Mat(IKH * P_ * IKH.transpose() + K * rj.asDiagonal() * K.transpose());
+            Pu = full                         ? Mat(IKH * P_ * IKH.transpose() + K * R * K.transpose())
+                 : model_.noise_weight.empty() ? Mat(IKH * P_ * IKH.transpose() + r * K * K.transpose())
+                                               : Mat(IKH * P_ * IKH.transpose() + K * rj.asDiagonal() * K.transpose());
         }
         // predict to t_{k+1} through the shared step: Phi = d x_next / dx, G = d x_next / dv
         RowMat F(n, n), Gr(n, nv);

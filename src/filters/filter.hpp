@@ -32,14 +32,38 @@ struct FilterModel {
     /// Per-input and per-output factors of sv and sn ([baseline] lists that differ, models/weighted_system.hpp);
     /// empty: all 1.
     std::vector<double> disturbance_weight, noise_weight;
+    /// Correlated ([online] or [baseline] noise_cov / disturbance_cov): lower-triangular factors L [nv x nv] and
+    /// [m x m], row-major, the told covariances sv^2 L L' and sn^2 L L'; they take the weights' place; empty: none.
+    std::vector<double> disturbance_chol, noise_chol;
     double disturbance_std_of(int k) const {
         return disturbance_weight.empty() ? disturbance_std : disturbance_std * disturbance_weight[std::size_t(k)];
     }
     double noise_std_of(int j) const { return noise_weight.empty() ? noise_std : noise_std * noise_weight[std::size_t(j)]; }
 };
 
-/// The process noise G diag(sv_k^2) G' of a step whose d x_next / dv is G [n x nv] (sv^2 G G' with one sv).
+/// A lower-triangular factor of FilterModel as a matrix.
+inline Eigen::MatrixXd chol_matrix(const std::vector<double>& L, int k) {
+    return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(L.data(), k, k);
+}
+
+/// The told measurement noise covariance R [m x m]: sn^2 L L', diag(sn_j^2) or sn^2 I.
+inline Eigen::MatrixXd noise_covariance(const FilterModel& model, int m) {
+    if (!model.noise_chol.empty()) {
+        const Eigen::MatrixXd L = chol_matrix(model.noise_chol, m);
+        return model.noise_std * model.noise_std * L * L.transpose();
+    }
+    Eigen::MatrixXd R = Eigen::MatrixXd::Zero(m, m);
+    for (int j = 0; j < m; ++j) R(j, j) = model.noise_std_of(j) * model.noise_std_of(j);
+    return R;
+}
+
+/// The process noise G diag(sv_k^2) G' of a step whose d x_next / dv is G [n x nv] (sv^2 G G' with one sv;
+/// sv^2 G L L' G' correlated).
 inline Eigen::MatrixXd process_noise(const Eigen::MatrixXd& G, const FilterModel& model) {
+    if (!model.disturbance_chol.empty()) {
+        const Eigen::MatrixXd GL = G * chol_matrix(model.disturbance_chol, int(G.cols()));
+        return model.disturbance_std * model.disturbance_std * GL * GL.transpose();
+    }
     if (model.disturbance_weight.empty()) return model.disturbance_std * model.disturbance_std * G * G.transpose();
     Eigen::VectorXd q(G.cols());
     for (int k = 0; k < int(G.cols()); ++k) q[k] = model.disturbance_std_of(k) * model.disturbance_std_of(k);
@@ -48,7 +72,7 @@ inline Eigen::MatrixXd process_noise(const Eigen::MatrixXd& G, const FilterModel
 
 /// The exact model of cfg: its system, dt and the [online] statistics.
 inline FilterModel filter_model(const RunConfig& cfg) {
-    return FilterModel{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std, {}, {}};
+    return FilterModel{cfg.system.get(), cfg.dt, cfg.disturbance_std, cfg.noise_std, {}, {}, {}, {}};
 }
 
 struct FilterStart {

@@ -8,6 +8,7 @@
 #include "filters/pf.hpp"
 #include "filters/psd_sqrt.hpp"
 #include "hinf/error.hpp"
+#include "models/weighted_system.hpp"
 #include "random.hpp"
 
 namespace hinf {
@@ -60,12 +61,18 @@ public:
             for (int j = 0; j < m && !model_.noise_weight.empty(); ++j)
                 wj[j] = 1.0 / (model_.noise_weight[j] * model_.noise_weight[j]);
             double top = -INFINITY;
+            std::vector<double> e(static_cast<std::size_t>(m));
             for (std::int64_t p = 0; p < np_; ++p) {
                 double q = 0;
-                for (int j = 0; j < m; ++j) {
-                    const double e = in.y[j] - c[p * m + j];
-                    q += e * e * wj[j];
-                }
+                if (!model_.noise_chol.empty()) {  // correlated: |L^-1 e|^2 (filters/filter.hpp)
+                    for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[p * m + j];
+                    lower_solve(model_.noise_chol, m, e.data());
+                    for (int j = 0; j < m; ++j) q += e[j] * e[j];
+                } else
+                    for (int j = 0; j < m; ++j) {
+                        const double d = in.y[j] - c[p * m + j];
+                        q += d * d * wj[j];
+                    }
                 logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
                 top = std::max(top, logw[p]);
             }
@@ -116,7 +123,13 @@ public:
         // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
         std::vector<double> v(static_cast<std::size_t>(np_) * nv);
         kern::rng_normal(v.data(), np_ * nv, seed_, kern::RNG_STREAM_PARTICLES, run_, std::uint64_t(in.step) + 1);
-        for (std::size_t i = 0; i < v.size(); ++i) v[i] *= model_.disturbance_std_of(int(i % std::size_t(nv)));
+        if (!model_.disturbance_chol.empty())  // correlated: sv L z
+            for (std::int64_t p = 0; p < np_; ++p) {
+                lower_multiply(model_.disturbance_chol, nv, v.data() + p * nv);
+                for (int k = 0; k < nv; ++k) v[std::size_t(p * nv + k)] *= model_.disturbance_std;
+            }
+        else
+            for (std::size_t i = 0; i < v.size(); ++i) v[i] *= model_.disturbance_std_of(int(i % std::size_t(nv)));
         system_advance(sys, X_.data(), X_.data(), v.data(), in.t, model_.dt, np_);
         std::vector<double> xn(n);
         mean(xn);

@@ -46,7 +46,9 @@ public:
             S += wc_[s] * dz * dz.transpose();
             Pxz += wc_[s] * (X.row(s).transpose() - x_) * dz.transpose();
         }
-        for (int j = 0; j < m; ++j) S(j, j) += model_.noise_std_of(j) * model_.noise_std_of(j);
+        if (!model_.noise_chol.empty()) S += noise_covariance(model_, m);  // correlated
+        else
+            for (int j = 0; j < m; ++j) S(j, j) += model_.noise_std_of(j) * model_.noise_std_of(j);
         Eigen::LLT<Mat> llt(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
         Mat K = llt.solve(Pxz.transpose()).transpose();

@@ -1,9 +1,12 @@
-// A system seen in units of its own noise: y~_j = w_j C_j(x, t) and B~ = B diag(u), so that measurement noise
-// n~ = w (.) n and disturbance v~ = v / u are white with one standard deviation each when [online] noise_std or
-// disturbance_std are lists (one entry per output or input). Every filter, the training game and the truth then run
-// on this system unchanged; the game's |n~|^2 and |v~|^2 are the noise- and disturbance-weighted energies
-// (docs/method.md section 16.13). Not the conversions at the user's side (config/run_config.hpp).
+// A system seen in units of its own noise: y~ = W C(x, t) and B~ = B U, so that the measurement noise n~ = W n and
+// the disturbance v~ = U^-1 v are white with one standard deviation each when [online] noise_std or disturbance_std
+// are lists (W, U diagonal: one entry per output or input) or noise_cov / disturbance_cov are given (W = L_R^-1,
+// U = L_V, the covariances' Cholesky factors: lower triangular). Every filter, the training game and the truth then
+// run on this system unchanged; the game's |n~|^2 and |v~|^2 are the noise- and disturbance-weighted energies
+// n' R^-1 n and v' V^-1 v (docs/method.md section 16.13). Not the conversions at the user's side
+// (config/run_config.hpp).
 #pragma once
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -11,10 +14,19 @@
 
 namespace hinf {
 
+/// x <- L x and x <- L^-1 x for a lower-triangular L [k x k] (row-major), in place; zero entries are skipped, so a
+/// diagonal L gives exactly x_j L_jj and x_j / L_jj.
+void lower_multiply(const std::vector<double>& L, int k, double* x);
+void lower_solve(const std::vector<double>& L, int k, double* x);
+/// L^-1 of a lower-triangular L [k x k] (row-major); lower triangular (1 / L_jj on a diagonal one).
+std::vector<double> lower_inverse(const std::vector<double>& L, int k);
+/// Whether a [k x k] matrix has no non-zero entry off its diagonal.
+bool is_diagonal(const std::vector<double>& M, int k);
+
 class WeightedSystem : public System {
 public:
-    /// w [m]: output weights (empty: all 1); u [nv]: disturbance scales (empty: all 1).
-    WeightedSystem(std::shared_ptr<const System> inner, std::vector<double> w, std::vector<double> u);
+    /// W [m x m]: output weight (empty: I); U [nv x nv]: disturbance scale (empty: I); both lower triangular.
+    WeightedSystem(std::shared_ptr<const System> inner, std::vector<double> W, std::vector<double> U);
     std::string name() const override { return inner_->name(); }
     int state_dim() const override { return inner_->state_dim(); }
     int disturbance_dim() const override { return inner_->disturbance_dim(); }
@@ -31,12 +43,12 @@ public:
     bool discrete_time() const override { return inner_->discrete_time(); }
 
     const System& inner() const { return *inner_; }
-    const std::vector<double>& output_weights() const { return w_; }
-    const std::vector<double>& disturbance_scales() const { return u_; }
+    const std::vector<double>& output_weight() const { return W_; }
+    const std::vector<double>& disturbance_scale() const { return U_; }
 
 private:
     std::shared_ptr<const System> inner_;
-    std::vector<double> w_, u_;
+    std::vector<double> W_, U_;
 };
 
 }  // namespace hinf

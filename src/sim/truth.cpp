@@ -40,9 +40,11 @@ FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc) {
     // [baseline]: the filters' own model and statistics (default: the truth's), then the scenario's factors
     FilterModel m{cfg.told_system ? cfg.told_system.get() : cfg.system.get(), cfg.dt,
                   cfg.told_disturbance_std >= 0 ? cfg.told_disturbance_std : cfg.disturbance_std,
-                  cfg.told_noise_std >= 0 ? cfg.told_noise_std : cfg.noise_std, {}, {}};
+                  cfg.told_noise_std >= 0 ? cfg.told_noise_std : cfg.noise_std, {}, {}, {}, {}};
     m.disturbance_weight = cfg.told_disturbance_weight;
     m.noise_weight = cfg.told_noise_weight;
+    m.disturbance_chol = cfg.told_disturbance_chol;
+    m.noise_chol = cfg.told_noise_chol;
     m.disturbance_std *= std::sqrt(sc.told_disturbance_factor);
     m.noise_std *= std::sqrt(sc.told_noise_factor);
     return m;

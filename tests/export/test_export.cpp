@@ -166,60 +166,78 @@ TEST_CASE("exported C filter of a float expression-system network matches hinf f
     }
 }
 
-TEST_CASE("exported C filter with noise and disturbance std lists matches hinf filter to double round-off",
+TEST_CASE("exported C filter with noise and disturbance std lists or covariances matches hinf filter to double round-off",
           "[export][gain][channels]") {
-    // an expression system with two inputs and two outputs of different stds: C weighs y, C(x^), dC/dx and B
-    TempDir d("export-weighted");
-    const std::string cfg = write_file(
-        d, "weighted.toml",
-        "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 2\nmeasurements = 2\n"
-        "f = [\"w\", \"-p - 0.3*w + 0.1*sin(p)\"]\ng = [[\"0.2\", \"0\"], [\"1\", \"0.5\"]]\n"
-        "h = [\"p + 0.1*p^3\", \"w\"]\n[filter]\nrho = 3\nQ = [1.0, 1.0]\nx0 = [1.5, 0.0]\nxhat0 = [0.5, 0.5]\n"
-        "dt = 0.01\nt_final = 2\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\n"
-        "batch = 32\nadam_steps = 3\ncheckpoint_every = 5\n[online]\ndisturbance_std = [0.5, 2.0]\n"
-        "noise_std = [0.05, 0.4]\n");
-    Compared c = export_and_compare(d, cfg, "--until 0.1", "dnn_gain_measured");
-    INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
-    CHECK(c.rows == 201);
-    CHECK(c.compared == 201);
-    CHECK(c.max_abs <= 1e-11 * c.scale);
-    std::ifstream src(d / "c/hinf_filter.c");
-    const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
-    CHECK(code.find("_disturbance_scale[k]") != std::string::npos);
-    CHECK(code.find("_output_weight[j] * y[j]") != std::string::npos);
+    // an expression system with two inputs and two outputs of different stds, uncorrelated (lists) and correlated
+    // (noise_cov: correlation 0.3; disturbance_cov: 0.5): C weighs y, C(x^), dC/dx and B
+    struct Case {
+        const char* name;
+        const char* online;
+        const char* weigh_y;  // how the step weighs y
+        double W21, W22, U21, U22;  // y~ = W y, B~ = B U (W11 = 1/0.05, U11 = 0.5)
+    };
+    const double l22 = std::sqrt(0.16 - 0.12 * 0.12);  // the noise covariance's Cholesky factor [[0.05, 0], [0.12, l22]]
+    const Case cases[] = {
+        {"lists", "disturbance_std = [0.5, 2.0]\nnoise_std = [0.05, 0.4]\n", "_output_weight[j] * y[j]", 0.0, 2.5, 0.0,
+         2.0},
+        {"covariances", "disturbance_cov = [[0.25, 0.5], [0.5, 4.0]]\nnoise_cov = [[0.0025, 0.006], [0.006, 0.16]]\n",
+         "_weigh(e)", -0.12 / (0.05 * l22), 1.0 / l22, 1.0, std::sqrt(3.0)}};
+    for (const Case& cs : cases) {
+        SECTION(cs.name) {
+            TempDir d("export-weighted");
+            const std::string cfg = write_file(
+                d, "weighted.toml",
+                "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\ndisturbances = 2\nmeasurements = 2\n"
+                "f = [\"w\", \"-p - 0.3*w + 0.1*sin(p)\"]\ng = [[\"0.2\", \"0\"], [\"1\", \"0.5\"]]\n"
+                "h = [\"p + 0.1*p^3\", \"w\"]\n[filter]\nrho = 3\nQ = [1.0, 1.0]\nx0 = [1.5, 0.0]\nxhat0 = [0.5, 0.5]\n"
+                "dt = 0.01\nt_final = 2\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\n"
+                "batch = 32\nadam_steps = 3\ncheckpoint_every = 5\n[online]\n" + std::string(cs.online));
+            Compared c = export_and_compare(d, cfg, "--until 0.1", "dnn_gain_measured");
+            INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+            CHECK(c.rows == 201);
+            CHECK(c.compared == 201);
+            CHECK(c.max_abs <= 1e-11 * c.scale);
+            std::ifstream src(d / "c/hinf_filter.c");
+            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            CHECK(code.find("_disturbance_scale[") != std::string::npos);
+            CHECK(code.find(cs.weigh_y) != std::string::npos);
 
-    // The step's gain law does not read B, so the comparison above cannot see a wrong B~: the system functions the
-    // step calls, at one state, against the weighted system written out by hand from the config above. Outputs in
-    // units of their std: w = (1/0.05, 1/0.4) = (20, 2.5); inputs: u = (0.5, 2.0). At x = (1, 2), t = 0.3:
-    //   A = (w, -p - 0.3 w + 0.1 sin p) = (2, -1.6 + 0.1 sin 1)
-    //   B~ = [[0.2, 0], [1, 0.5]] diag(0.5, 2) = [[0.1, 0], [0.5, 1]]
-    //   C~ = (20 (p + 0.1 p^3), 2.5 w) = (22, 5),  dC~/dx = [[20 (1 + 0.3 p^2), 0], [0, 2.5]] = [[26, 0], [0, 2.5]]
-    auto cc = run_command("cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -Wno-unused-function -I " + (d / "c") +
-                          " -o " + (d / "probe") + " " + hinf::test::source_path("tests/export/probe_system.c") + " -lm");
-    INFO(cc.output);
-    REQUIRE(cc.status == 0);
-    auto p = run_command(d / "probe" + std::string(" 0.3 1 2"));
-    INFO(p.output);
-    REQUIRE(p.status == 0);
-    const std::vector<std::pair<std::string, std::vector<double>>> want = {
-        {"A", {2.0, -1.6 + 0.1 * std::sin(1.0)}},
-        {"B", {0.1, 0.0, 0.5, 1.0}},
-        {"C", {22.0, 5.0}},
-        {"H", {26.0, 0.0, 0.0, 2.5}}};
-    std::istringstream in(p.output);
-    for (const auto& [name, values] : want) {
-        std::string line;
-        REQUIRE(std::getline(in, line));
-        std::istringstream cells(line);
-        std::string cell;
-        REQUIRE(std::getline(cells, cell, ','));
-        CHECK(cell == name);
-        for (double v : values) {
-            REQUIRE(std::getline(cells, cell, ','));
-            INFO(name << ": " << cell << " against " << v);
-            CHECK(std::fabs(std::stod(cell) - v) <= 1e-13 * (1 + std::fabs(v)));
+            // The step's gain law does not read B, so the comparison above cannot see a wrong B~: the system
+            // functions the step calls, at one state, against the weighted system written out by hand from the
+            // config above. Outputs: y~ = W y with W = [[20, 0], [W21, W22]]; inputs: B~ = B U with
+            // U = [[0.5, 0], [U21, U22]]. At x = (1, 2), t = 0.3:
+            //   A = (w, -p - 0.3 w + 0.1 sin p) = (2, -1.6 + 0.1 sin 1)
+            //   B~ = [[0.2, 0], [1, 0.5]] U = [[0.1, 0], [0.5 + 0.5 U21, 0.5 U22]]
+            //   C = (p + 0.1 p^3, w) = (1.1, 2),  dC/dx = [[1 + 0.3 p^2, 0], [0, 1]] = [[1.3, 0], [0, 1]]
+            auto cc = run_command("cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -Wno-unused-function -I " +
+                                  (d / "c") + " -o " + (d / "probe") + " " +
+                                  hinf::test::source_path("tests/export/probe_system.c") + " -lm");
+            INFO(cc.output);
+            REQUIRE(cc.status == 0);
+            auto p = run_command(d / "probe" + std::string(" 0.3 1 2"));
+            INFO(p.output);
+            REQUIRE(p.status == 0);
+            const std::vector<std::pair<std::string, std::vector<double>>> want = {
+                {"A", {2.0, -1.6 + 0.1 * std::sin(1.0)}},
+                {"B", {0.1, 0.0, 0.5 + 0.5 * cs.U21, 0.5 * cs.U22}},
+                {"C", {22.0, cs.W21 * 1.1 + cs.W22 * 2.0}},
+                {"H", {26.0, 0.0, cs.W21 * 1.3, cs.W22}}};
+            std::istringstream in(p.output);
+            for (const auto& [name, values] : want) {
+                std::string line;
+                REQUIRE(std::getline(in, line));
+                std::istringstream cells(line);
+                std::string cell;
+                REQUIRE(std::getline(cells, cell, ','));
+                CHECK(cell == name);
+                for (double v : values) {
+                    REQUIRE(std::getline(cells, cell, ','));
+                    INFO(name << ": " << cell << " against " << v);
+                    CHECK(std::fabs(std::stod(cell) - v) <= 1e-13 * (1 + std::fabs(v)));
+                }
+                CHECK_FALSE(std::getline(cells, cell, ','));
+            }
         }
-        CHECK_FALSE(std::getline(cells, cell, ','));
     }
 }
 

@@ -72,7 +72,7 @@ struct Setup {
     std::vector<double> ys;  // [steps x 2]
     std::int64_t steps;
     Setup(double sv, double sn, double p0, std::int64_t steps_) : steps(steps_) {
-        model = FilterModel{&sys, 0.05, sv, sn, {}, {}};
+        model = FilterModel{&sys, 0.05, sv, sn, {}, {}, {}, {}};
         start.xhat0 = {0.5, -0.3, 0.2};
         start.P0 = {p0, 0, 0, 0, p0, 0, 0, 0, p0};
         start.seed = 11;
