@@ -67,9 +67,30 @@ std::string config_hash(const std::string& text) {
 // Defaults for a system of one's own (not the built-in missiles), from its own scales (docs/method.md §
 // "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor in
 // error_floor_default (run_config.hpp).
+// Parameters of a network n -> hidden -> n*n (weights and biases; the largest head's outputs, so an upper bound).
+template <typename Int>
+double network_parameters(int n, const std::vector<Int>& hidden) {
+    double params = 0;
+    for (std::size_t l = 0; l <= hidden.size(); ++l) {
+        const double din = l == 0 ? n : double(hidden[l - 1]);
+        const double dout = l == hidden.size() ? double(n) * n : double(hidden[l]);
+        params += din * dout + dout;
+    }
+    return params;
+}
+constexpr double kMaxParameters = 1e8;         // the hard limit on any network (a typo must not run for an hour)
+constexpr double kOwnDefaultParameters = 1e7;  // the default's: a tenth of it, so that no default trips it
+
 std::vector<std::int64_t> own_hidden_default(int n) {
     const std::int64_t outputs = std::int64_t(n) * (n + 1) / 2;
-    return {std::max<std::int64_t>(64, 2 * outputs), std::max<std::int64_t>(32, outputs)};
+    std::vector<std::int64_t> h = {std::max<std::int64_t>(64, 2 * outputs), std::max<std::int64_t>(32, outputs)};
+    // a large system (about 57 states and more): both widths shrink alike, not below 64 and 32, until the network
+    // has at most kOwnDefaultParameters (at 100 states the rule above gives 1.0e8)
+    while (network_parameters(n, h) > kOwnDefaultParameters && (h[0] > 64 || h[1] > 32)) {
+        h[0] = std::max<std::int64_t>(64, h[0] * 9 / 10);
+        h[1] = std::max<std::int64_t>(32, h[1] * 9 / 10);
+    }
+    return h;
 }
 bool own_system(const RunConfig& c) { return c.system->name() != "missile" && c.system->name() != "maneuvering_missile"; }
 
@@ -498,14 +519,10 @@ RunConfig load_run_config(ConfigDoc doc) {
         t.reject("require_acceptance", "needs training.acceptance_runs > 0 (the validation Monte Carlo it checks)");
     // consistency: the network and the per-time-step buffers must fit in memory (a typo such as
     // hidden = [65536, 65536] or samples = 1e8 must fail here, not as bad_alloc an hour later)
-    double params = 0, width_sum = 0;
-    for (std::size_t l = 0; l <= c.hidden.size(); ++l) {
-        const double din = l == 0 ? n : double(c.hidden[l - 1]);
-        const double dout = l == c.hidden.size() ? double(n) * n : double(c.hidden[l]);
-        params += din * dout + dout;
-        if (l < c.hidden.size()) width_sum += double(c.hidden[l]);
-    }
-    if (params > 1e8)
+    const double params = network_parameters(n, c.hidden);
+    double width_sum = 0;
+    for (int w : c.hidden) width_sum += double(w);
+    if (params > kMaxParameters)
         net.reject("hidden", "gives " + std::to_string(std::int64_t(params)) + " parameters, more than 1e8 (use narrower layers)");
     const double bytes = 8.0 * double(c.samples) * (3.0 * width_sum + 2.0 * n * n + 8.0 * n + 64.0);
     if (bytes > 64e9)

@@ -64,3 +64,41 @@ TEST_CASE("variant gain keeps its best validated checkpoint by default, about te
     CHECK(load_run_config(ConfigDoc::from_text(missile + "\"gain\"\n[training]\nselect_every = 0\n", "m.toml"))
               .select_every == 0);
 }
+
+TEST_CASE("a large system of one's own gets a default network it can load and train", "[config][defaults]") {
+    // hidden = [2 O, O], O = n(n+1)/2, up to about 57 states; beyond, both widths shrink alike to at most 1e7
+    // parameters (at 100 states the rule alone gave 1.0e8 and the config was refused by its own default)
+    auto load_n = [](int n) {
+        std::string st, f, g, x0, xh;
+        for (int i = 0; i < n; ++i) {
+            const std::string c = i ? ", " : "";
+            st += c + "\"x" + std::to_string(i) + "\"";
+            f += c + "\"-x" + std::to_string(i) + "\"";
+            g += c + "[\"1\"]";
+            x0 += c + "1.0";
+            xh += c + "0.0";
+        }
+        return load_run_config(ConfigDoc::from_text(
+            "[system]\nkind = \"expr\"\nstates = [" + st + "]\ndisturbances = 1\nmeasurements = 1\nf = [" + f +
+                "]\ng = [" + g + "]\nh = [\"x0\"]\n[filter]\nrho = 10\nx0 = [" + x0 + "]\nxhat0 = [" + xh +
+                "]\ndt = 0.01\nt_final = 0.05\n[online]\ndisturbance_std = 1\nnoise_std = 1\n",
+            "big.toml"));
+    };
+    auto params = [](int n, const std::vector<int>& h) {
+        double p = 0;
+        for (std::size_t l = 0; l <= h.size(); ++l) {
+            const double din = l == 0 ? n : h[l - 1], dout = l == h.size() ? double(n) * n : h[l];
+            p += din * dout + dout;
+        }
+        return p;
+    };
+    CHECK(load_n(40).hidden == std::vector<int>{1640, 820});  // the rule, unchanged
+    for (int n : {57, 100, 150}) {
+        INFO(n << " states");
+        const RunConfig c = load_n(n);
+        REQUIRE(c.hidden.size() == 2u);
+        CHECK(params(n, c.hidden) <= 1e7);
+        CHECK(params(n, c.hidden) > 0.7e7);      // shrunk by the smallest steps that fit, not more
+        CHECK(std::abs(c.hidden[0] - 2 * c.hidden[1]) <= 10);  // alike (to the rounding of each step)
+    }
+}
