@@ -264,4 +264,10 @@ TEST_CASE("scripts/benchmark-lorenz's DNN row tunes rho and the training seed an
     CHECK(bad_set.status != 0);
     CHECK(bad_set.output.find("failed with exit status 2 (its message is above)") != std::string::npos);
     CHECK(bad_set.output.find("Traceback") == std::string::npos);
+    // a row no table has (it once ran nothing and ended in a traceback writing an empty CSV)
+    auto bad_row = hinf::test::run_command(script + " --table observation --rows dnn --dnn");
+    CHECK(bad_row.status != 0);
+    CHECK(bad_row.output.find("--rows dnn: not a row of the observation table (rows: ekf_trueH, ekf_rotH, ukf_rotH, "
+                              "dnn_rotH)") != std::string::npos);
+    CHECK(bad_row.output.find("Traceback") == std::string::npos);
 }
