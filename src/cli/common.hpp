@@ -12,10 +12,12 @@
 
 namespace hinf::cli {
 
-inline RunConfig load_config_with_overrides(const std::string& path, const std::vector<std::string>& sets) {
+/// need_level = false: the command designs nothing at a level, so a config naming no rho skips rho* (load_run_config).
+inline RunConfig load_config_with_overrides(const std::string& path, const std::vector<std::string>& sets,
+                                            bool need_level = true) {
     ConfigDoc doc = ConfigDoc::from_file(path);
     for (const auto& s : sets) doc.set(s);
-    return load_run_config(std::move(doc));
+    return load_run_config(std::move(doc), need_level);
 }
 
 inline void apply_threads(int threads) {

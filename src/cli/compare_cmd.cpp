@@ -57,7 +57,7 @@ void add_compare_command(CLI::App& app) {
         apply_threads(a->threads);
         HINF_CHECK(a->runs >= 1, "--runs must be >= 1");
         HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         CompareOptions opt;
         opt.scenario = scenario_named(a->scenario);
         opt.runs = a->runs;

@@ -61,7 +61,7 @@ void add_filter_command(CLI::App& app) {
     c->callback([a]() {
         apply_threads(a->threads);
         HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
                                                               a->time_tolerance, a->resample});

@@ -340,7 +340,7 @@ std::string default_variant(const std::string& type, int n, int m, int nv) {
     return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";
 }
 
-RunConfig load_run_config(ConfigDoc doc) {
+RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
     RunConfig c;
     c.system = make_system(doc);
@@ -423,7 +423,11 @@ RunConfig load_run_config(ConfigDoc doc) {
     // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
     // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained
     // with
-    if (!rho_given && expr) {
+    if (!rho_given && expr && !need_level) {
+        c.rho_unset = doc.source() + ": [filter] rho is not set, and this command did not compute the default (the "
+                                     "level rho*; it designs nothing at a level): set it";
+        c.rho = 0.0;
+    } else if (!rho_given && expr) {
         const GameLevel g = game_level_bound(c);
         c.rho_auto = true;
         c.rho_bound = g.bracketed ? g.bound : 0.0;

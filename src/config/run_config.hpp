@@ -133,8 +133,11 @@ void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows);
 void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows);
 void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows);
 
-/// Parses and validates; throws hinf::Error naming the file, the key and the fix.
-RunConfig load_run_config(ConfigDoc doc);
+/// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
+/// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for
+/// a large system: docs/method.md section 16.12), for commands that design nothing at a level (compare and filter
+/// without glf).
+RunConfig load_run_config(ConfigDoc doc, bool need_level = true);
 /// [filter] variant when the config names none: "gain" for an H-infinity filter of at most kern::kGainMaxDim states,
 /// outputs and disturbances, else "dissipative" (checkpoints written before this default read as they were trained)
 std::string default_variant(const std::string& type, int n, int m, int nv);

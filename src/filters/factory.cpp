@@ -24,6 +24,12 @@ std::vector<std::string> split_list(const std::string& s) {
     return out;
 }
 
+bool filters_need_level(const std::string& filters) {
+    for (const std::string& name : split_list(filters))
+        if (name == "glf") return true;
+    return false;
+}
+
 namespace {
 
 // Filters built from the told model alone: name -> maker. dnn and glf need more (networks, an LMI design).

@@ -32,6 +32,9 @@ struct FilterSet {
 std::string filter_names();
 
 std::vector<std::string> split_list(const std::string& s);
+/// Whether build_filter_set reads [filter] rho for this --filters list: it does for the GLF (designed at that level);
+/// a DNN filter takes its level from its checkpoint, the others have none.
+bool filters_need_level(const std::string& filters);
 
 /// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters but the
 /// `gain` variant's, which filters with the system in its checkpoint (the model it was trained on, docs/compare.md).

@@ -4,9 +4,11 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "config/game_level.hpp"
 #include "config/run_config.hpp"
+#include "filters/factory.hpp"
 #include "helpers.hpp"
 #include "hinf/config.hpp"
 #include "hinf/h5.hpp"
@@ -84,6 +86,39 @@ TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says
     CHECK(own.Q == std::vector<double>{1.0});
     CHECK(load(own.doc.text()).Q == std::vector<double>{1.0});
     CHECK(ConfigSection(own.doc, "filter").has("Q"));
+}
+
+TEST_CASE("compare and filter without glf skip rho* for a config naming no rho", "[config][rho]") {
+    // rho* is a Riccati walk per level tried, n^3 a step (6 s for 100 states): only the GLF, of what compare and
+    // filter build, designs at [filter] rho (a DNN filter reads its checkpoint's)
+    CHECK_FALSE(filters_need_level("ekf,ukf,pf,open_loop,dnn"));
+    CHECK(filters_need_level("ekf,glf"));
+    CHECK_FALSE(filters_need_level("glfx"));
+    const std::string text = integrator("continuous", "0.01", "10", "");
+    const RunConfig skipped = load_run_config(ConfigDoc::from_text(text, "own.toml"), false);
+    CHECK_FALSE(skipped.rho_auto);
+    CHECK(skipped.rho == 0.0);
+    CHECK(skipped.rho_unset.find("this command did not compute the default") != std::string::npos);
+    CHECK_FALSE(ConfigSection(skipped.doc, "filter").has("rho"));
+    CHECK(load_run_config(ConfigDoc::from_text(text, "own.toml")).rho_auto);  // the default computes it
+    // end to end: compare runs the EKF and writes no level into its effective config; with glf it designs at 1.25 rho*
+    hinf::test::TempDir d("rho_skip");
+    const std::string path = (d / "own.toml");
+    {
+        std::ofstream(path) << text;
+    }
+    auto cmp = run_hinf("compare " + path + " --filters ekf --runs 1 --quiet --out " + (d / "cmp"));
+    INFO(cmp.output);
+    REQUIRE(cmp.status == 0);
+    auto glf = run_hinf("compare " + path + " --filters ekf,glf --runs 1 --quiet --out " + (d / "glf"));
+    INFO(glf.output);
+    REQUIRE(glf.status == 0);
+    const auto effective = [](const std::string& file) {
+        h5::Handle f = h5::open_file(file, false);
+        return h5::read_string(f.get(), "config");
+    };
+    CHECK(effective(d / "cmp/compare.h5").find("rho =") == std::string::npos);
+    CHECK(effective(d / "glf/compare.h5").find("rho =") != std::string::npos);
 }
 
 TEST_CASE("a system whose game gives no level: train refuses a config naming no rho, the other filters run",
