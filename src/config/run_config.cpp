@@ -64,9 +64,6 @@ std::string config_hash(const std::string& text) {
     return buf;
 }
 
-// Defaults for a system of one's own (not the built-in missiles), from its own scales (docs/method.md §
-// "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor in
-// error_floor_default (run_config.hpp).
 // Parameters of a network n -> hidden -> n*n (weights and biases; the largest head's outputs, so an upper bound).
 template <typename Int>
 double network_parameters(int n, const std::vector<Int>& hidden) {
@@ -81,6 +78,9 @@ double network_parameters(int n, const std::vector<Int>& hidden) {
 constexpr double kMaxParameters = 1e8;         // the hard limit on any network (a typo must not run for an hour)
 constexpr double kOwnDefaultParameters = 1e7;  // the default's: a tenth of it, so that no default trips it
 
+// Defaults for a system of one's own (not the built-in missiles), from its own scales (docs/method.md §
+// "Defaults for your own system"): hidden widths grow with the head's n(n+1)/2 outputs; the error floor in
+// error_floor_default (run_config.hpp).
 std::vector<std::int64_t> own_hidden_default(int n) {
     const std::int64_t outputs = std::int64_t(n) * (n + 1) / 2;
     std::vector<std::int64_t> h = {std::max<std::int64_t>(64, 2 * outputs), std::max<std::int64_t>(32, outputs)};
