@@ -24,7 +24,9 @@ void add_rho_command(CLI::App& app) {
     c->callback([a, rho]() {
         HINF_CHECK(rho->count() == 0 || a->rho > 0, "--rho " + rho->as<std::string>() + ": must be > 0 (a level to check)");
         const RunConfig cfg = load_config_with_overrides(a->config, a->sets);
-        const GameLevel g = game_level_bound(cfg);
+        // a config naming no rho has walked the game on load (rho_auto): its rho* is not walked again (the walk is
+        // n^3 a step: seconds for a large system)
+        const GameLevel g = cfg.rho_auto && cfg.rho > 0 ? GameLevel{cfg.rho_bound, true} : game_level_bound(cfg);
         const char* horizon = cfg.system->discrete_time() ? "steps" : "s";
         const std::int64_t walked = std::min(cfg.steps_until(), kGameLevelMaxSteps);
         const double span = cfg.system->discrete_time() ? double(walked) : cfg.time_of(walked);
