@@ -28,15 +28,17 @@ OnlineRetrainCounts OnlineRetrainCounts::from_vector(const std::vector<double>& 
 }
 
 double online_check_violation(const GainSamples& check, const double* K, const double* S, const double* Sdot,
-                              double rho, double* violations) {
+                              double rho, bool discrete, double* violations) {
     kern::GainLossParams lp;
     lp.rho = rho;
+    lp.discrete = discrete;
     const kern::HjieSystemView view = check.view();
     const std::int64_t N = std::int64_t(check.q.size());
     double eps = -1;
     for (std::int64_t i = 0; i < N; ++i) {
         const kern::GainSampleValue v = kern::gain_sample_forward(K, S, view, i, lp, Sdot);
-        const double rel = v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
+        // a discrete step that lost concavity has sup = +inf: its relative residual at the limit 1 (gain_discrete.cpp)
+        const double rel = std::isinf(v.residual) ? 1.0 : v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
         eps = std::max(eps, rel);
         if (violations != nullptr) *violations += v.residual > 0.01 * v.abs_sum ? 1 : 0;
     }
@@ -62,8 +64,8 @@ bool all_finite(const std::vector<T>& v) {
     return true;
 }
 
-// x^' = A(x^) + K(x^)(y - C(x^)) with K from its own, retrainable network (GainFilter of filters/dnn.cpp plus the
-// check and the Adam steps).
+// x^' = A(x^) + K(x^)(y - C(x^)) (discrete time: x^+ = f(x^) + K e) with K from its own, retrainable network
+// (GainFilter of filters/dnn.cpp plus the check and the Adam steps).
 template <typename T>
 class RetrainGainFilter final : public OnlineFilter {
 public:
@@ -102,7 +104,8 @@ public:
         gain_samples_at(&check_, *cfg_, g, xhat_.data(), in.t, kOnlineCheckErrors, online_check_counter(run_, in.step));
         eval(K_.data(), S_.data(), Sd_.data(), in.t);
         const double eps =
-            online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho, &counts_.check_violations);
+            online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho, sys.discrete_time(),
+                                   &counts_.check_violations);
         counts_.check_samples += double(kOnlineCheckErrors);
         // 2. retrain when the violation exceeds delta (seed 000 Fig. 3), then go on with the updated network
         if (st_.retrain && eps > st_.delta) {
@@ -110,11 +113,14 @@ public:
             counts_.triggers += 1;
             counts_.eps_before += eps;
             eval(K_.data(), S_.data(), Sd_.data(), in.t);
-            counts_.eps_after += online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho, nullptr);
+            counts_.eps_after += online_check_violation(check_, K_.data(), S_.data(), Sd_.data(), cfg_->rho,
+                                                        sys.discrete_time(), nullptr);
         }
         for (double k : K_)
             if (!std::isfinite(k)) return FILTER_DIVERGED;
-        luenberger_advance(xhat_.data(), xhat_.data(), a_.data(), K_.data(), e_.data(), n, m, model_.dt);
+        // continuous time Euler-sampled, discrete time the one-step predictor f(x^) + K e (as filters/dnn.cpp)
+        gain_filter_advance(xhat_.data(), xhat_.data(), a_.data(), K_.data(), e_.data(), n, m, model_.dt,
+                            sys.discrete_time());
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
@@ -250,9 +256,6 @@ OnlineRetrainSettings online_retrain_settings(const RunConfig& cfg, const std::s
 std::unique_ptr<OnlineFilter> make_retrain_gain_filter(const FilterModel& model, const RunConfig& cfg,
                                                        const std::string& checkpoint_path,
                                                        const OnlineRetrainSettings& settings, const std::string& name) {
-    HINF_CHECK(!model.system->discrete_time(),
-               "on-line retraining: the gain filter is a continuous-time (Euler-sampled) filter and the config's system "
-               "has [system] time = \"discrete\"");
     return ckpt_precision(checkpoint_path) == "double"
                ? make_typed<double>(model, cfg, checkpoint_path, settings, name)
                : make_typed<float>(model, cfg, checkpoint_path, settings, name);

@@ -57,9 +57,9 @@ OnlineRetrainSettings online_retrain_settings(const RunConfig& cfg, const std::s
 
 /// The violation of (14.1) the trigger compares with delta: eps = max over the check's errors of H_j / S_j
 /// (in [-1, 1]; 0 where S_j = 0), for gains K [n x m], storage S and its rate Sdot [n x n] (null: constant);
-/// *violations += count of H_j > 0.01 S_j.
+/// *violations += count of H_j > 0.01 S_j. discrete: the one-step inequality (16.8.1) instead of (14.1).
 double online_check_violation(const GainSamples& check, const double* K, const double* S, const double* Sdot, double rho,
-                              double* violations);
+                              bool discrete, double* violations);
 
 /// The filter, for the network of `checkpoint` (variant gain) with its Adam state; cfg is operate's config (system,
 /// Q, rho, training seed of the check's draws). Each clone() owns its network and Adam state; reset() restores the

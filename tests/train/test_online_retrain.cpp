@@ -229,3 +229,50 @@ TEST_CASE("on-line retraining resumes bit-identically from its on-line checkpoin
         }
     }
 }
+
+TEST_CASE("on-line retraining of a discrete-time one-step predictor: triggers, lowers its violation, repeats its bits",
+          "[train][online][retrain][discrete]") {
+    // the linear discrete system the gain variant is tested on (tests/train/test_gain_discrete.cpp), trained for two
+    // of its 40 steps: the check uses the one-step inequality (16.8.1), the filter the predictor f(x^) + K e
+    const std::string text = hinf::test::linear_discrete_system_toml() +
+                             "[filter]\nvariant = \"gain\"\nrho = 6\nQ = [1.0, 1.0]\nx0 = [1, -1]\nxhat0 = [0, 0]\n"
+                             "dt = 1\nt_final = 40\n[online]\ndisturbance_std = 0.3\nnoise_std = 0.3\n[network]\n"
+                             "hidden = [8]\n[training]\nsamples = 64\nbatch = 32\nadam_steps = 2\n"
+                             "acceptance_runs = 0\n";
+    auto config = [&](const std::vector<std::string>& sets) {
+        ConfigDoc doc = ConfigDoc::from_text(text, "linear.toml");
+        for (const std::string& s : sets) doc.set(s);
+        return load_run_config(std::move(doc));
+    };
+    TempDir d("retrain-discrete");
+    TrainOptions opt;
+    opt.out_dir = d / "run";
+    opt.until = 2;
+    opt.quiet = true;
+    train_start(config({}), opt);
+    const std::string ckpt = d / "run/checkpoint.h5";
+    const RunConfig cfg = config({"online.retrain=true"});
+    const FilterModel model = filter_model(cfg);
+    const std::int64_t K = cfg.steps_until();
+    const TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K);
+    auto run = [&](double delta) {
+        std::unique_ptr<OnlineFilter> f = make_retrain_gain_filter(model, cfg, ckpt, settings(cfg, ckpt, delta), "dnn");
+        f->reset(engine_filter_start(cfg, 0));
+        return step_over(*f, cfg, tr, 0, K);
+    };
+    const Stepped s = run(0.01);
+    INFO("triggers " << s.counts.triggers << " of " << K << " steps, violation at the triggers " << s.counts.eps_before
+                     << " -> " << s.counts.eps_after << " (sums)");
+    REQUIRE(s.counts.triggers > 0);
+    CHECK(s.counts.rejected == 0);
+    CHECK(s.counts.eps_after < s.counts.eps_before);
+    CHECK(same_bits(run(0.01).xhat, s.xhat));  // repeated: the same bits
+    // never triggered, it is the frozen one-step predictor of filters/dnn.cpp, bit for bit
+    const Stepped never = run(1e9);
+    CHECK(never.counts.triggers == 0);
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(ckpt);
+    std::unique_ptr<OnlineFilter> plain = make_gain_filter(model, *net, "dnn");
+    plain->reset(engine_filter_start(cfg, 0));
+    CHECK(same_bits(step_over(*plain, cfg, tr, 0, K).xhat, never.xhat));
+    CHECK_FALSE(same_bits(never.xhat, s.xhat));
+}
