@@ -173,9 +173,11 @@ std::vector<double> error_floor_default(const RunConfig& c, bool before) {
 }
 
 // The lower Cholesky factor L (row-major, [k x k]) of the covariance `key` holds, checked symmetric and positive
-// definite.
-std::vector<double> covariance_factor(ConfigSection& s, const std::string& key, int k) {
+// definite; *matrix (where given) gets the covariance itself.
+std::vector<double> covariance_factor(ConfigSection& s, const std::string& key, int k,
+                                      std::vector<double>* matrix = nullptr) {
     const std::vector<double> c = s.get_matrix(key, {}, k, k);
+    if (matrix != nullptr) *matrix = c;
     Eigen::MatrixXd C(k, k);
     double top = 0;
     for (int i = 0; i < k; ++i)
@@ -273,10 +275,7 @@ double told_stds(ConfigSection& b, const std::string& key, const std::string& co
         // correlated: T~ = W T W' (outputs) or U^-1 T U^-T (inputs), T the told covariance in the user's units
         std::vector<double> T(K * K, 0.0);
         if (b.has(cov_key)) {
-            const std::vector<double> L = covariance_factor(b, cov_key, count);
-            for (std::size_t i = 0; i < K; ++i)
-                for (std::size_t j = 0; j < K; ++j)
-                    for (std::size_t l = 0; l <= std::min(i, j); ++l) T[i * K + j] += L[i * K + l] * L[j * K + l];
+            covariance_factor(b, cov_key, count, &T);  // checked; T is the matrix as given
         } else {
             const std::vector<double> v = b.is_list(key) ? b.get_doubles(key, {}, count)
                                                          : std::vector<double>(K, b.get_double(key, 0, 0.0, 1e12));

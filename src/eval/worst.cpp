@@ -535,20 +535,16 @@ void write_sets_and_cross(hid_t root, const RunConfig& cfg, const std::vector<Wo
                           cfg.output_weight.empty() ? "output units" : "output units x output_weight",
                           "measurement noise n_k at t_k");
         // diagonal (std lists): the diagonal [m] / [nv]; correlated (noise_cov, disturbance_cov): the matrix
-        const auto diagonal = [](const std::vector<double>& M, int k) {
-            std::vector<double> out(static_cast<std::size_t>(k));
-            for (int j = 0; j < k; ++j) out[std::size_t(j)] = M[std::size_t(j) * k + j];
-            return out;
-        };
-        if (!cfg.output_weight.empty() && is_diagonal(cfg.output_weight, cfg.m))
-            h5::write_doubles(g.get(), "output_weight", diagonal(cfg.output_weight, cfg.m).data(), {hsize_t(cfg.m)},
+        const std::vector<double> w = diagonal_of(cfg.output_weight, cfg.m), u = diagonal_of(cfg.disturbance_scale, cfg.nv);
+        if (!w.empty())
+            h5::write_doubles(g.get(), "output_weight", w.data(), {hsize_t(cfg.m)},
                               "1", "n_j here = output_weight_j x the noise in output j's units ([online] noise_std list)");
         else if (!cfg.output_weight.empty())
             h5::write_doubles(g.get(), "output_weight", cfg.output_weight.data(), {hsize_t(cfg.m), hsize_t(cfg.m)},
                               "1", "n here = output_weight x the noise in the outputs' units, output_weight = L^-1 "
                                    "with noise_cov = L L' ([online] noise_cov)");
-        if (!cfg.disturbance_scale.empty() && is_diagonal(cfg.disturbance_scale, cfg.nv))
-            h5::write_doubles(g.get(), "disturbance_scale", diagonal(cfg.disturbance_scale, cfg.nv).data(),
+        if (!u.empty())
+            h5::write_doubles(g.get(), "disturbance_scale", u.data(),
                               {hsize_t(cfg.nv)}, "1",
                               "v_k here = the disturbance in input k's units / disturbance_scale_k ([online] "
                               "disturbance_std list)");

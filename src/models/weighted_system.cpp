@@ -40,13 +40,28 @@ bool is_diagonal(const std::vector<double>& M, int k) {
     return true;
 }
 
+std::vector<double> diagonal_of(const std::vector<double>& M, int k) {
+    if (M.empty() || !is_diagonal(M, k)) return {};
+    std::vector<double> d(static_cast<std::size_t>(k));
+    for (int j = 0; j < k; ++j) d[std::size_t(j)] = M[std::size_t(j) * k + j];
+    return d;
+}
+
 WeightedSystem::WeightedSystem(std::shared_ptr<const System> inner, std::vector<double> W, std::vector<double> U)
-    : inner_(std::move(inner)), W_(std::move(W)), U_(std::move(U)) {}
+    : inner_(std::move(inner)), W_(std::move(W)), U_(std::move(U)) {
+    w_diag_ = diagonal_of(W_, output_dim());
+    u_diag_ = diagonal_of(U_, disturbance_dim());
+}
 
 void WeightedSystem::disturbance_gain(double* B, const double* x, double t, std::int64_t count) const {
     inner_->disturbance_gain(B, x, t, count);
     if (U_.empty()) return;
     const int n = state_dim(), nv = disturbance_dim();
+    if (!u_diag_.empty()) {
+        for (std::int64_t r = 0; r < count * n; ++r)
+            for (int k = 0; k < nv; ++k) B[r * nv + k] *= u_diag_[std::size_t(k)];
+        return;
+    }
     std::vector<double> row(static_cast<std::size_t>(nv), 0.0);
     for (std::int64_t r = 0; r < count * n; ++r) {  // row r of B times U (U lower triangular: l >= k)
         double* b = B + r * nv;
@@ -64,6 +79,11 @@ void WeightedSystem::measurement(double* c, const double* x, double t, std::int6
     inner_->measurement(c, x, t, count);
     if (W_.empty()) return;
     const int m = output_dim();
+    if (!w_diag_.empty()) {
+        for (std::int64_t p = 0; p < count; ++p)
+            for (int j = 0; j < m; ++j) c[p * m + j] *= w_diag_[std::size_t(j)];
+        return;
+    }
     for (std::int64_t p = 0; p < count; ++p) lower_multiply(W_, m, c + p * m);
 }
 
@@ -71,6 +91,11 @@ void WeightedSystem::measurement_jacobian(double* H, const double* x, double t) 
     inner_->measurement_jacobian(H, x, t);
     if (W_.empty()) return;
     const int m = output_dim(), n = state_dim();
+    if (!w_diag_.empty()) {
+        for (int j = 0; j < m; ++j)
+            for (int k = 0; k < n; ++k) H[j * n + k] *= w_diag_[std::size_t(j)];
+        return;
+    }
     std::vector<double> col(static_cast<std::size_t>(m));
     for (int k = 0; k < n; ++k) {  // column k of W H
         for (int j = 0; j < m; ++j) col[std::size_t(j)] = H[j * n + k];

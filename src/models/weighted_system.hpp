@@ -22,6 +22,8 @@ void lower_solve(const std::vector<double>& L, int k, double* x);
 std::vector<double> lower_inverse(const std::vector<double>& L, int k);
 /// Whether a [k x k] matrix has no non-zero entry off its diagonal.
 bool is_diagonal(const std::vector<double>& M, int k);
+/// The diagonal of a diagonal [k x k] matrix; empty where M is empty or has an entry off its diagonal.
+std::vector<double> diagonal_of(const std::vector<double>& M, int k);
 
 class WeightedSystem : public System {
 public:
@@ -49,6 +51,9 @@ public:
 private:
     std::shared_ptr<const System> inner_;
     std::vector<double> W_, U_;
+    // lists: W and U diagonal, applied entry by entry (no scratch; the per-sample calls of training stay as cheap as
+    // before the covariances); covariances: the triangular products
+    std::vector<double> w_diag_, u_diag_;  // the diagonals where W, U are diagonal; else empty
 };
 
 }  // namespace hinf
