@@ -35,6 +35,8 @@ public:
     /// Applies "section.key=value"; value is TOML (1e-3, true, "text", [1, 2]) or a bare string.
     void set(const std::string& assignment);
     std::string text() const;
+    /// The TOML text of one top-level table ("system"), "" where the document has none.
+    std::string section_text(const std::string& path) const;
     const std::string& source() const { return source_; }
     toml::table& root() { return *root_; }
     const toml::table& root() const { return *root_; }

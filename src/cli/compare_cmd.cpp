@@ -25,6 +25,7 @@ struct CompareArgs {
     double roughening = 0.0;
     double until = -1;
     int threads = 0;
+    bool ensemble = false;
     bool quiet = false, plot = false;
 };
 
@@ -52,6 +53,9 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--threads", a->threads, "OpenMP threads (runs are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
+    c->add_flag("--ensemble", a->ensemble,
+                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
+                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a]() {
         apply_threads(a->threads);
@@ -67,7 +71,7 @@ void add_compare_command(CLI::App& app) {
         // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
         const FilterModel told = scenario_told_model(cfg, opt.scenario), exact = filter_model(cfg);
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, a->roughening, a->glf_vertices}, told, exact);
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, a->roughening, a->glf_vertices, a->ensemble}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

@@ -22,6 +22,7 @@ struct FilterArgs {
     double roughening = 0.0;
     int glf_vertices = 8;
     int threads = 0;
+    bool ensemble = false;
     bool quiet = false;
 };
 }  // namespace
@@ -57,6 +58,9 @@ void add_filter_command(CLI::App& app) {
     c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/filter)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_option("--threads", a->threads, "OpenMP threads");
+    c->add_flag("--ensemble", a->ensemble,
+                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
+                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a]() {
         apply_threads(a->threads);
@@ -103,7 +107,7 @@ void add_filter_command(CLI::App& app) {
         told.dt = model.dt = ms.dt;
         std::string names = a->filters.empty() ? (a->networks.empty() ? "ekf" : "dnn") : a->filters;
         FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->particles, a->roughening,
-                                                            a->glf_vertices},
+                                                            a->glf_vertices, a->ensemble},
                                          told, model);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<OnlineFilter*> filters;

@@ -25,7 +25,7 @@ struct WorstArgs {
     std::int64_t particles = 2000;
     int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
-    bool keep_initial_error = false, no_game_start = false, quiet = false, plot = false;
+    bool keep_initial_error = false, no_game_start = false, quiet = false, plot = false, ensemble = false;
 };
 
 void print_cross(const WorstReplay& r) {
@@ -84,6 +84,9 @@ void add_worst_command(CLI::App& app) {
     c->add_option("--threads", a->threads, "OpenMP threads (restarts are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
+    c->add_flag("--ensemble", a->ensemble,
+                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
+                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a, energy_opt]() {
         apply_threads(a->threads);
@@ -111,7 +114,7 @@ void add_worst_command(CLI::App& app) {
         // the worst signals were found for a budget, not a scenario: the Bayesian filters are told the nominal statistics
         const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices}, told, exact);
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices, a->ensemble}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

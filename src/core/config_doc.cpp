@@ -173,6 +173,14 @@ std::string ConfigDoc::text() const {
     return ss.str();
 }
 
+std::string ConfigDoc::section_text(const std::string& path) const {
+    const toml::node* n = root_->get(path);
+    if (n == nullptr) return "";
+    std::ostringstream ss;
+    n->visit([&ss](const auto& node) { ss << node; });  // a table, or whatever stands in its place
+    return ss.str();
+}
+
 ConfigSection::ConfigSection(const ConfigDoc& doc, const std::string& path) : doc_(doc), path_(path) {
     const toml::node* n = doc.root().get(path);
     if (n) {

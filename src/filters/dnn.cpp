@@ -81,8 +81,9 @@ private:
 // Variant gain (docs/method.md section 14): x^' = A(x^) + K(x^)(y - C(x^)), K from the network at x^ alone.
 class GainFilter final : public OnlineFilter {
 public:
-    GainFilter(const FilterModel& model, std::unique_ptr<FrozenNetwork> net, std::string name)
-        : model_(model), net_(std::move(net)), name_(std::move(name)) {}
+    // one network, or an ensemble: K(x^) is the mean of the networks' gains (added in their order, then divided)
+    GainFilter(const FilterModel& model, std::vector<std::unique_ptr<FrozenNetwork>> nets, std::string name)
+        : model_(model), nets_(std::move(nets)), name_(std::move(name)) {}
     std::string name() const override { return name_; }
     void reset(const FilterStart& start) override { xhat_ = start.xhat0; }
     bool uses_true_state() const override { return false; }
@@ -93,7 +94,15 @@ public:
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
         for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - ch[j] : 0.0;  // missing: no correction
-        net_->gain(k.data(), nullptr, nullptr, xhat_.data(), in.t, sys, 1);
+        nets_[0]->gain(k.data(), nullptr, nullptr, xhat_.data(), in.t, sys, 1);
+        if (nets_.size() > 1) {
+            std::vector<double> ki(k.size());
+            for (std::size_t i = 1; i < nets_.size(); ++i) {
+                nets_[i]->gain(ki.data(), nullptr, nullptr, xhat_.data(), in.t, sys, 1);
+                for (std::size_t j = 0; j < k.size(); ++j) k[j] += ki[j];
+            }
+            for (double& g : k) g /= static_cast<double>(nets_.size());
+        }
         bool finite = filter_estimate_ok(xhat_.data(), n);
         for (double g : k) finite = finite && std::isfinite(g);
         if (!finite) return FILTER_DIVERGED;
@@ -107,12 +116,14 @@ public:
     const double* estimate() const override { return xhat_.data(); }
     const double* filtered() const override { return xf_.empty() ? nullptr : xf_.data(); }
     std::unique_ptr<OnlineFilter> clone() const override {
-        return std::make_unique<GainFilter>(model_, net_->clone(), name_);
+        std::vector<std::unique_ptr<FrozenNetwork>> nets;
+        for (const auto& net : nets_) nets.push_back(net->clone());
+        return std::make_unique<GainFilter>(model_, std::move(nets), name_);
     }
 
 private:
     FilterModel model_;
-    std::unique_ptr<FrozenNetwork> net_;
+    std::vector<std::unique_ptr<FrozenNetwork>> nets_;
     std::string name_;
     std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
 };
@@ -133,8 +144,21 @@ void gain_filter_check_time(const FrozenNetwork& network, const System& here, co
 
 std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
                                                const std::string& name) {
-    gain_filter_check_time(network, *model.system, name);
-    return std::make_unique<GainFilter>(model, network.clone(), name);
+    return make_gain_ensemble_filter(model, {&network}, name);
+}
+
+std::unique_ptr<OnlineFilter> make_gain_ensemble_filter(const FilterModel& model,
+                                                        const std::vector<const FrozenNetwork*>& networks,
+                                                        const std::string& name) {
+    HINF_CHECK(!networks.empty(), "the DNN filter '" + name + "' needs at least one network");
+    std::vector<std::unique_ptr<FrozenNetwork>> nets;
+    for (const FrozenNetwork* network : networks) {
+        HINF_CHECK(network->step_config().gain.enabled,
+                   "the DNN filter '" + name + "' averages gains K(x^): every network must be variant \"gain\"");
+        gain_filter_check_time(*network, *model.system, name);
+        nets.push_back(network->clone());
+    }
+    return std::make_unique<GainFilter>(model, std::move(nets), name);
 }
 
 std::unique_ptr<DnnGainLaw> make_hinf_gain_law(double rho) { return std::make_unique<HinfGainLaw>(rho); }

@@ -48,6 +48,12 @@ std::string dnn_measured_warning(const std::string& variant, int n, int m);
 /// Refuses (gain_filter_check_time) a network trained in the other time domain than model's system.
 std::unique_ptr<OnlineFilter> make_gain_filter(const FilterModel& model, const FrozenNetwork& network,
                                                const std::string& name);
+/// An ensemble of gain networks (trained on one model, e.g. with different training seeds): the same filter with
+/// K(x^) = the mean of the networks' gains, summed in the order given (docs/method.md 16.15). One network is
+/// make_gain_filter. Refuses a network of another variant or time domain.
+std::unique_ptr<OnlineFilter> make_gain_ensemble_filter(const FilterModel& model,
+                                                        const std::vector<const FrozenNetwork*>& networks,
+                                                        const std::string& name);
 /// One line when a gain network trained on a continuous-time system (an Euler-sampled filter) meets a config whose
 /// system is discrete-time, or the other way round (a one-step predictor): its gain means another thing there.
 void gain_filter_check_time(const FrozenNetwork& network, const System& here, const std::string& name);

@@ -64,6 +64,48 @@ std::string system_signature(const System& sys) {
            " disturbance(s), " + std::to_string(sys.output_dim()) + " output(s))";
 }
 
+// --ensemble: every --network is a gain network trained on one model (the [system] table and the noise weights
+// of their checkpoints agree); one filter "dnn_gain_ensemble" with the mean of their gains (method.md 16.15)
+std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& exact,
+                                            FilterSet& set) {
+    HINF_CHECK(a.networks.size() >= 2, "--ensemble averages the gains of two or more networks: give --network "
+                                       "once per network (" + std::to_string(a.networks.size()) + " given)");
+    for (const std::string& mode : split_list(a.modes))
+        HINF_CHECK(mode == "oracle" || mode == "measured", "--mode '" + mode + "' is not one of: oracle, measured");
+    HINF_CHECK(a.modes.empty() || a.modes.find("measured") != std::string::npos,
+               "--ensemble: gain networks run from measurements only (use --mode measured)");
+    std::vector<const FrozenNetwork*> nets;
+    RunConfig first;
+    for (std::size_t i = 0; i < a.networks.size(); ++i) {
+        const std::string& path = a.networks[i];
+        RunConfig ncfg;
+        std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
+        HINF_CHECK(ncfg.variant == "gain", "--ensemble: network '" + path + "' is variant \"" + ncfg.variant +
+                                               "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
+        const std::string trained = system_signature(*ncfg.system), here = system_signature(*cfg.system);
+        HINF_CHECK(trained == here, "network '" + path + "' was trained for the system " + trained +
+                                        ", the config's system is " + here + " (use a network trained on this config's system)");
+        if (i == 0) {
+            gain_filter_check_time(*net, *cfg.system, "dnn_gain_ensemble");
+            first = ncfg;
+            set.models.push_back(ncfg.system);
+        } else {
+            const bool same = ncfg.doc.section_text("system") == first.doc.section_text("system") &&
+                              ncfg.output_weight == first.output_weight &&
+                              ncfg.disturbance_scale == first.disturbance_scale;
+            HINF_CHECK(same, "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
+                                 "' (its [system] table or its noise levels differ); an ensemble averages networks "
+                                 "trained on one model, e.g. with different training.seed");
+        }
+        nets.push_back(net.get());
+        set.networks.push_back(std::move(net));
+    }
+    // it filters with the model the networks were trained on, as one gain network does
+    FilterModel trained = exact;
+    trained.system = first.system.get();
+    return make_gain_ensemble_filter(trained, nets, "dnn_gain_ensemble");
+}
+
 }  // namespace
 
 std::string filter_names() {
@@ -122,6 +164,10 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             HINF_CHECK(!cfg.retrain, "[online] retrain = true: on-line retraining runs in hinf operate only; here the "
                                      "DNN filter would run its checkpoint as trained (set online.retrain = false, or use "
                                      "hinf operate)");
+            if (a.ensemble) {
+                owned.push_back(gain_ensemble(cfg, a, exact, set));
+                continue;
+            }
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
                 std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
@@ -145,7 +191,8 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                     std::string label = "dnn_gain_measured";
                     for (const auto& o : owned)
                         HINF_CHECK(o->name() != label,
-                                   "two --network files give the filter name '" + label + "' (same variant twice)");
+                                   "two --network files give the filter name '" + label + "' (same variant twice; "
+                                   "--ensemble averages the gains of several gain networks into one filter)");
                     // it filters with the model it was trained on (its checkpoint's [system], e.g. a mismatched H),
                     // which the check above ties to this config's system by kind, states and outputs
                     gain_filter_check_time(*net, *cfg.system, label);

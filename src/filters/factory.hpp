@@ -19,6 +19,7 @@ struct FilterSetArgs {
     std::int64_t particles = 2000;
     double roughening = 0.0;
     int glf_vertices = 8;
+    bool ensemble = false;  // dnn: one filter averaging the gains of every network (all variant gain, one model)
 };
 
 struct FilterSet {

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "helpers.hpp"
@@ -88,6 +89,36 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     INFO(cmp.output);
     CHECK(cmp.status == 0);
     CHECK(cmp.output.find("dnn_gain_measured") != std::string::npos);
+    {  // --ensemble of two copies of one network: one filter, dnn_gain_ensemble, with that network's figures
+        auto ens = run_hinf("compare " + cfg + " --network " + net + " --network " + net +
+                            " --ensemble --filters dnn,ukf --runs 2 --out " + (d / "cmpe"));
+        INFO(ens.output);
+        CHECK(ens.status == 0);
+        CHECK(ens.output.find("dnn_gain_ensemble") != std::string::npos);
+        CHECK(ens.output.find("dnn_gain_measured") == std::string::npos);
+        // the filter's row of compare.csv as named fields
+        auto row = [](const std::string& csv, const std::string& filter) {
+            std::ifstream in(csv);
+            std::string header, line;
+            std::getline(in, header);
+            std::map<std::string, std::string> out;
+            while (std::getline(in, line)) {
+                if (line.find("," + filter + ",") == std::string::npos) continue;
+                std::stringstream h(header), v(line);
+                for (std::string key, val; std::getline(h, key, ',') && std::getline(v, val, ',');) out[key] = val;
+            }
+            return out;
+        };
+        auto one = row(d / "cmp/compare.csv", "dnn_gain_measured"), two = row(d / "cmpe/compare.csv", "dnn_gain_ensemble");
+        REQUIRE(one.size() > 20);
+        REQUIRE(two.size() == one.size());
+        for (const auto& [key, value] : one)  // every figure but the timing and the name, to the last digit written
+            if (key != "us_per_step" && key != "filter") CHECK(two[key] == value);
+        auto alone = run_hinf("compare " + cfg + " --network " + net + " --ensemble --filters dnn --runs 2 --out " +
+                              (d / "cmpe1"));
+        CHECK(alone.status == 2);
+        CHECK(alone.output.find("two or more networks") != std::string::npos);
+    }
     auto cmpo = run_hinf("compare " + cfg + " --network " + net + " --filters dnn --mode oracle --runs 2 --out " +
                          (d / "cmp2"));
     CHECK(cmpo.status == 2);

@@ -105,6 +105,34 @@ TEST_CASE("gain variant: the closed-form sup over v, n equals a brute-force maxi
     }
 }
 
+TEST_CASE("gain variant: the closed-form sup is convex in K for a fixed S, continuous and discrete",
+          "[kernel][gain][ensemble]") {
+    // docs/method.md 16.15: gains that keep the inequality with one storage S keep it on average, so the mean gain
+    // of an ensemble with a common storage keeps it too; a mutation that made H concave in K fails here
+    std::mt19937 g(11);
+    std::normal_distribution<double> N(0.0, 1.0);
+    for (const bool discrete : {false, true})
+        for (unsigned seed = 1; seed <= 20; ++seed) {
+            Case c = make_case(seed);
+            GainLossParams gp;
+            gp.rho = discrete ? 200.0 : 0.7;  // discrete: rho above |[B -K]'S[B -K]|, where the sup over (v, n) is finite
+            gp.discrete = discrete;
+            std::vector<double> K1 = c.K, K2(c.K.size()), Km(c.K.size());
+            for (std::size_t j = 0; j < K2.size(); ++j) {
+                K2[j] = 2.0 * N(g);
+                Km[j] = 0.5 * (K1[j] + K2[j]);
+            }
+            const double h1 = gain_sample_forward(K1.data(), c.S.data(), c.view(), 0, gp).residual;
+            const double h2 = gain_sample_forward(K2.data(), c.S.data(), c.view(), 0, gp).residual;
+            const double hm = gain_sample_forward(Km.data(), c.S.data(), c.view(), 0, gp).residual;
+            INFO((discrete ? "discrete" : "continuous") << ", seed " << seed << ": " << h1 << ", " << h2 << ", mean K "
+                                                        << hm);
+            REQUIRE(std::isfinite(h1 + h2));
+            CHECK(hm <= 0.5 * (h1 + h2) + 1e-12 * (std::abs(h1) + std::abs(h2)));
+            CHECK(hm < 0.5 * (h1 + h2));  // strictly: |K's|^2 / rho is strictly convex along K2 - K1 here
+        }
+}
+
 TEST_CASE("gain variant: per-sample loss gradient equals central differences", "[kernel][gain][grad]") {
     for (unsigned seed = 1; seed <= 6; ++seed) {
         Case c = make_case(seed);

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "filters/dnn.hpp"
+#include "filters/factory.hpp"
 #include "filters/gain_law.hpp"
 #include "gain.hpp"
 #include "helpers.hpp"
@@ -103,4 +104,77 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
     const double v0 = quadratic_form(S0, std::vector<double>{1.0, -1.0}.data(), 2);
     CHECK(error_energy - v0 <= cfg.rho * signal_energy);
     CHECK(error_energy / signal_energy < 0.5 * cfg.rho);
+}
+
+TEST_CASE("an ensemble of gain networks filters with the mean of their gains and refuses mixed models",
+          "[train][gain][discrete][ensemble]") {
+    test::TempDir d("gain-ensemble");
+    ConfigDoc doc = ConfigDoc::from_text(kLinear, "linear.toml");
+    doc.set("filter.t_final=40");
+    const RunConfig cfg = load_run_config(doc);
+    auto train = [&](const std::vector<std::string>& sets, const std::string& dir) {
+        ConfigDoc di = doc;
+        for (const auto& s : sets) di.set(s);
+        TrainOptions opt;
+        opt.out_dir = d / dir;
+        opt.quiet = true;
+        REQUIRE(train_start(load_run_config(di), opt).status == 0);
+        return d / (dir + "/checkpoint.h5");
+    };
+    const std::string p1 = train({"training.seed=1"}, "s1"), p2 = train({"training.seed=2"}, "s2");
+    RunConfig ncfg;
+    const std::unique_ptr<FrozenNetwork> n1 = ckpt_frozen_network(p1, &ncfg), n2 = ckpt_frozen_network(p2, &ncfg);
+    const FilterModel model = filter_model(cfg);
+    const TruthRun tr = truth_simulate(cfg, Scenario{}, 3, cfg.steps_until());
+    auto input = [&](std::int64_t k) {
+        FilterInput in;
+        in.y = tr.y.data() + k;
+        in.t = cfg.time_of(k);
+        in.step = k;
+        return in;
+    };
+
+    SECTION("two copies of one network are that network, bit for bit") {
+        std::unique_ptr<OnlineFilter> one = make_gain_filter(model, *n1, "dnn");
+        std::unique_ptr<OnlineFilter> two = make_gain_ensemble_filter(model, {n1.get(), n1.get()}, "dnn");
+        one->reset(FilterStart{cfg.xhat0, {}, cfg.online_seed, 3});
+        two->reset(FilterStart{cfg.xhat0, {}, cfg.online_seed, 3});
+        for (std::int64_t k = 0; k < cfg.steps_until(); ++k) {
+            REQUIRE(one->step(input(k)) == FILTER_OK);
+            REQUIRE(two->step(input(k)) == FILTER_OK);
+            for (int i = 0; i < 2; ++i) REQUIRE(one->estimate()[i] == two->estimate()[i]);
+        }
+    }
+    SECTION("two networks: every step is F x^ + (K1 + K2)/2 (y - H x^) at the ensemble's own estimate") {
+        std::unique_ptr<OnlineFilter> f = make_gain_ensemble_filter(model, {n1.get(), n2.get()}, "dnn");
+        f->reset(FilterStart{cfg.xhat0, {}, cfg.online_seed, 3});
+        double gain_gap = 0;
+        for (std::int64_t k = 0; k < cfg.steps_until(); ++k) {
+            const double xh[2] = {f->estimate()[0], f->estimate()[1]};
+            double K1[2], K2[2];
+            n1->gain(K1, nullptr, nullptr, xh, cfg.time_of(k), *cfg.system, 1);
+            n2->gain(K2, nullptr, nullptr, xh, cfg.time_of(k), *cfg.system, 1);
+            gain_gap = std::max(gain_gap, std::abs(K1[0] - K2[0]) + std::abs(K1[1] - K2[1]));
+            const double e = tr.y[k] - (xh[0] + 0.5 * xh[1]);
+            const double want[2] = {1.05 * xh[0] + 0.2 * xh[1] + 0.5 * (K1[0] + K2[0]) * e,
+                                    -0.1 * xh[0] + 0.9 * xh[1] + 0.5 * (K1[1] + K2[1]) * e};
+            REQUIRE(f->step(input(k)) == FILTER_OK);
+            for (int i = 0; i < 2; ++i) REQUIRE(f->estimate()[i] == Approx(want[i]).margin(1e-12));
+        }
+        CHECK(gain_gap > 1e-3);  // the seeds' gains differ, so the mean is not either member's
+    }
+    SECTION("the factory: --ensemble gives one filter, and refuses one network or networks of two models") {
+        const FilterModel told = model;
+        FilterSetArgs a{"dnn", {p1, p2}, "measured", 100, 0.0, 8, true};
+        const FilterSet set = build_filter_set(cfg, a, told, model);
+        REQUIRE(set.filters.size() == 1);
+        CHECK(set.filters[0]->name() == "dnn_gain_ensemble");
+        a.networks = {p1};
+        CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("two or more networks"));
+        a.networks = {p1, train({"training.seed=1", "system.h=[\"a + 0.6*b\"]"}, "other")};
+        CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("trained on another model"));
+        a.ensemble = false;
+        a.networks = {p1, p2};
+        CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("--ensemble averages"));
+    }
 }
