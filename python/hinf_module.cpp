@@ -41,8 +41,9 @@ py::array view(std::vector<double>& v, std::vector<py::ssize_t> shape, py::handl
 
 hinf::FilterOptions filter_options(const py::object& network, double dt, const py::object& initial_estimate,
                                    const py::object& initial_std, std::int64_t particles, double roughening,
-                                   int glf_vertices, int n) {
+                                   int glf_vertices, bool ensemble, int n) {
     hinf::FilterOptions o;
+    o.ensemble = ensemble;
     auto one_network = [](const py::handle& h) {
         if (py::isinstance<py::str>(h)) return hinf::TrainedNetwork::load(h.cast<std::string>());
         return h.cast<hinf::TrainedNetwork>();
@@ -234,14 +235,16 @@ PYBIND11_MODULE(_hinf, m) {
 
     auto make_filter = [](const hinf::Config& cfg, const std::string& name, const py::object& network, double dt,
                           const py::object& x0, const py::object& sd, std::int64_t particles, double roughening,
-                          int glf_vertices) {
-        return hinf::Filter::create(
-            cfg, name, filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, cfg.states()));
+                          int glf_vertices, bool ensemble) {
+        return hinf::Filter::create(cfg, name,
+                                    filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, ensemble,
+                                                   cfg.states()));
     };
     py::class_<hinf::Filter>(m, "Filter", "An on-line filter: dnn (measured mode), ekf, ukf, pf, glf or open_loop")
         .def(py::init(make_filter), py::arg("config"), py::arg("name"), py::arg("network") = py::none(),
              py::arg("dt") = 0.0, py::arg("initial_estimate") = py::none(), py::arg("initial_std") = py::none(),
-             py::arg("particles") = 2000, py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8)
+             py::arg("particles") = 2000, py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8,
+             py::arg("ensemble") = false)
         .def_property_readonly("name", &hinf::Filter::name)
         .def_property_readonly("states", &hinf::Filter::states)
         .def_property_readonly("outputs", &hinf::Filter::outputs)
@@ -283,14 +286,16 @@ PYBIND11_MODULE(_hinf, m) {
     m.def(
         "filters",
         [](const hinf::Config& cfg, const std::string& names, const py::object& network, double dt, const py::object& x0,
-           const py::object& sd, std::int64_t particles, double roughening, int glf_vertices) {
-            return hinf::Filter::create_all(
-                cfg, names, filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, cfg.states()));
+           const py::object& sd, std::int64_t particles, double roughening, int glf_vertices, bool ensemble) {
+            return hinf::Filter::create_all(cfg, names,
+                                            filter_options(network, dt, x0, sd, particles, roughening, glf_vertices,
+                                                           ensemble, cfg.states()));
         },
         py::arg("config"), py::arg("names"), py::arg("network") = py::none(), py::arg("dt") = 0.0,
         py::arg("initial_estimate") = py::none(), py::arg("initial_std") = py::none(), py::arg("particles") = 2000,
-        py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8,
-        "Every filter of a comma list ('dnn,ekf,ukf'), dnn once per network, in the order `hinf filter` uses");
+        py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8, py::arg("ensemble") = false,
+        "Every filter of a comma list ('dnn,ekf,ukf'), dnn once per network (or once, with the mean gain of all of "
+        "them, where ensemble=True), in the order `hinf filter` uses");
     m.def("filter_names", &hinf::Filter::names);
 
     py::class_<hinf::TrainProgress>(m, "TrainProgress", "One finished time step of training")

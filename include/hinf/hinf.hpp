@@ -89,6 +89,9 @@ struct FilterOptions {
     std::int64_t particles = 2000;  ///< pf: particle count
     double roughening = 0;          ///< pf: roughening constant K
     int glf_vertices = 8;           ///< glf: vertex count N
+    /// dnn: one filter, dnn_gain_ensemble, with the mean gain of every network (two or more variant-gain networks
+    /// trained on one model; docs/method.md 16.15) instead of one filter per network
+    bool ensemble = false;
 };
 
 /// What a filter gave over a record of K measurements (the layout of `hinf filter`'s estimates.h5).

@@ -259,3 +259,20 @@ def test_rho_and_its_bound_match_hinf_rho():
     own = hinf.Config.from_text(text, "no_rho.toml")
     assert own.rho == 1.25 * own.rho_bound  # a config naming no rho: 1.25 rho*
     assert "rho = " in own.text  # written into the effective config
+
+
+def test_ensemble_of_copies_is_the_network(tmp_path):
+    """ensemble=True: one dnn filter with the mean gain; two copies of one network filter as that network, bit for bit,
+    and one network alone is refused in hinf's one line."""
+    cfg = hinf.Config(VANDERPOL, set=SMALL)
+    hinf.train(cfg, str(tmp_path / "run"), until=0.3)
+    ckpt = str(tmp_path / "run" / "checkpoint.h5")
+    rng = np.random.default_rng(3)
+    t = np.arange(200) * cfg.dt
+    Y = 2.0 + 0.1 * rng.standard_normal((200, cfg.outputs))
+    one = hinf.Filter(cfg, "dnn", network=ckpt).run(t, Y)
+    two = hinf.Filter(cfg, "dnn", network=[ckpt, ckpt], ensemble=True)
+    assert two.name == "dnn_gain_ensemble"
+    assert np.array_equal(two.run(t, Y).xhat, one.xhat)
+    with pytest.raises(hinf.Error, match="two or more networks"):
+        hinf.Filter(cfg, "dnn", network=ckpt, ensemble=True)

@@ -189,7 +189,7 @@ struct Filter::Impl {
         std::vector<std::string> paths;
         for (const TrainedNetwork& n : options.networks) paths.push_back(network_impl(n).path);
         return build_filter_set(c, FilterSetArgs{request, paths, "measured", options.particles, options.roughening,
-                                                 options.glf_vertices},
+                                                 options.glf_vertices, options.ensemble},
                                 told, model);
     }
     void reset() {
@@ -220,9 +220,9 @@ Filter Filter::create(const Config& cfg, const std::string& name, const FilterOp
     HINF_CHECK(known, "unknown filter '" + name + "' (use one of: " + filter_names() + ")");
     HINF_CHECK(name != "dnn" || !options.networks.empty(),
                "the dnn filter needs a trained network: pass one (a DIR/checkpoint.h5 of `hinf train` or hinf.train)");
-    HINF_CHECK(name != "dnn" || options.networks.size() <= 1,
+    HINF_CHECK(name != "dnn" || options.networks.size() <= 1 || options.ensemble,
                "Filter::create: dnn with " + std::to_string(options.networks.size()) +
-                   " networks gives one filter per network (use create_all)");
+                   " networks gives one filter per network (use create_all, or ensemble for one with their mean gain)");
     HINF_CHECK(options.particles >= 1, "particles must be >= 1 (got " + std::to_string(options.particles) + ")");
     HINF_CHECK(options.dt >= 0, "dt must be > 0, or 0 for the config's dt (got " + std::to_string(options.dt) + ")");
     auto im = std::make_shared<Impl>();
