@@ -261,15 +261,11 @@ def test_rho_and_its_bound_match_hinf_rho():
     assert "rho = " in own.text  # written into the effective config
 
 
-def test_ensemble_of_copies_is_the_network(tmp_path):
+def test_ensemble_of_copies_is_the_network(trained, record):
     """ensemble=True: one dnn filter with the mean gain; two copies of one network filter as that network, bit for bit,
     and one network alone is refused in hinf's one line."""
-    cfg = hinf.Config(VANDERPOL, set=SMALL)
-    hinf.train(cfg, str(tmp_path / "run"), until=0.3)
-    ckpt = str(tmp_path / "run" / "checkpoint.h5")
-    rng = np.random.default_rng(3)
-    t = np.arange(200) * cfg.dt
-    Y = 2.0 + 0.1 * rng.standard_normal((200, cfg.outputs))
+    cfg, ckpt, _, _, _ = trained
+    t, Y, _ = record
     one = hinf.Filter(cfg, "dnn", network=ckpt).run(t, Y)
     two = hinf.Filter(cfg, "dnn", network=[ckpt, ckpt], ensemble=True)
     assert two.name == "dnn_gain_ensemble"

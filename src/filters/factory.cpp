@@ -1,6 +1,7 @@
 // See factory.hpp.
 #include "filters/factory.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <sstream>
 
@@ -64,27 +65,47 @@ std::string system_signature(const System& sys) {
            " disturbance(s), " + std::to_string(sys.output_dim()) + " output(s))";
 }
 
+// A trained network for this config's system: the same state count is not the same system, so the kind, the outputs
+// and the state names must agree (one line naming the network otherwise).
+std::unique_ptr<FrozenNetwork> network_for(const std::string& path, const RunConfig& cfg, RunConfig* ncfg) {
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, ncfg);
+    const std::string trained = system_signature(*ncfg->system), here = system_signature(*cfg.system);
+    HINF_CHECK(ncfg->n != cfg.n || trained == here,
+               "network '" + path + "' was trained for the system " + trained + ", the config's system is " + here +
+                   " (use a network trained on this config's system)");
+    HINF_CHECK(ncfg->n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg->n) +
+                                     " states, the config's system has " + std::to_string(cfg.n));
+    return net;
+}
+
+// --mode's list, each checked.
+std::vector<std::string> dnn_modes(const std::string& modes) {
+    std::vector<std::string> out = split_list(modes);
+    for (const std::string& mode : out)
+        HINF_CHECK(mode == "oracle" || mode == "measured", "--mode '" + mode + "' is not one of: oracle, measured");
+    return out;
+}
+
+bool has_measured(const std::vector<std::string>& modes) {
+    return std::find(modes.begin(), modes.end(), "measured") != modes.end();
+}
+
 // --ensemble: every --network is a gain network trained on one model (the [system] table and the noise weights
 // of their checkpoints agree); one filter "dnn_gain_ensemble" with the mean of their gains (method.md 16.15)
 std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& exact,
                                             FilterSet& set) {
     HINF_CHECK(a.networks.size() >= 2, "--ensemble averages the gains of two or more networks: give --network "
                                        "once per network (" + std::to_string(a.networks.size()) + " given)");
-    for (const std::string& mode : split_list(a.modes))
-        HINF_CHECK(mode == "oracle" || mode == "measured", "--mode '" + mode + "' is not one of: oracle, measured");
-    HINF_CHECK(a.modes.empty() || a.modes.find("measured") != std::string::npos,
+    HINF_CHECK(has_measured(dnn_modes(a.modes)),
                "--ensemble: gain networks run from measurements only (use --mode measured)");
     std::vector<const FrozenNetwork*> nets;
     RunConfig first;
     for (std::size_t i = 0; i < a.networks.size(); ++i) {
         const std::string& path = a.networks[i];
         RunConfig ncfg;
-        std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
+        std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
         HINF_CHECK(ncfg.variant == "gain", "--ensemble: network '" + path + "' is variant \"" + ncfg.variant +
                                                "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
-        const std::string trained = system_signature(*ncfg.system), here = system_signature(*cfg.system);
-        HINF_CHECK(trained == here, "network '" + path + "' was trained for the system " + trained +
-                                        ", the config's system is " + here + " (use a network trained on this config's system)");
         if (i == 0) {
             gain_filter_check_time(*net, *cfg.system, "dnn_gain_ensemble");
             first = ncfg;
@@ -170,23 +191,10 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             }
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
-                std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(path, &ncfg);
-                // the same state count is not the same system: the kind, the outputs and the state names must agree
-                const std::string trained = system_signature(*ncfg.system), here = system_signature(*cfg.system);
-                HINF_CHECK(ncfg.n != cfg.n || trained == here,
-                           "network '" + path + "' was trained for the system " + trained + ", the config's system is " +
-                               here + " (use a network trained on this config's system)");
-                HINF_CHECK(ncfg.n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg.n) +
-                                                " states, the config's system has " + std::to_string(cfg.n));
-                const std::vector<std::string> modes = split_list(a.modes);
+                std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
+                const std::vector<std::string> modes = dnn_modes(a.modes);
                 if (ncfg.variant == "gain") {  // its gain never sees x~: it runs from measurements only
-                    bool measured = false;
-                    for (const std::string& mode : modes) {
-                        HINF_CHECK(mode == "oracle" || mode == "measured",
-                                   "--mode '" + mode + "' is not one of: oracle, measured");
-                        measured = measured || mode == "measured";
-                    }
-                    HINF_CHECK(measured, "network '" + path + "' is variant \"gain\": its gain K(x^) never sees the "
+                    HINF_CHECK(has_measured(modes), "network '" + path + "' is variant \"gain\": its gain K(x^) never sees the "
                                          "true error, so --mode oracle is meaningless for it (use --mode measured)");
                     std::string label = "dnn_gain_measured";
                     for (const auto& o : owned)
@@ -204,8 +212,6 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                     continue;
                 }
                 for (const std::string& mode : modes) {
-                    HINF_CHECK(mode == "oracle" || mode == "measured",
-                               "--mode '" + mode + "' is not one of: oracle, measured");
                     std::string label = "dnn_" + ncfg.variant + "_" + mode;
                     for (const auto& o : owned)
                         HINF_CHECK(o->name() != label,
@@ -223,6 +229,9 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             HINF_FAIL("--filters: unknown filter '" + name + "' (use " + filter_names() + ")");
     }
     HINF_CHECK(!owned.empty(), "--filters: no filter named (use " + filter_names() + ")");
+    const std::vector<std::string> names = split_list(a.filters);
+    HINF_CHECK(!a.ensemble || std::find(names.begin(), names.end(), "dnn") != names.end(),
+               "--ensemble averages DNN filters: add dnn to --filters (e.g. --filters dnn,ekf)");
     return set;
 }
 

@@ -173,8 +173,14 @@ TEST_CASE("an ensemble of gain networks filters with the mean of their gains and
         CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("two or more networks"));
         a.networks = {p1, train({"training.seed=1", "system.h=[\"a + 0.6*b\"]"}, "other")};
         CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("trained on another model"));
-        a.ensemble = false;
         a.networks = {p1, p2};
+        a.filters = "ekf";  // --ensemble with no dnn filter to average
+        CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("add dnn to --filters"));
+        a.filters = "dnn";
+        a.modes = "oracle";
+        CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("measurements only"));
+        a.modes = "measured";
+        a.ensemble = false;
         CHECK_THROWS_WITH(build_filter_set(cfg, a, told, model), Catch::Contains("--ensemble averages"));
     }
 }
