@@ -335,6 +335,11 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
         lower_solve(c.disturbance_scale, nv, v + r * nv);
 }
 
+bool same_trained_model(const RunConfig& a, const RunConfig& b) {
+    return a.doc.section_text("system") == b.doc.section_text("system") && a.output_weight == b.output_weight &&
+           a.disturbance_scale == b.disturbance_scale;
+}
+
 std::string default_variant(const std::string& type, int n, int m, int nv) {
     return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";
 }

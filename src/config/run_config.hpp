@@ -133,6 +133,10 @@ void outputs_to_model(const ProblemConfig& c, double* y, std::int64_t rows);
 void outputs_to_user(const ProblemConfig& c, double* y, std::int64_t rows);
 void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows);
 
+/// Whether two configs (of two checkpoints) describe one trained-on model: the same [system] table and the same
+/// noise weights. What an ensemble's members must share (compare --ensemble, export --ensemble; method.md 16.15).
+bool same_trained_model(const RunConfig& a, const RunConfig& b);
+
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
 /// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for
 /// a large system: docs/method.md section 16.12), for commands that design nothing at a level (compare and filter

@@ -422,8 +422,9 @@ LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
 // kernels/gain.cpp gain_network_eval computes it: the constant-storage head K = rate dx_a o_aq / dy_q, or the
 // Riccati-form head K = rho S(t)^-1 (H(x^)' + o .* w) with S(t) from the storage's knots (linear in t between
 // knots, M = diag(exp) + strict tril, S = c Ds^-1 (M M' + eps I) Ds^-1) and a Cholesky solve. The innovation is not
-// an input of the gain: the step multiplies it.
-LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string& P) {
+// an input of the gain: the step multiplies it. P names the network's data and functions, S the system's
+// (PREFIX_measurement_jacobian); a member of an ensemble writes a static PREFIX_mE_gain_matrix with S = PREFIX.
+LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::string& S, bool member) {
     const kern::GainSpec& g = sc.gain;
     const int n = sc.head.n, m = g.m, np = n * (n + 1) / 2;
     const bool tv = g.knots > 0;
@@ -448,7 +449,7 @@ LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string
         if (!g.corr.empty()) c << array(P + "_corr", g.corr.data(), n * m);
     }
     c << "\n/* K(x^, t) [n x m], the trained gain (kernels/gain.cpp gain_network_eval) */\n"
-      << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
+      << (member ? "static " : "") << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
       << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
       << "    double z[" << n << "];\n"
       << "    const " << P << "_real* o;\n"
@@ -460,7 +461,7 @@ LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string
     c << "    o = " << P << "_forward(buf, z);\n";
     if (!tv) {
         c << "    (void)t;\n"
-          << "    (void)" << P << "_measurement_jacobian; /* the constant-storage head needs no dC/dx */\n"
+          << "    (void)" << S << "_measurement_jacobian; /* the constant-storage head needs no dC/dx */\n"
           << "    /* the constant-storage head: K_aq = rate dx_a o_aq / dy_q */\n"
           << "    for (a = 0; a < " << n << "; ++a)\n"
           << "        for (q = 0; q < " << m << "; ++q)\n"
@@ -498,7 +499,7 @@ LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string
           << P << "_sdx[a] * " << P << "_sdx[b]) * (mm + (a == b ? " << lit(g.eps) << " : 0.0));\n"
           << "            }\n"
           << "        /* K = rho S^-1 (H' + o .* w), H = dC/dx at x^ */\n"
-          << "        " << P << "_measurement_jacobian(H, xhat, t);\n"
+          << "        " << S << "_measurement_jacobian(H, xhat, t);\n"
           << "        for (a = 0; a < " << n << "; ++a)\n"
           << "            for (q = 0; q < " << m << "; ++q)\n"
           << "                k[a * " << m << " + q] = " << lit(g.loss.rho) << " * (H[q * " << n << " + a] + "
@@ -531,17 +532,28 @@ LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string
           << "    }\n"
           << "}\n\n";
     }
-    c << "/* the step's gain law: K(x^, t) alone (the innovation multiplies it in the step) */\n"
-      << "static void " << P << "_gain(double* k, const double* xhat, double t, const double* e, const double* B) {\n"
-      << "    (void)e;\n    (void)B;\n"
-      << "    " << P << "_gain_matrix(k, xhat, t);\n"
-      << "}\n\n";
     law.code = c.str();
-    law.header = "/* the frozen network's gain K(x^, t) [n x m] (row-major) at the estimate x^ [n] and time t */\nvoid " +
-                 P + "_gain_matrix(double* k, const double* xhat, double t);\n\n";
     // z, the head; with S(t): the knots' interpolation, M M', the right-hand side, Cholesky and two solves
     law.flops = 2LL * n + (tv ? 3LL * np + 2LL * n * (n + 1) * (n + 2) / 6 + 4LL * n * m + n * n * n / 3 + 2LL * n * n * m
                               : 3LL * n * m);
+    return law;
+}
+
+// the step's gain law of a gain network (or of an ensemble's mean, whose PREFIX_gain_matrix is written beside its
+// members'): K(x^, t) alone, the innovation multiplies it in the step
+std::string gain_step_law_c(const std::string& P) {
+    return "/* the step's gain law: K(x^, t) alone (the innovation multiplies it in the step) */\n"
+           "static void " + P + "_gain(double* k, const double* xhat, double t, const double* e, const double* B) {\n"
+           "    (void)e;\n    (void)B;\n"
+           "    " + P + "_gain_matrix(k, xhat, t);\n"
+           "}\n\n";
+}
+
+LawC gain_gain_c(const RunConfig&, const kern::StepConfig& sc, const std::string& P) {
+    LawC law = gain_matrix_c(sc, P, P, false);
+    law.code += gain_step_law_c(P);
+    law.header = "/* the frozen network's gain K(x^, t) [n x m] (row-major) at the estimate x^ [n] and time t */\nvoid " +
+                 P + "_gain_matrix(double* k, const double* xhat, double t);\n\n";
     return law;
 }
 
@@ -683,49 +695,110 @@ bool is_c_identifier(const std::string& s) {
     return true;
 }
 
+// What one network contributes to the C: its weights, forward pass and gain law (the variant's law, or an
+// ensemble member's static PREFIX_mE_gain_matrix when law is null), and its counts.
+struct Parts {
+    std::string code, header;  // definitions; prototypes for PREFIX.h
+    std::string shape;         // "double network 6-8-8-21 (261 parameters), rho = 0.03", for PREFIX.h's comment
+    long long parameters = 0, bytes = 0, flops = 0;
+    std::string precision;
+};
+
 template <typename T>
-ExportResult export_typed(const std::string& path, const RunConfig& cfg, const ExportOptions& opt) {
-    const std::string& P = opt.prefix;
-    const CGainLaw* law = nullptr;
-    std::string variants;
-    for (const CGainLaw& g : kGainLaws) {
-        variants += std::string(variants.empty() ? "" : ", ") + g.variant;
-        if (cfg.variant == g.variant) law = &g;
-    }
-    HINF_CHECK(law != nullptr, "export: checkpoint '" + path + "' is a '" + cfg.variant +
-                                   "' network, which has no C gain law (exportable: " + variants +
-                                   "; add one to kGainLaws in src/export/export_c.cpp)");
-    // the exported step is the continuous-time Euler-sampled Luenberger law (system_c writes A, not a map)
-    HINF_CHECK(!cfg.system->discrete_time(), "export: checkpoint '" + path +
-                                                 "' is for a discrete-time system; hinf export writes the "
-                                                 "continuous-time filter step only (docs/export.md)");
+Parts network_parts(const std::string& path, const RunConfig& cfg, const CGainLaw* law, const std::string& P,
+                    const std::string& S) {
     Checkpoint<T> ck = ckpt_read<T>(path);
     NetworkC<T> net = network_c(ck.net, P);
-    const LawC lawc = law->emit(cfg, ck.net.step, P);
+    const LawC lawc = law ? law->emit(cfg, ck.net.step, P) : gain_matrix_c(ck.net.step, P, S, true);
+    Parts out;
+    out.code = net.data + net.code + lawc.code;
+    out.header = lawc.header;
+    out.parameters = (long long)ck.net.theta.size();
+    out.bytes = net.bytes;
+    out.flops = net.flops + lawc.flops;
+    out.precision = sizeof(T) == sizeof(float) ? "float" : "double";
+    std::ostringstream sh;
+    sh << out.precision << " network ";
+    for (std::size_t l = 0; l < ck.net.step.shape.sizes.size(); ++l) sh << (l ? "-" : "") << ck.net.step.shape.sizes[l];
+    sh << " (" << out.parameters << " parameters), rho = " << cfg.rho;
+    out.shape = sh.str();
+    return out;
+}
+
+Parts parts_of(const std::string& path, const RunConfig& cfg, const CGainLaw* law, const std::string& P,
+               const std::string& S) {
+    return ckpt_precision(path) == "double" ? network_parts<double>(path, cfg, law, P, S)
+                                            : network_parts<float>(path, cfg, law, P, S);
+}
+
+// An ensemble (method.md 16.15): the members' gains PREFIX_mE_gain_matrix, and PREFIX_gain_matrix their mean,
+// added in the order given and then divided, as filters/dnn.cpp GainFilter does.
+Parts ensemble_parts(const std::vector<std::string>& paths, const std::vector<RunConfig>& cfgs, const std::string& P) {
+    Parts out;
+    std::ostringstream mean;
+    const int nm = cfgs[0].n * cfgs[0].m;
+    mean << "/* K(x^, t) [n x m]: the mean of the " << paths.size()
+         << " networks' gains, added in their order, then divided (filters/dnn.cpp GainFilter) */\n"
+         << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
+         << "    double ki[" << P << "_N * " << P << "_M];\n"
+         << "    int i;\n";
+    for (std::size_t e = 0; e < paths.size(); ++e) {
+        const std::string Pm = P + "_m" + std::to_string(e);
+        Parts p = parts_of(paths[e], cfgs[e], nullptr, Pm, P);
+        out.code += "/* ensemble member " + std::to_string(e) + ": " + paths[e] + " */\n" + p.code;
+        out.shape += std::string(e ? "\n" : "") + "   member " + std::to_string(e) + ": " + paths[e] + ", " + p.shape;
+        out.parameters += p.parameters;
+        out.bytes += p.bytes;
+        out.flops += p.flops;
+        if (out.precision.find(p.precision) == std::string::npos)
+            out.precision += (out.precision.empty() ? "" : " and ") + p.precision;
+        if (e == 0) {
+            mean << "    " << Pm << "_gain_matrix(k, xhat, t);\n";
+        } else {
+            mean << "    " << Pm << "_gain_matrix(ki, xhat, t);\n"
+                 << "    for (i = 0; i < " << P << "_N * " << P << "_M; ++i) k[i] += ki[i];\n";
+        }
+    }
+    mean << "    for (i = 0; i < " << P << "_N * " << P << "_M; ++i) k[i] /= " << lit(double(paths.size())) << ";\n"
+         << "}\n\n";
+    out.code += mean.str() + gain_step_law_c(P);
+    out.header = "/* the ensemble's gain K(x^, t) [n x m] (row-major), the mean of its networks' gains, at the estimate "
+                 "x^ [n] and time t */\nvoid " + P + "_gain_matrix(double* k, const double* xhat, double t);\n\n";
+    out.flops += (long long)(paths.size()) * nm;  // the E - 1 sums and the division
+    return out;
+}
+
+ExportResult write_export(const std::vector<std::string>& paths, const RunConfig& cfg, const Parts& parts,
+                          const ExportOptions& opt) {
+    const std::string& P = opt.prefix;
+    const bool ensemble = paths.size() > 1;
     const std::string sys = system_c(*cfg.system, P);
     const int n = cfg.n, m = cfg.m, nv = cfg.nv;
 
     ExportResult res;
-    res.parameters = (long long)ck.net.theta.size();
-    res.weight_bytes = net.bytes;
+    res.parameters = parts.parameters;
+    res.weight_bytes = parts.bytes;
     res.variant = cfg.variant;
-    res.precision = sizeof(T) == sizeof(float) ? "float" : "double";
+    res.precision = parts.precision;
     res.system = cfg.system->name();
-    // per step, system functions aside: the network and head, the gain, e = y - C, the least squares of a
-    // diagonal-free H (about 6 r c per Jacobi pair sweep, counted once), the update
-    // per step, besides the system's functions: the network, the law (head, least squares, gain), e, the update
-    res.flops_per_step = net.flops + lawc.flops + m + n * (2LL * m + 2);
+    res.networks = (int)paths.size();
+    // per step, besides the system's functions: the network(s), the law (head, least squares, gain; an ensemble's
+    // mean), e = y - C, the update
+    res.flops_per_step = parts.flops + m + n * (2LL * m + 2);
 
     std::string upper = P;
     for (char& ch : upper) ch = char(std::toupper(static_cast<unsigned char>(ch)));
     std::ostringstream h;
     h << "/* " << P << ".h: a trained hinf DNN filter, exported by `hinf export` (docs/export.md). C99, no dependency\n"
-      << "   but libm. From: " << path << "\n"
-      << "   system '" << res.system << "', variant '" << res.variant << "', " << res.precision
-      << " network " ;
-    for (std::size_t l = 0; l < ck.net.step.shape.sizes.size(); ++l) h << (l ? "-" : "") << ck.net.step.shape.sizes[l];
-    h << " (" << res.parameters << " parameters), rho = " << cfg.rho << ", mode measured.\n"
-      << "   Use: " << P << "_state s; " << P << "_init(&s, NULL); then per measurement y(t_k) [m]:\n"
+      << "   but libm. ";
+    if (ensemble)
+        h << "An ensemble of " << paths.size() << " '" << res.variant << "' networks for the system '" << res.system
+          << "', mode measured:\n   the mean of their gains (docs/method.md 16.15), x^(0) and dt from member 0.\n"
+          << parts.shape << "\n";
+    else
+        h << "From: " << paths[0] << "\n   system '" << res.system << "', variant '" << res.variant << "', " << parts.shape
+          << ", mode measured.\n";
+    h << "   Use: " << P << "_state s; " << P << "_init(&s, NULL); then per measurement y(t_k) [m]:\n"
       << "   " << P << "_step(&s, y, t_k, " << P << "_DT); s.xhat [n] is then the estimate of x(t_k + dt). */\n"
       << "#ifndef " << upper << "_H\n#define " << upper << "_H\n\n"
       << "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
@@ -741,14 +814,14 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
       << "void " << P << "_init(" << P << "_state* s, const double* xhat0);\n"
       << "/* consumes y(t) [m] (t: the time of the measurement, dt: the step to the next one); 0: ok, 1: diverged */\n"
       << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt);\n"
-      << lawc.header
+      << parts.header
       << "#ifdef __cplusplus\n}\n#endif\n\n#endif\n";
 
     std::ostringstream c;
     c << "/* " << P << ".c: see " << P << ".h. Generated by `hinf export`; regenerate rather than edit. */\n"
       << "#include \"" << P << ".h\"\n\n#include <float.h>\n#include <math.h>\n\n"
       << "#define " << P << "_PI 3.14159265358979323846\n\n"
-      << net.data << sys << net.code << lawc.code << filter_c(cfg, P);
+      << sys << parts.code << filter_c(cfg, P);
 
     std::filesystem::create_directories(opt.dir);
     const std::string hpath = opt.dir + "/" + P + ".h", cpath = opt.dir + "/" + P + ".c";
@@ -760,15 +833,46 @@ ExportResult export_typed(const std::string& path, const RunConfig& cfg, const E
 
 }  // namespace
 
-ExportResult export_c(const std::string& checkpoint_path, const ExportOptions& opt) {
+ExportResult export_c(const std::vector<std::string>& paths, const ExportOptions& opt) {
     HINF_CHECK(is_c_identifier(opt.prefix), "--name '" + opt.prefix +
                                                 "' is not a C identifier (letters, digits, _, not starting with a "
                                                 "digit, at most 40 characters)");
     HINF_CHECK(!opt.dir.empty(), "--c needs a directory");
-    ckpt_verify(checkpoint_path);
-    RunConfig cfg = ckpt_config(checkpoint_path);
-    return ckpt_precision(checkpoint_path) == "double" ? export_typed<double>(checkpoint_path, cfg, opt)
-                                                       : export_typed<float>(checkpoint_path, cfg, opt);
+    HINF_CHECK(!paths.empty(), "export: give the checkpoint of a trained network");
+    HINF_CHECK(paths.size() == 1 || opt.ensemble,
+               "export: " + std::to_string(paths.size()) + " checkpoints given; give one, or add --ensemble to export "
+               "the mean gain of several gain networks (as compare --ensemble)");
+    HINF_CHECK(!opt.ensemble || paths.size() >= 2, "export --ensemble averages the gains of two or more networks: "
+                                                   "give their checkpoints (" + std::to_string(paths.size()) + " given)");
+    std::vector<RunConfig> cfgs;
+    for (const std::string& path : paths) {
+        ckpt_verify(path);
+        cfgs.push_back(ckpt_config(path));
+        const RunConfig& c = cfgs.back();
+        // the exported step is the continuous-time Euler-sampled Luenberger law (system_c writes A, not a map)
+        HINF_CHECK(!c.system->discrete_time(), "export: checkpoint '" + path +
+                                                   "' is for a discrete-time system; hinf export writes the "
+                                                   "continuous-time filter step only (docs/export.md)");
+        if (!opt.ensemble) continue;
+        HINF_CHECK(c.variant == "gain", "export --ensemble: network '" + path + "' is variant \"" + c.variant +
+                                            "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
+        HINF_CHECK(same_trained_model(c, cfgs[0]),
+                   "export --ensemble: network '" + path + "' was trained on another model than '" + paths[0] +
+                       "' (its [system] table or its noise levels differ); an ensemble averages networks trained on "
+                       "one model, e.g. with different training.seed");
+    }
+    const RunConfig& cfg = cfgs[0];
+    if (opt.ensemble) return write_export(paths, cfg, ensemble_parts(paths, cfgs, opt.prefix), opt);
+    const CGainLaw* law = nullptr;
+    std::string variants;
+    for (const CGainLaw& g : kGainLaws) {
+        variants += std::string(variants.empty() ? "" : ", ") + g.variant;
+        if (cfg.variant == g.variant) law = &g;
+    }
+    HINF_CHECK(law != nullptr, "export: checkpoint '" + paths[0] + "' is a '" + cfg.variant +
+                                   "' network, which has no C gain law (exportable: " + variants +
+                                   "; add one to kGainLaws in src/export/export_c.cpp)");
+    return write_export(paths, cfg, parts_of(paths[0], cfg, law, opt.prefix, opt.prefix), opt);
 }
 
 }  // namespace hinf

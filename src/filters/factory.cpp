@@ -111,10 +111,7 @@ std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSe
             first = ncfg;
             set.models.push_back(ncfg.system);
         } else {
-            const bool same = ncfg.doc.section_text("system") == first.doc.section_text("system") &&
-                              ncfg.output_weight == first.output_weight &&
-                              ncfg.disturbance_scale == first.disturbance_scale;
-            HINF_CHECK(same, "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
+            HINF_CHECK(same_trained_model(ncfg, first), "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
                                  "' (its [system] table or its noise levels differ); an ensemble averages networks "
                                  "trained on one model, e.g. with different training.seed");
         }

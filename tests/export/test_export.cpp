@@ -1,7 +1,7 @@
 // `hinf export --c`: the exported C99 filter, compiled with `cc -std=c99 -O2 ... -lm` and nothing else, reproduces
 // `hinf filter`'s DNN estimates on a record: to round-off of double arithmetic for a double network, to the float
 // network's round-off (amplified by the gain, then contracting) for a float one; built-in and expression systems,
-// both training variants. Bad use is one line.
+// both training variants, and an ensemble's mean gain. Bad use is one line.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <fstream>
@@ -42,21 +42,34 @@ struct Compared {
     std::size_t rows = 0, compared = 0;  // rows the C printed; rows compared (before a divergence)
 };
 
-// trains, records with operate (measured), runs `hinf filter` and the exported C on the record, compares
+// trains (members > 1: that many networks, training seeds 1, 2, ..., run as one --ensemble), records with operate
+// (measured, the first network), runs `hinf filter` and the exported C on the record, compares
 Compared export_and_compare(const TempDir& d, const std::string& cfg, const std::string& train_args,
-                            const std::string& label) {
-    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet " + train_args);
-    INFO(t.output);
-    REQUIRE(t.status == 0);
-    const std::string net = d / "run/checkpoint.h5";
+                            const std::string& label, int members = 1) {
+    std::string nets, ensemble = members > 1 ? " --ensemble" : "";
+    for (int s = 1; s <= members; ++s) {
+        const std::string run = members > 1 ? "run" + std::to_string(s) : "run";
+        auto t = run_hinf("train " + cfg + " --out " + (d / run) + " --quiet --set training.seed=" + std::to_string(s) +
+                          " " + train_args);
+        INFO(t.output);
+        REQUIRE(t.status == 0);
+        nets += " " + (d / run) + "/checkpoint.h5";
+    }
+    const std::string net = nets.substr(1, nets.find(".h5") + 2);  // the first
     auto o = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 1 --quiet --out " + (d / "op"));
     INFO(o.output);
     REQUIRE(o.status == 0);
     const std::string csv = record_csv(d, d / "op/operate.h5");
-    auto f = run_hinf("filter " + cfg + " --network " + net + " --measurements " + csv + " --quiet --out " + (d / "flt"));
+    std::string flags;
+    for (std::size_t at = 0; at < nets.size();) {
+        const std::size_t next = nets.find(' ', at + 1);
+        flags += " --network" + nets.substr(at, next - at);
+        at = next == std::string::npos ? nets.size() : next;
+    }
+    auto f = run_hinf("filter " + cfg + flags + ensemble + " --measurements " + csv + " --quiet --out " + (d / "flt"));
     INFO(f.output);
     REQUIRE(f.status == 0);
-    auto e = run_hinf("export " + net + " --c " + (d / "c"));
+    auto e = run_hinf("export" + nets + ensemble + " --c " + (d / "c"));
     INFO(e.output);
     REQUIRE(e.status == 0);
     // no include path but the exported pair's, no library but libm; warnings are errors
@@ -241,6 +254,46 @@ TEST_CASE("exported C filter with noise and disturbance std lists or covariances
     }
 }
 
+TEST_CASE("exported C ensemble of gain networks matches hinf filter --ensemble to double round-off",
+          "[export][gain][ensemble]") {
+    // two and three members of one model (training seeds 1, 2, 3): the C's mean gain is filters/dnn.cpp's
+    for (const int members : {2, 3}) {
+        SECTION(std::to_string(members) + " networks") {
+            TempDir d("export-ensemble");
+            const std::string cfg = write_file(d, "tiny.toml",
+                                               "[system]\nkind = \"missile\"\n[filter]\nt_final = 3.0\nvariant = \"gain\"\n"
+                                               "[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 50\n"
+                                               "batch = 20\nadam_steps = 2\ncheckpoint_every = 5\n");
+            Compared c = export_and_compare(d, cfg, "--until 0.1", "dnn_gain_ensemble", members);
+            INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+            CHECK(c.rows == 301);
+            CHECK(c.compared == 301);
+            CHECK(c.scale > 100);
+            CHECK(c.max_abs <= 1e-11 * c.scale);
+            std::ifstream src(d / "c/hinf_filter.c");
+            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            for (int e = 0; e < members; ++e)
+                CHECK(code.find("hinf_filter_m" + std::to_string(e) + "_theta[") != std::string::npos);
+            CHECK(code.find("hinf_filter_m" + std::to_string(members) + "_") == std::string::npos);
+            // the ensemble is not its first member: that network alone filters the record elsewhere
+            auto f = run_hinf("filter " + cfg + " --network " + (d / "run1/checkpoint.h5") + " --measurements " +
+                              (d / "record.csv") + " --quiet --out " + (d / "one"));
+            REQUIRE(f.status == 0);
+            hinf::h5::Handle h1 = hinf::h5::open_file(d / "one/estimates.h5", false);
+            hinf::h5::Handle hE = hinf::h5::open_file(d / "flt/estimates.h5", false);
+            const std::vector<double> one = hinf::h5::read_doubles(
+                hinf::h5::open_group(h1.get(), "dnn_gain_measured").get(), "xhat");
+            const std::vector<double> ens = hinf::h5::read_doubles(
+                hinf::h5::open_group(hE.get(), "dnn_gain_ensemble").get(), "xhat");
+            REQUIRE(one.size() == ens.size());
+            double apart = 0;
+            for (std::size_t i = 0; i < one.size(); ++i) apart = std::max(apart, std::fabs(one[i] - ens[i]));
+            INFO("the first member alone against the ensemble: " << apart);
+            CHECK(apart > 1e3 * c.max_abs);
+        }
+    }
+}
+
 TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
     TempDir d("export-bad");
     expect_one_line_error("export " + (d / "missing.h5") + " --c " + (d / "c"), "missing.h5");
@@ -258,4 +311,14 @@ TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
     INFO(t.output);
     REQUIRE(t.status == 0);
     expect_one_line_error("export " + (d / "kw/checkpoint.h5") + " --c " + (d / "c"), "the state 'int' is a C keyword");
+    // ensembles: several checkpoints without --ensemble, --ensemble with one, a member of another model or variant
+    auto g = run_hinf("train " + cfg + " --set filter.variant=gain --out " + (d / "gain") + " --quiet");
+    REQUIRE(g.status == 0);
+    const std::string gain = d / "gain/checkpoint.h5";
+    expect_one_line_error("export " + gain + " " + gain + " --c " + (d / "c"), "add --ensemble");
+    expect_one_line_error("export " + gain + " --ensemble --c " + (d / "c"), "two or more networks");
+    expect_one_line_error("export " + gain + " " + (d / "kw/checkpoint.h5") + " --ensemble --c " + (d / "c"),
+                          "trained on another model");
+    expect_one_line_error("export " + gain + " " + (d / "run/checkpoint.h5") + " --ensemble --c " + (d / "c"),
+                          "only variant \"gain\" networks");
 }
