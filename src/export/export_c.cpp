@@ -119,7 +119,8 @@ const std::set<std::string>& c_reserved() {
 }
 
 // An expression system through GiNaC's C print (the texts muParser evaluates in hinf, models/expr_system.cpp):
-// the states, parameters and t become local constants of each function.
+// the states, parameters and t (and a discrete system's step index k) become local constants of each function.
+// In discrete time PREFIX_drift is the map f(x, k), not a vector field.
 std::string expr_c(const ExprSystem& sys, const std::string& P) {
     const std::vector<std::string> states = sys.state_names();
     const std::vector<std::pair<std::string, double>>& params = sys.parameters();
@@ -136,9 +137,12 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
             c << "    const double " << states[i] << " = hinf_x_[" << i << "];\n";
         for (const auto& p : params) c << "    const double " << p.first << " = " << lit(p.second) << ";\n";
         c << "    const double t = hinf_t_;\n";
+        // a discrete system's step index, rounded as models/expr_system.cpp does (t = k dt)
+        if (sys.discrete_time()) c << "    const double k = nearbyint(hinf_t_ / " << lit(sys.period()) << ");\n";
         for (const auto& s : states) c << "    (void)" << s << ";\n";
         for (const auto& p : params) c << "    (void)" << p.first << ";\n";
         c << "    (void)t;\n";
+        if (sys.discrete_time()) c << "    (void)k;\n";
         return c.str();
     };
     auto function = [&](const std::string& name, const std::string& which, const std::string& what) {
@@ -646,6 +650,7 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
     const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
     // a correlated output weight (noise_cov) weighs y by the matrix PREFIX_weigh (weighted_system_c)
     const bool correlated = !cfg.output_weight.empty() && !is_diagonal(cfg.output_weight, cfg.m);
+    const bool discrete = cfg.system->discrete_time();
     c << "void " << P << "_init(" << P << "_state* s, const double* xhat0) {\n"
       << "    static const double config_xhat0[" << N << "] = {";
     for (int i = 0; i < cfg.n; ++i) c << (i ? ", " : "") << lit(cfg.xhat0[i]);
@@ -654,12 +659,15 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    for (i = 0; i < " << N << "; ++i) s->xhat[i] = xhat0 ? xhat0[i] : config_xhat0[i];\n"
       << "    s->diverged = 0;\n"
       << "}\n\n"
-      << "/* seed 000 eq. (19) in measured mode (filters/dnn.cpp): k from the variant's gain law, then\n"
-      << "   x^ <- x^ + dt (A(x^, t) + k e) with e = y - C(x^) (luenberger_advance) */\n"
+      << (discrete ? "/* the discrete-time gain filter in measured mode (filters/dnn.cpp, docs/method.md 16.8): k from the gain\n"
+                     "   law, then the one-step predictor x^ <- f(x^, k) + k e with e = y - C(x^) (gain_filter_advance) */\n"
+                   : "/* seed 000 eq. (19) in measured mode (filters/dnn.cpp): k from the variant's gain law, then\n"
+                     "   x^ <- x^ + dt (A(x^, t) + k e) with e = y - C(x^) (luenberger_advance) */\n")
       << "int " << P << "_step(" << P << "_state* s, const double* y, double t, double dt) {\n"
       << "    double a[" << N << "], B[" << N << " * " << NV << "], ch[" << M << "], e[" << M << "], k[" << N
       << " * " << M << "];\n"
       << "    int i, j, finite = 1;\n"
+      << (discrete ? "    (void)dt; /* a discrete system's step is its map */\n" : "")
       << "    if (s->diverged) return 1;\n"
       << "    " << P << "_drift(a, s->xhat, t);\n"
       << "    " << P << "_measurement(ch, s->xhat, t);\n"
@@ -681,7 +689,7 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    for (i = 0; i < " << N << "; ++i) {\n"
       << "        double ke = 0;\n"
       << "        for (j = 0; j < " << M << "; ++j) ke += k[i * " << M << " + j] * e[j];\n"
-      << "        s->xhat[i] = s->xhat[i] + dt * (a[i] + ke);\n"
+      << (discrete ? "        s->xhat[i] = a[i] + ke;\n" : "        s->xhat[i] = s->xhat[i] + dt * (a[i] + ke);\n")
       << "    }\n"
       << "    return 0;\n"
       << "}\n";
@@ -799,7 +807,10 @@ ExportResult write_export(const std::vector<std::string>& paths, const RunConfig
         h << "From: " << paths[0] << "\n   system '" << res.system << "', variant '" << res.variant << "', " << parts.shape
           << ", mode measured.\n";
     h << "   Use: " << P << "_state s; " << P << "_init(&s, NULL); then per measurement y(t_k) [m]:\n"
-      << "   " << P << "_step(&s, y, t_k, " << P << "_DT); s.xhat [n] is then the estimate of x(t_k + dt). */\n"
+      << "   " << P << "_step(&s, y, t_k, " << P << "_DT); s.xhat [n] is then the estimate of x(t_k + dt)"
+      << (cfg.system->discrete_time() ? ",\n   the one-step prediction of x_(k+1) (a discrete-time system: t_k = k dt gives the step index k)"
+                                      : "")
+      << ". */\n"
       << "#ifndef " << upper << "_H\n#define " << upper << "_H\n\n"
       << "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
       << "#define " << P << "_N " << n << "  /* states */\n"
@@ -849,10 +860,10 @@ ExportResult export_c(const std::vector<std::string>& paths, const ExportOptions
         ckpt_verify(path);
         cfgs.push_back(ckpt_config(path));
         const RunConfig& c = cfgs.back();
-        // the exported step is the continuous-time Euler-sampled Luenberger law (system_c writes A, not a map)
-        HINF_CHECK(!c.system->discrete_time(), "export: checkpoint '" + path +
-                                                   "' is for a discrete-time system; hinf export writes the "
-                                                   "continuous-time filter step only (docs/export.md)");
+        // a discrete system's filter is the gain variant's one-step predictor (the other variants are continuous)
+        HINF_CHECK(!c.system->discrete_time() || c.variant == "gain",
+                   "export: checkpoint '" + path + "' is a '" + c.variant + "' network of a discrete-time system; "
+                   "only variant \"gain\" filters discrete-time systems (docs/method.md 16.8)");
         if (!opt.ensemble) continue;
         HINF_CHECK(c.variant == "gain", "export --ensemble: network '" + path + "' is variant \"" + c.variant +
                                             "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");

@@ -55,6 +55,8 @@ class ExprSystem : public System {
     std::vector<std::string> state_names() const override { return states_; }
     std::vector<std::string> state_units() const override { return units_; }
     bool discrete_time() const override { return discrete_; }
+    /// Discrete time: the sampling period that stamps the steps (k = round(t / period)); 0 in continuous time.
+    double period() const { return period_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
     std::vector<std::string> compiled(const std::string& which) const;
     /// The named constants of [system] parameters, in order (the C export declares them).
