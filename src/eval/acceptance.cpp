@@ -93,21 +93,45 @@ OperateSummary measured_validation(const RunConfig& cfg, const std::string& path
 // the systems of the docs, most decisive first:
 // - a level at or below rho*, the linearised game's smallest (config/game_level.hpp): no filter keeps it for small
 //   signals (Van der Pol at 0.5, rho* 1.38: FAIL; at 1.5: PASS for seeds 1-5);
+// - a level above rho* that the search found broken without divergence: a higher level (kHigherRhoFactor rho*, or
+//   twice rho where that is more) is easier to train for (a discrete pendulum-like map, linear sensor: at 1.25 rho*
+//   FAIL for seeds 1-3, at 4 rho* PASS for each, below the EKF's worst case, with a lower settled error too);
+// - a search that made the filter diverge: said as such (the same map with a cubic sensor diverged at every level,
+//   Adam budget and error floor tried), no cure offered;
 // - a short run (fewer than kShortRunUpdates Adam updates in all): more updates per step lowered the error (the radar,
 //   100 steps: 3000 updates gave 2.0-5.7x the EKF, 30 000 gave 1.05-1.13x);
 // - always: a FAIL says the promise rho is not kept, not that the filter is worse than the EKF/UKF in the mean.
 constexpr std::int64_t kShortRunUpdates = 30000;
+constexpr double kHigherRhoFactor = 4.0;
 
-std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
+}  // namespace
+
+std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search) {
     std::string a = "acceptance: next:";
-    char buf[512];
+    char buf[640];
     const double bound = game_level_rho_star(cfg);
-    if (bound > 0 && cfg.rho <= bound) {
+    const bool below = bound > 0 && cfg.rho <= bound;
+    if (below) {
         std::snprintf(buf, sizeof buf,
                       " [filter] rho = %.4g is at or below rho* = %.4g, the smallest level any filter can keep for this "
                       "system linearised (hinf rho): train at a level above it, e.g. --set filter.rho=%.4g (%.4g "
                       "rho*);",
                       cfg.rho, bound, kAutoRhoFactor * bound, kAutoRhoFactor);
+        a += buf;
+    }
+    if (search.ran && search.diverged) {
+        std::snprintf(buf, sizeof buf,
+                      " the filter diverged under the worst signals the search found (of the nominal noise's energy): "
+                      "it is not robust at that budget, whatever its mean error (its gain is learned where training's "
+                      "estimates went; docs/byos.md section 4 has a system where no setting cured this);");
+        a += buf;
+    } else if (search.ran && search.ratio > cfg.rho && !below) {
+        const double higher = std::max(kHigherRhoFactor * bound, 2.0 * cfg.rho);
+        std::snprintf(buf, sizeof buf,
+                      " the worst-case search found a ratio of %.4g above rho = %.4g: a higher level is easier to train "
+                      "for, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
+                      search.ratio, cfg.rho, higher,
+                      bound > 0 && higher == kHigherRhoFactor * bound ? "4 rho*, hinf rho" : "twice rho");
         a += buf;
     }
     const std::int64_t steps = cfg.steps_until(), updates = steps * cfg.adam_steps;
@@ -130,6 +154,8 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path) {
          "that the filter is worse than the EKF in the mean)";
     return a;
 }
+
+namespace {
 
 // The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
 // [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
@@ -186,7 +212,13 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.pass = pass;
     o.file = path;
     o.line = line;
-    if (!pass) o.advice = acceptance_advice(cfg, path);
+    if (!pass) {
+        AcceptanceSearch found;
+        found.ran = search && w.skipped.empty();
+        found.ratio = w.ratio;
+        found.diverged = w.diverged;
+        o.advice = acceptance_advice(cfg, path, found);
+    }
     return o;
 }
 

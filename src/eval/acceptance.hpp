@@ -53,6 +53,16 @@ struct AcceptanceOutcome {
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
     std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
 };
+/// What the acceptance's worst-case search found, for the advice after a FAIL.
+struct AcceptanceSearch {
+    bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)
+    double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found
+    bool diverged = false;   // the filter diverged under the worst signals found
+};
+/// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's
+/// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.
+std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);
+
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
 /// trained at least one step), on one process, with cfg.acceptance_runs > 0; its verdict and figures are written
 /// into the judged checkpoint's root attributes, its runs into DIR/acceptance/.

@@ -1,0 +1,80 @@
+// The line after a FAILed acceptance check ("acceptance: next: ..."): each branch from what the check measured.
+// The level against rho* (hinf rho), the run's Adam updates, and what the worst-case search found: a ratio above a
+// feasible rho (a higher level suggested), a divergence (said, no cure offered), nothing found (no level advice).
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "config/game_level.hpp"
+#include "eval/acceptance.hpp"
+
+using namespace hinf;
+
+namespace {
+
+// x' = -x + v, y = x + n: rho* of this scalar system is a few tenths (hinf rho); 200 steps of 0.01 s
+RunConfig scalar(const std::string& rho, const std::string& training = "") {
+    return load_run_config(ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"-x\"]\n"
+        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nvariant = \"gain\"\nrho = " + rho +
+            "\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\ndt = 0.01\nt_final = 2\n[training]\n" + training +
+            "[online]\ndisturbance_std = 1\nnoise_std = 1\n",
+        "scalar.toml"));
+}
+
+bool has(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+}  // namespace
+
+TEST_CASE("acceptance advice names a higher level when the search broke a feasible one", "[acceptance]") {
+    const RunConfig c = scalar("2", "adam_steps = 200\n");  // 40 000 updates: not a short run
+    const double star = game_level_rho_star(c);
+    REQUIRE(star > 0);
+    REQUIRE(star < 0.5);  // rho = 2 is feasible, so 4 rho* < 2 rho: twice rho is suggested
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 7.5;
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(a.rfind("acceptance: next:", 0) == 0);
+    CHECK(has(a, "the worst-case search found a ratio of 7.5 above rho = 2"));
+    CHECK(has(a, "--set filter.rho=4 (twice rho)"));
+    CHECK_FALSE(has(a, "at or below rho*"));
+    CHECK_FALSE(has(a, "Adam updates"));
+    CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
+
+    // a level just above rho*: 4 rho* is the larger suggestion
+    const RunConfig near = scalar(std::to_string(1.1 * star), "adam_steps = 200\n");
+    const std::string b = acceptance_advice(near, "run/best.h5", s);
+    INFO(b);
+    CHECK(has(b, "(4 rho*, hinf rho)"));
+
+    // the search found nothing above rho (the Monte Carlo failed): no level advice
+    s.ratio = 1.0;
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "higher level"));
+    // no search ran
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", AcceptanceSearch{}), "higher level"));
+}
+
+TEST_CASE("acceptance advice says a divergence under the worst signals without offering a cure", "[acceptance]") {
+    const RunConfig c = scalar("2");  // 200 steps x 30 Adam steps: a short run too
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 1e70;
+    s.diverged = true;
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "the filter diverged under the worst signals the search found"));
+    CHECK_FALSE(has(a, "higher level"));
+    CHECK(has(a, "this run made 6000 Adam updates (200 time steps x training.adam_steps = 30)"));
+}
+
+TEST_CASE("acceptance advice at a level below rho* names rho* and not a higher multiple of rho", "[acceptance]") {
+    const RunConfig c = scalar("0.01", "adam_steps = 200\n");
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 3.0;
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "rho = 0.01 is at or below rho* = "));
+    CHECK_FALSE(has(a, "higher level"));
+}
