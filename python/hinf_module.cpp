@@ -311,6 +311,31 @@ PYBIND11_MODULE(_hinf, m) {
         });
 
     m.def(
+        "export_c",
+        [](const py::object& checkpoints, const std::string& dir, const std::string& name, bool ensemble) {
+            std::vector<std::string> paths;
+            if (py::isinstance<py::str>(checkpoints)) paths.push_back(checkpoints.cast<std::string>());
+            else paths = checkpoints.cast<std::vector<std::string>>();
+            hinf::ExportReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::export_c99(paths, dir, name, ensemble);
+            }
+            py::dict d;
+            d["files"] = r.files;
+            d["parameters"] = r.parameters;
+            d["weight_bytes"] = r.weight_bytes;
+            d["flops_per_step"] = r.flops_per_step;
+            d["networks"] = r.networks;
+            d["variant"] = r.variant;
+            d["precision"] = r.precision;
+            d["system"] = r.system;
+            return d;
+        },
+        py::arg("checkpoints"), py::arg("dir"), py::arg("name") = "hinf_filter", py::arg("ensemble") = false,
+        "Writes a trained filter as dependency-free C99, dir/name.h and dir/name.c (as `hinf export`): one checkpoint "
+        "path, or a list of gain networks with ensemble=True (their mean gain)");
+    m.def(
         "train",
         [](const hinf::Config& cfg, const std::string& out, double until, const py::object& progress, bool quiet,
            bool force, int threads) {

@@ -189,6 +189,21 @@ struct TrainReport {
     std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice;
 };
 
+/// What `hinf export` wrote: the C99 pair of a trained DNN filter (docs/export.md).
+struct ExportReport {
+    std::vector<std::string> files;     ///< DIR/PREFIX.h, DIR/PREFIX.c
+    long long parameters = 0;           ///< network weights and biases (all members of an ensemble)
+    long long weight_bytes = 0;         ///< const data of the weights
+    long long flops_per_step = 0;       ///< per filter step, besides the system's A, C, dC/dx
+    int networks = 1;                   ///< an ensemble's member count
+    std::string variant, precision, system;
+};
+
+/// Writes the trained filter of one checkpoint (or, ensemble = true, the mean gain of two or more `gain` networks
+/// trained on one model) as dependency-free C99 into dir/prefix.h and dir/prefix.c, as `hinf export`.
+ExportReport export_c99(const std::vector<std::string>& checkpoints, const std::string& dir,
+                        const std::string& prefix = "hinf_filter", bool ensemble = false);
+
 /// Trains a network for cfg (the offline phase, as `hinf train`).
 TrainReport train(const Config& cfg, const TrainSettings& settings);
 /// Continues the run of a checkpoint into its directory (as `hinf resume`); settings.out_dir is ignored.

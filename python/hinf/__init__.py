@@ -8,11 +8,11 @@
 
 Errors in the caller's terms raise hinf.Error (a RuntimeError) with hinf's one-line message. docs/python.md.
 """
-from ._hinf import (Config, Error, Filter, FilterTrace, Network, TrainProgress, filter_names, filters, resume,
-                    train, version)
+from ._hinf import (Config, Error, Filter, FilterTrace, Network, TrainProgress, export_c, filter_names, filters,
+                    resume, train, version)
 
-__all__ = ["Config", "Error", "Filter", "FilterTrace", "Network", "TrainProgress", "filter_names", "filters",
-           "read_results", "resume", "train", "version"]
+__all__ = ["Config", "Error", "Filter", "FilterTrace", "Network", "TrainProgress", "export_c", "filter_names",
+           "filters", "read_results", "resume", "train", "version"]
 
 
 def read_results(path):

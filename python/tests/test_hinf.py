@@ -272,3 +272,23 @@ def test_ensemble_of_copies_is_the_network(trained, record):
     assert np.array_equal(two.run(t, Y).xhat, one.xhat)
     with pytest.raises(hinf.Error, match="two or more networks"):
         hinf.Filter(cfg, "dnn", network=ckpt, ensemble=True)
+
+
+def test_export_c_writes_what_hinf_export_writes(trained, tmp_path):
+    """hinf.export_c: the same files as `hinf export`; an ensemble of two copies compiles as C99 with -Werror; several
+    checkpoints without ensemble=True raise hinf.Error in one line."""
+    _, ckpt, _, _, _ = trained
+    r = hinf.export_c(ckpt, str(tmp_path / "py"))
+    assert r["networks"] == 1 and r["variant"] == "gain" and r["parameters"] > 0
+    assert r["files"] == [str(tmp_path / "py" / "hinf_filter.h"), str(tmp_path / "py" / "hinf_filter.c")]
+    subprocess.run([hinf_cli(), "export", ckpt, "--c", str(tmp_path / "cli")], check=True, capture_output=True)
+    for name in ("hinf_filter.h", "hinf_filter.c"):
+        with open(tmp_path / "py" / name) as a, open(tmp_path / "cli" / name) as b:
+            assert a.read() == b.read()
+    e = hinf.export_c([ckpt, ckpt], str(tmp_path / "ens"), name="vdp_ens", ensemble=True)
+    assert e["networks"] == 2 and e["parameters"] == 2 * r["parameters"]
+    cc = shutil.which("cc")
+    if cc:
+        subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-c",
+                        str(tmp_path / "ens" / "vdp_ens.c"), "-o", str(tmp_path / "ens" / "vdp_ens.o")], check=True)
+    one_line_error(lambda: hinf.export_c([ckpt, ckpt], str(tmp_path / "bad")), "ensemble=True")

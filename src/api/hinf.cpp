@@ -12,6 +12,7 @@
 #include "config/run_config.hpp"
 #include "eval/acceptance.hpp"
 #include "eval/filter_recorded.hpp"
+#include "export/export_c.hpp"
 #include "filters/factory.hpp"
 #include "hinf/config.hpp"
 #include "io/checkpoint.hpp"
@@ -430,6 +431,27 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     TrainReport r = report_of(s, dir);
     finish_report(r, readable ? c : ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
     return r;
+}
+
+// ---------------------------------------------------------------------------------------------- export
+
+ExportReport export_c99(const std::vector<std::string>& checkpoints, const std::string& dir, const std::string& prefix,
+                        bool ensemble) {
+    ExportOptions opt;
+    opt.dir = dir;
+    opt.prefix = prefix;
+    opt.ensemble = ensemble;
+    const ExportResult r = export_c(checkpoints, opt);
+    ExportReport out;
+    out.files = r.files;
+    out.parameters = r.parameters;
+    out.weight_bytes = r.weight_bytes;
+    out.flops_per_step = r.flops_per_step;
+    out.networks = r.networks;
+    out.variant = r.variant;
+    out.precision = r.precision;
+    out.system = r.system;
+    return out;
 }
 
 }  // namespace hinf

@@ -852,7 +852,7 @@ ExportResult export_c(const std::vector<std::string>& paths, const ExportOptions
     HINF_CHECK(!paths.empty(), "export: give the checkpoint of a trained network");
     HINF_CHECK(paths.size() == 1 || opt.ensemble,
                "export: " + std::to_string(paths.size()) + " checkpoints given; give one, or add --ensemble to export "
-               "the mean gain of several gain networks (as compare --ensemble)");
+               "the mean gain of several gain networks (as compare --ensemble; ensemble=True from the library)");
     HINF_CHECK(!opt.ensemble || paths.size() >= 2, "export --ensemble averages the gains of two or more networks: "
                                                    "give their checkpoints (" + std::to_string(paths.size()) + " given)");
     std::vector<RunConfig> cfgs;

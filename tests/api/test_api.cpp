@@ -2,6 +2,8 @@
 // name giving `hinf filter`'s bits on the same record, step() against run(), and bad use as one-line hinf::Error.
 // (python/tests covers the same through the Python module; this runs under the sanitizers too.)
 #include <catch2/catch.hpp>
+#include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "helpers.hpp"
@@ -124,6 +126,38 @@ TEST_CASE("library: bad use throws hinf::Error with one line", "[api]") {
     o.networks = {hinf::TrainedNetwork::load(d / "other/checkpoint.h5")};
     CHECK(one_line_error([&] { hinf::Filter::create(cfg, "dnn", o); }, "was trained for the system 'expr'"));
     CHECK(one_line_error([&] { hinf::train(other, s); }, "already holds a run"));
+    // export: several checkpoints need ensemble = true; an ensemble member of another model is refused
+    const std::string ck = d / "other/checkpoint.h5";
+    CHECK(one_line_error([&] { hinf::export_c99({ck, ck}, d / "c"); }, "ensemble=True from the library"));
+    CHECK(one_line_error([&] { hinf::export_c99({ck}, d / "c", "hinf_filter", true); }, "two or more networks"));
+}
+
+TEST_CASE("library: export_c99 writes the files hinf export writes", "[api][export]") {
+    TempDir d("api-export");
+    const hinf::Config cfg = hinf::Config::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"a\", \"b\"]\nmeasurements = 1\nf = [\"b\", \"-a - 0.5*b\"]\n"
+        "g = [[\"0\"], [\"1\"]]\nh = [\"a\"]\n[filter]\nQ = [1.0, 1.0]\nx0 = [1.0, 0.0]\nxhat0 = [0.0, 0.0]\ndt = 0.01\n"
+        "t_final = 0.05\n[network]\nhidden = [4]\n[training]\nsamples = 20\nbatch = 10\nadam_steps = 1\n"
+        "checkpoint_every = 5\n[online]\ndisturbance_std = 1\nnoise_std = 1\n",
+        "osc.toml");
+    hinf::TrainSettings s;
+    s.out_dir = d / "run";
+    REQUIRE_FALSE(hinf::train(cfg, s).diverged);
+    const std::string ck = d / "run/checkpoint.h5";
+    const hinf::ExportReport r = hinf::export_c99({ck, ck}, d / "lib", "osc", true);
+    CHECK(r.networks == 2);
+    CHECK(r.variant == "gain");
+    CHECK(r.files == std::vector<std::string>{d / "lib/osc.h", d / "lib/osc.c"});
+    auto e = run_hinf("export " + ck + " " + ck + " --ensemble --name osc --c " + (d / "cli"));
+    INFO(e.output);
+    REQUIRE(e.status == 0);
+    for (const char* name : {"osc.h", "osc.c"}) {
+        std::ifstream a(d / (std::string("lib/") + name)), b(d / (std::string("cli/") + name));
+        const std::string ta((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+        const std::string tb((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+        CHECK(!ta.empty());
+        CHECK(ta == tb);
+    }
 }
 
 TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with the acceptance check, as hinf train",
