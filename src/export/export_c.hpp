@@ -1,7 +1,8 @@
 // `hinf export CHECKPOINT... [--ensemble] --c DIR`: a trained DNN filter (or an ensemble's mean gain) as a
 // dependency-free C99 header/source pair (weights as const arrays, the network's forward pass and head, the
-// system's A, B, C and dC/dx, the gain law and the measured-mode filter step of filters/dnn.cpp). Not a compiler of arbitrary systems: built-in systems are written
-// out by hand-kept C twins, expression systems through GiNaC's C print. docs/export.md.
+// system's A, B, C and dC/dx, the gain law and the measured-mode filter step of filters/dnn.cpp; continuous or
+// discrete time). Not a compiler of arbitrary systems: built-in systems are written out by hand-kept C twins,
+// expression systems through GiNaC's C print. docs/export.md.
 #pragma once
 #include <string>
 #include <vector>

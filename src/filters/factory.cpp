@@ -111,9 +111,10 @@ std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSe
             first = ncfg;
             set.models.push_back(ncfg.system);
         } else {
-            HINF_CHECK(same_trained_model(ncfg, first), "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
-                                 "' (its [system] table or its noise levels differ); an ensemble averages networks "
-                                 "trained on one model, e.g. with different training.seed");
+            HINF_CHECK(same_trained_model(ncfg, first),
+                       "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
+                           "' (its [system] table or its noise levels differ); an ensemble averages networks "
+                           "trained on one model, e.g. with different training.seed");
         }
         nets.push_back(net.get());
         set.networks.push_back(std::move(net));
@@ -178,7 +179,8 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             std::snprintf(note, sizeof note, " s; rho = %.4g (<= [filter] rho) on the polytope, min trace P; ", g.rho);
             set.notes.push_back(line + note + g.status);
             owned.push_back(make_glf_filter(exact, g));
-        } else if (name == "dnn") {            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+        } else if (name == "dnn") {
+            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
             HINF_CHECK(!cfg.retrain, "[online] retrain = true: on-line retraining runs in hinf operate only; here the "
                                      "DNN filter would run its checkpoint as trained (set online.retrain = false, or use "
                                      "hinf operate)");
@@ -191,8 +193,9 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
                 const std::vector<std::string> modes = dnn_modes(a.modes);
                 if (ncfg.variant == "gain") {  // its gain never sees x~: it runs from measurements only
-                    HINF_CHECK(has_measured(modes), "network '" + path + "' is variant \"gain\": its gain K(x^) never sees the "
-                                         "true error, so --mode oracle is meaningless for it (use --mode measured)");
+                    HINF_CHECK(has_measured(modes), "network '" + path + "' is variant \"gain\": its gain K(x^) never "
+                                                    "sees the true error, so --mode oracle is meaningless for it (use "
+                                                    "--mode measured)");
                     std::string label = "dnn_gain_measured";
                     for (const auto& o : owned)
                         HINF_CHECK(o->name() != label,
