@@ -462,6 +462,83 @@ void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K
 }
 
 namespace {
+// The Kalman-form head's shared part: P from o, PHt = P H' [n x m], W = H P H' + diag(dy)^2 and its Cholesky factor
+// L [m x m], At = W^-1 (P H')' = A' [m x n] (A = P H' W^-1).
+template <typename T>
+void kalman_parts(double* dinv, double* L, double* At, const T* o, const double* Hx, const GainSpec& g, int n, int m) {
+    double P[kMax * kMax], W[kMax * kMax];
+    for (int a = 0; a < n; ++a) dinv[a] = 1.0 / g.dx[a];
+    storage_forward(P, o, dinv, n, g.kalman_scale, g.eps);  // c D (M M' + eps I) D
+    for (int q = 0; q < m; ++q)
+        for (int a = 0; a < n; ++a) {
+            double t = 0;
+            for (int c = 0; c < n; ++c) t += P[a * n + c] * Hx[q * n + c];
+            At[q * n + a] = t;  // (P H')' = H P
+        }
+    for (int q = 0; q < m; ++q)
+        for (int r = 0; r <= q; ++r) {
+            double t = 0;
+            for (int a = 0; a < n; ++a) t += Hx[q * n + a] * At[r * n + a];
+            if (q == r) t += g.dy[q] * g.dy[q];
+            W[q * m + r] = W[r * m + q] = t;
+        }
+    chol(L, W, m);
+    chol_solve(At, L, m, n);
+}
+}  // namespace
+
+template <typename T>
+void gain_kalman_forward(double* K, double* A, const T* o, const double* Fx, const double* Hx, const GainSpec& g,
+                         int n, int m) {
+    double dinv[kMax], L[kMax * kMax], At[kMax * kMax];
+    kalman_parts(dinv, L, At, o, Hx, g, n, m);
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q) {
+            double t = 0;
+            for (int c = 0; c < n; ++c) t += Fx[a * n + c] * At[q * n + c];
+            K[a * m + q] = t;
+        }
+    if (A != nullptr)
+        for (int a = 0; a < n; ++a)
+            for (int q = 0; q < m; ++q) A[a * m + q] = At[q * n + a];
+}
+
+template <typename T>
+void gain_kalman_backward(T* d_o, const double* gK, const T* o, const double* Fx, const double* Hx, const GainSpec& g,
+                          int n, int m) {
+    // dK = F (I - A H) dP H' W^-1, so dL/dP = (I - H'A') X H with X = F'gK W^-1 [n x m]
+    double dinv[kMax], L[kMax * kMax], At[kMax * kMax], Xt[kMax * kMax], AX[kMax * kMax], Y[kMax * kMax];
+    double gP[kMax * kMax];
+    kalman_parts(dinv, L, At, o, Hx, g, n, m);
+    for (int q = 0; q < m; ++q)
+        for (int c = 0; c < n; ++c) {
+            double t = 0;
+            for (int a = 0; a < n; ++a) t += Fx[a * n + c] * gK[a * m + q];
+            Xt[q * n + c] = t;  // (F'gK)'
+        }
+    chol_solve(Xt, L, m, n);  // X' = W^-1 (F'gK)'
+    for (int q = 0; q < m; ++q)
+        for (int r = 0; r < m; ++r) {
+            double t = 0;
+            for (int c = 0; c < n; ++c) t += At[q * n + c] * Xt[r * n + c];
+            AX[q * m + r] = t;  // (A'X)_qr
+        }
+    for (int a = 0; a < n; ++a)
+        for (int r = 0; r < m; ++r) {
+            double t = Xt[r * n + a];
+            for (int q = 0; q < m; ++q) t -= Hx[q * n + a] * AX[q * m + r];
+            Y[a * m + r] = t;  // (X - H'A'X)_ar
+        }
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+            double t = 0;
+            for (int r = 0; r < m; ++r) t += Y[a * m + r] * Hx[r * n + b];
+            gP[a * n + b] = t;
+        }
+    storage_backward(d_o, gP, o, dinv, n, g.kalman_scale);
+}
+
+namespace {
 // rows first .. first + B of the network input: the estimate of sample idx[row * G] (G = 1: idx[row])
 template <typename T>
 void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int n, int G = 1) {
@@ -508,6 +585,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     const bool tv = gs.knots > 0;  // time-varying storage and the Riccati-form head (section 16.7)
     const int np = n * (n + 1) / 2;
     assert(!tv || (sys.t != nullptr && sys.Hx != nullptr));
+    assert(!gs.kalman || (!tv && sys.Fx != nullptr && sys.Hx != nullptr));
     ws.reserve(cfg, M);  // M rows' room: as many chunks as M samples make
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare(sh.gemm);
@@ -544,7 +622,11 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
                 for (int g = 0; g < G; ++g)
                     vals[std::int64_t(r) * G + g] = gain_sample_forward(K, Si, sys, idx[std::int64_t(r) * G + g], lp, Sd);
             } else {
-                gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+                if (gs.kalman)
+                    gain_kalman_forward(K, static_cast<double*>(nullptr), out + std::int64_t(s) * O,
+                                        sys.Fx + i0 * n * n, sys.Hx + i0 * m * n, gs, n, m);
+                else
+                    gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
                 for (int g = 0; g < G; ++g)
                     vals[std::int64_t(r) * G + g] = gain_sample_forward(K, S, sys, idx[std::int64_t(r) * G + g], lp);
             }
@@ -581,6 +663,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         const int b0 = c * C, B = std::min(C, R - b0);
         const T* in = ws.input.data() + std::int64_t(b0) * D0;
         const T* acts = ws.acts.data() + std::int64_t(c) * As;
+        const T* out = acts + sh.act_offset(sh.layers(), B);  // the network outputs of pass 1 (Kalman-form head)
         T* dout = ws.dout.data() + std::int64_t(b0) * O;
         double gK[kMax * kMax], gKg[kMax * kMax], gSd[kMax * kMax];
         for (int s = 0; s < B; ++s) {
@@ -607,7 +690,11 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
                     gain_sample_backward(gKg, gSs, K, S, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2);
                     for (int e = 0; e < n * m; ++e) gK[e] += gKg[e];
                 }
-                gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+                if (gs.kalman)
+                    gain_kalman_backward(dout + std::int64_t(s) * O, gK, out + std::int64_t(s) * O, sys.Fx + i0 * n * n,
+                                         sys.Hx + i0 * m * n, gs, n, m);
+                else
+                    gain_head_backward(dout + std::int64_t(s) * O, gK, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
             }
         }
         T* part = ws.partial.data() + std::int64_t(c) * Ps;
@@ -662,13 +749,14 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
 
 template <typename T>
 void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
-                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws) {
+                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws, const double* Fx, double* A) {
     const MlpShape& sh = cfg.shape;
     const GainSpec& gs = cfg.gain;
     const int n = cfg.head.n, m = gs.m, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     if (count <= 0) return;
     const bool tv = gs.knots > 0;
     assert(!tv || (t != nullptr && Hx != nullptr));
+    assert(!gs.kalman || (Fx != nullptr && Hx != nullptr));
     ws.reserve(cfg, static_cast<int>(count));
     gemm_prepare(sh.gemm);
     const T* wt = pack_weights(ws, theta, sh);
@@ -688,9 +776,13 @@ void gain_network_eval(double* K, const T* theta, const double* z, const double*
                 storage_tv_forward(S, static_cast<double*>(nullptr), theta + sh.param_count(), t[b0 + s], gs, n);
                 gain_riccati_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, S, Hx + (b0 + s) * m * n, gs,
                                      n, m, gs.loss.rho);
-            } else
+            } else if (gs.kalman) {
+                gain_kalman_forward(K + (b0 + s) * n * m, A != nullptr ? A + (b0 + s) * n * m : nullptr,
+                                    out + std::int64_t(s) * O, Fx + (b0 + s) * n * n, Hx + (b0 + s) * m * n, gs, n, m);
+            } else {
                 gain_head_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m,
                                   gs.rate);
+            }
         }
     }
 }
@@ -780,6 +872,59 @@ void naive_riccati(double* K, const T* o, const double* S, const double* Hx, con
         }
     gauss_solve(S, K, n, m);
 }
+
+// The Kalman-form head by its definition: P = c D (M M' + eps I) D, Wi = (H P H' + diag(dy)^2)^-1 by Gauss-Jordan,
+// A = P H' Wi, K = F A; with gK (not null) also d_o from dL/dP = (I - H'A') F'gK Wi H.
+template <typename T>
+void naive_kalman(double* K, T* d_o, const double* gK, const T* o, const double* F, const double* H, const GainSpec& g,
+                  int n, int m) {
+    double dinv[kMax], P[kMax * kMax], W[kMax * kMax], Wi[kMax * kMax], A[kMax * kMax];
+    for (int a = 0; a < n; ++a) dinv[a] = 1.0 / g.dx[a];
+    storage_forward(P, o, dinv, n, g.kalman_scale, g.eps);
+    for (int q = 0; q < m; ++q)
+        for (int r = 0; r < m; ++r) {
+            double t = q == r ? g.dy[q] * g.dy[q] : 0.0;
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c) t += H[q * n + a] * P[a * n + c] * H[r * n + c];
+            W[q * m + r] = t;
+            Wi[q * m + r] = q == r ? 1.0 : 0.0;
+        }
+    gauss_solve(W, Wi, m, m);
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q) {
+            double t = 0;
+            for (int c = 0; c < n; ++c)
+                for (int r = 0; r < m; ++r) t += P[a * n + c] * H[r * n + c] * Wi[r * m + q];
+            A[a * m + q] = t;
+        }
+    for (int a = 0; a < n; ++a)
+        for (int q = 0; q < m; ++q) {
+            double t = 0;
+            for (int c = 0; c < n; ++c) t += F[a * n + c] * A[c * m + q];
+            K[a * m + q] = t;
+        }
+    if (gK == nullptr) return;
+    double X[kMax * kMax], gP[kMax * kMax];
+    for (int c = 0; c < n; ++c)
+        for (int q = 0; q < m; ++q) {
+            double t = 0;
+            for (int a = 0; a < n; ++a)
+                for (int r = 0; r < m; ++r) t += F[a * n + c] * gK[a * m + r] * Wi[r * m + q];
+            X[c * m + q] = t;
+        }
+    for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+            double t = 0;
+            for (int q = 0; q < m; ++q) {
+                double ih = X[a * m + q];  // ((I - H'A') X)_aq
+                for (int c = 0; c < n; ++c)
+                    for (int r = 0; r < m; ++r) ih -= H[r * n + a] * A[c * m + r] * X[c * m + q];
+                t += ih * H[q * n + b];
+            }
+            gP[a * n + b] = t;
+        }
+    storage_backward(d_o, gP, o, dinv, n, g.kalman_scale);
+}
 }  // namespace
 
 template <typename T>
@@ -811,8 +956,12 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
             naive_riccati(K, o, S, sys.Hx + i * m * n, gs, n, m, lp.rho);
         } else {
             for (int e = 0; e < n * n; ++e) S[e] = Sc[e], Sd[e] = 0.0;
-            for (int a = 0; a < n; ++a)
-                for (int q = 0; q < m; ++q) K[a * m + q] = gs.rate * gs.dx[a] * double(o[a * m + q]) / gs.dy[q];
+            if (gs.kalman)
+                naive_kalman(K, static_cast<T*>(nullptr), static_cast<const double*>(nullptr), o, sys.Fx + i * n * n,
+                             sys.Hx + i * m * n, gs, n, m);
+            else
+                for (int a = 0; a < n; ++a)
+                    for (int q = 0; q < m; ++q) K[a * m + q] = gs.rate * gs.dx[a] * double(o[a * m + q]) / gs.dy[q];
         }
     };
     double K[kMax * kMax], S[kMax * kMax], Sd[kMax * kMax];
@@ -864,8 +1013,14 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
                 gk[std::size_t(j + 1) * np + e] += d1[e];
             }
         } else {
-            for (int a = 0; a < n; ++a)
-                for (int q = 0; q < m; ++q) dout[a * m + q] = T(gs.rate * gs.dx[a] * gK[a * m + q] / gs.dy[q]);
+            if (gs.kalman) {
+                double Kk[kMax * kMax];
+                naive_kalman(Kk, dout.data(), gK, acts.data() + sh.act_offset(sh.layers(), 1), sys.Fx + i * n * n,
+                             sys.Hx + i * m * n, gs, n, m);
+            } else {
+                for (int a = 0; a < n; ++a)
+                    for (int q = 0; q < m; ++q) dout[a * m + q] = T(gs.rate * gs.dx[a] * gK[a * m + q] / gs.dy[q]);
+            }
             for (int e = 0; e < n * n; ++e) gSsum[e] += gS[e];
         }
         mlp_backward_naive(gtheta.data(), static_cast<T*>(nullptr), theta, in.data(), acts.data(), dout.data(), 1, sh);
@@ -895,12 +1050,16 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     template void storage_backward<T>(T*, const double*, const T*, const double*, int, double);                  \
     template void gain_head_forward<T>(double*, const T*, const double*, const double*, int, int, double);        \
     template void gain_head_backward<T>(T*, const double*, const double*, const double*, int, int, double);      \
+    template void gain_kalman_forward<T>(double*, double*, const T*, const double*, const double*, const GainSpec&, \
+                                         int, int);                                                              \
+    template void gain_kalman_backward<T>(T*, const double*, const T*, const double*, const double*,              \
+                                          const GainSpec&, int, int);                                            \
     template StepLoss gain_step_gradient<T>(T*, const T*, const HjieSystemView&, const double*,                  \
                                             const std::int64_t*, int, const StepConfig&, StepWorkspace<T>&,      \
                                             const StepSplit*);                                                   \
     template void gain_network_eval<T>(double*, const T*, const double*, const double*, const double*,            \
-                                       std::int64_t,                                                             \
-                                       const StepConfig&, StepWorkspace<T>&);                                    \
+                                       std::int64_t, const StepConfig&, StepWorkspace<T>&, const double*,       \
+                                       double*);                                                                 \
     template void gain_storage_eval<T>(double*, double*, const T*, double, const StepConfig&);                    \
     template StepLoss gain_step_gradient_naive<T>(T*, const T*, const HjieSystemView&, const double*,            \
                                                   const std::int64_t*, int, const StepConfig&);                  \

@@ -69,6 +69,19 @@ template <typename T>
 void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K, const double* S, const GainSpec& g,
                            int n, int m, double rho, const double* Lin = nullptr);
 
+/// The Kalman-form head (g.kalman: discrete-time systems, docs/method.md section 16.16): P = c D (M M' + eps I) D with
+/// M = I + tril(o), D = diag(dx), c = g.kalman_scale; W = H P H' + diag(dy)^2, A = P H' W^-1, K = F A, F [n x n] and
+/// H [m x n] the map's and the output's Jacobians at the estimate. K H = F A H with A H similar to a matrix whose
+/// eigenvalues lie in [0, 1) for every H: the correction cannot over-correct however steep the sensor.
+/// A [n x m] (may be null) receives P H' W^-1, the filtered estimate's gain (x^_k|k = x^ + A e).
+template <typename T>
+void gain_kalman_forward(double* K, double* A, const T* o, const double* Fx, const double* Hx, const GainSpec& g,
+                         int n, int m);
+/// d_o [n(n+1)/2] = dL/do (overwritten) for gK = dL/dK: dL/dP = (I - H'A') F'gK W^-1 H, then through P's packing.
+template <typename T>
+void gain_kalman_backward(T* d_o, const double* gK, const T* o, const double* Fx, const double* Hx, const GainSpec& g,
+                          int n, int m);
+
 /// S = c D^-1 (M M' + eps I) D^-1, M = I + tril(s) (row-major lower-triangular packing), D = diag(d).
 template <typename T>
 void storage_forward(double* S, const T* s, const double* d, int n, double c, double eps);
@@ -104,10 +117,13 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
                                   const std::int64_t* idx, int M, const StepConfig& cfg);
 
 /// K [count x n x m] at standardised inputs z [count x n] (the Riccati-form head needs the times t [count] and Hx
-/// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0).
+/// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0; the Kalman-form head
+/// needs Hx and Fx [count x n x n], the map's Jacobians). A [count x n x m] (may be null; Kalman-form head only)
+/// receives the filtered estimate's gains P H' W^-1.
 template <typename T>
 void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
-                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws);
+                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws, const double* Fx = nullptr,
+                       double* A = nullptr);
 /// S [n x n] and Sdot [n x n] (either may be null) at time t: constant S and Sdot = 0 when knots = 0.
 template <typename T>
 void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const StepConfig& cfg);

@@ -52,6 +52,11 @@ struct GainSpec {
     // network's correction). knots = 0: the constant S and K = rate D o diag(dy)^-1 of sections 16.1-16.4.
     int knots = 0;
     double knot_span = 1.0;          // [s]
+    // The Kalman-form head (discrete-time systems, network.gain_head = "kalman", docs/method.md section 16.16): the
+    // network's n(n+1)/2 outputs give P(x^) = kalman_scale D (M M' + eps I) D, M = I + tril(o), D = diag(dx), and
+    // K = F P H' (H P H' + diag(dy)^2)^-1 with F, H the Jacobians at the estimate (HjieSystemView::Fx, Hx).
+    bool kalman = false;
+    double kalman_scale = 1.0;
     // the storage's per-state scale D_s in S(t) = c D_s^-1 (M M' + eps I) D_s^-1 (empty: dx); with
     // network.storage_scaling = "output" it makes the initial Riccati gain K H ~ rate on every measured state
     std::vector<double> sdx;

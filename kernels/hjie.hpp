@@ -37,7 +37,8 @@ struct HjieSystemView {
     const double* dC = nullptr;
     const double* q = nullptr;
     const double* t = nullptr;   // [N] sample times (variant gain with a time-varying storage)
-    const double* Hx = nullptr;  // [N x m x n] output Jacobian at each sample's estimate (same)
+    const double* Hx = nullptr;  // [N x m x n] output Jacobian at each sample's estimate (same; and Kalman-form head)
+    const double* Fx = nullptr;  // [N x n x n] the map's Jacobian at each sample's estimate (Kalman-form head)
 };
 
 struct HjieParams {

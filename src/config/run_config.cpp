@@ -470,6 +470,11 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
                                     "discrete-time system: its one-step inequality uses one S, docs/method.md §16.8)");
     if (c.storage_knots > 0 && c.variant != "gain")
         net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
+    c.gain_head = net.get_string("gain_head", c.gain_head, {"direct", "kalman"});
+    if (c.gain_head == "kalman" && (c.variant != "gain" || !c.system->discrete_time()))
+        net.reject("gain_head", "the Kalman-form head is built for [filter] variant = \"gain\" on a discrete-time "
+                                "system (a continuous one's gain carries H(x^) through its time-varying storage, "
+                                "network.storage_knots > 0; docs/method.md §16.7)");
     c.storage_scaling = net.get_string("storage_scaling", c.storage_scaling, {"output", "mean"});
     if (net.has("storage_scaling") && (c.variant != "gain" || c.storage_knots == 0))
         net.reject("storage_scaling", "scales a time-varying storage: it needs [filter] variant = \"gain\" and "

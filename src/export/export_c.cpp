@@ -156,14 +156,18 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
         return c.str();
     };
     bool uses_step = false;
-    for (const char* which : {"f", "g", "h", "dh"})
+    const bool discrete = sys.discrete_time();  // and the map's Jacobian (the Kalman-form gain head, method.md 16.16)
+    for (const char* which : {"f", "g", "h", "dh", "df"}) {
+        if (std::string(which) == "df" && !discrete) continue;
         for (const std::string& text : sys.compiled(which)) uses_step = uses_step || text.find("step(") != std::string::npos;
+    }
     std::ostringstream c;
     c << "/* the expression system of the checkpoint's config ([system] kind = \"expr\"), printed by GiNaC as C */\n"
       << (uses_step ? "static double step(double s) { return s >= 0 ? 1.0 : 0.0; } /* as models/expr_system.cpp */\n" : "")
       << "#define Pi " << P << "_PI\n\n"
       << function("drift", "f", "A(x, t) [n]") << function("disturbance_gain", "g", "B(x, t) [n x nv]")
       << function("measurement", "h", "C(x, t) [m]") << function("measurement_jacobian", "dh", "dC/dx [m x n]");
+    if (discrete) c << function("drift_jacobian", "df", "dA/dx [n x n], the map's Jacobian");
     return c.str();
 }
 
@@ -422,6 +426,38 @@ LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
     return law;
 }
 
+// C for kernels/gain.cpp chol and chol_solve, operation for operation: the Cholesky factor L of the symmetric
+// positive-definite A [dim x dim] (its diagonal floored at 1e-300), then X [dim x cols] <- A^-1 X row by row, with
+// the scratch row tt; the generated function's loop variables a, b, q, kk and arrays L, tt hold them.
+std::string chol_solve_c(const std::string& A, const std::string& X, int dim, int cols, const std::string& what) {
+    std::ostringstream c;
+    c << "        /* Cholesky " << what << " row by row (kernels/gain.cpp chol, chol_solve) */\n"
+      << "        for (a = 0; a < " << dim << "; ++a)\n"
+      << "            for (b = 0; b <= a; ++b) {\n"
+      << "                double x = " << A << "[a * " << dim << " + b];\n"
+      << "                for (kk = 0; kk < b; ++kk) x -= L[a * " << dim << " + kk] * L[b * " << dim << " + kk];\n"
+      << "                L[a * " << dim << " + b] = a == b ? sqrt(x > 1e-300 ? x : 1e-300) : x / L[b * " << dim
+      << " + b];\n"
+      << "            }\n"
+      << "        for (a = 0; a < " << dim << "; ++a) {\n"
+      << "            for (q = 0; q < " << cols << "; ++q) tt[q] = " << X << "[a * " << cols << " + q];\n"
+      << "            for (kk = 0; kk < a; ++kk)\n"
+      << "                for (q = 0; q < " << cols << "; ++q) tt[q] -= L[a * " << dim << " + kk] * " << X << "[kk * "
+      << cols << " + q];\n"
+      << "            for (q = 0; q < " << cols << "; ++q) " << X << "[a * " << cols << " + q] = tt[q] / L[a * " << dim
+      << " + a];\n"
+      << "        }\n"
+      << "        for (a = " << dim - 1 << "; a >= 0; --a) {\n"
+      << "            for (q = 0; q < " << cols << "; ++q) tt[q] = " << X << "[a * " << cols << " + q];\n"
+      << "            for (kk = a + 1; kk < " << dim << "; ++kk)\n"
+      << "                for (q = 0; q < " << cols << "; ++q) tt[q] -= L[kk * " << dim << " + a] * " << X << "[kk * "
+      << cols << " + q];\n"
+      << "            for (q = 0; q < " << cols << "; ++q) " << X << "[a * " << cols << " + q] = tt[q] / L[a * " << dim
+      << " + a];\n"
+      << "        }\n";
+    return c.str();
+}
+
 // gain (docs/method.md section 16): K(x^, t) from the network at z = (x^ - shift) / spread alone, as
 // kernels/gain.cpp gain_network_eval computes it: the constant-storage head K = rate dx_a o_aq / dy_q, or the
 // Riccati-form head K = rho S(t)^-1 (H(x^)' + o .* w) with S(t) from the storage's knots (linear in t between
@@ -463,8 +499,58 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
         c << "    for (a = 0; a < " << n << "; ++a) z[a] = z[a] > " << P << "_zhi[a] ? " << P << "_zhi[a] : z[a] < " << P
           << "_zlo[a] ? " << P << "_zlo[a] : z[a];\n";
     c << "    o = " << P << "_forward(buf, z);\n";
-    if (!tv) {
+    if (g.kalman) {
+        // kernels/gain.cpp gain_kalman_forward, operation for operation (its storage_forward with d = 1 / dx, chol,
+        // chol_solve over n columns), so the C gives hinf's bits up to the compiler's contractions
+        c << "    {\n"
+          << "        /* the Kalman-form head (docs/method.md 16.16): P = c D (M M' + eps I) D, M = I + tril(o),\n"
+          << "           D = diag(dx); W = H P H' + diag(dy)^2, A' = W^-1 H P, K = F A; F, H the Jacobians at x^ */\n"
+          << "        double M[" << n * n << "], Pm[" << n * n << "], F[" << n * n << "], H[" << m * n << "], At["
+          << m * n << "], W[" << m * m << "], L[" << m * m << "], tt[" << n << "], dinv[" << n << "];\n"
+          << "        int b, e, kk;\n"
+          << "        for (a = 0; a < " << n << "; ++a) dinv[a] = 1.0 / " << P << "_dx[a];\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = a == b ? 1.0 : 0.0;\n"
+          << "        for (a = 0, e = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b, ++e) M[a * " << n << " + b] += (double)o[e];\n"
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (b = 0; b <= a; ++b) {\n"
+          << "                double mm = 0;\n"
+          << "                for (kk = 0; kk <= b; ++kk) mm += M[a * " << n << " + kk] * M[b * " << n << " + kk];\n"
+          << "                Pm[a * " << n << " + b] = " << lit(g.kalman_scale) << " * (mm + (a == b ? "
+          << lit(g.eps) << " : 0.0)) / (dinv[a] * dinv[b]);\n"
+          << "                Pm[b * " << n << " + a] = Pm[a * " << n << " + b];\n"
+          << "            }\n"
+          << "        " << S << "_measurement_jacobian(H, xhat, t);\n"
+          << "        " << S << "_drift_jacobian(F, xhat, t);\n"
+          << "        for (q = 0; q < " << m << "; ++q)\n"
+          << "            for (a = 0; a < " << n << "; ++a) {\n"
+          << "                double x = 0;\n"
+          << "                for (kk = 0; kk < " << n << "; ++kk) x += Pm[a * " << n << " + kk] * H[q * " << n
+          << " + kk];\n"
+          << "                At[q * " << n << " + a] = x;\n"
+          << "            }\n"
+          << "        for (q = 0; q < " << m << "; ++q)\n"
+          << "            for (b = 0; b <= q; ++b) {\n"
+          << "                double x = 0;\n"
+          << "                for (a = 0; a < " << n << "; ++a) x += H[q * " << n << " + a] * At[b * " << n << " + a];\n"
+          << "                if (q == b) x += " << P << "_dy[q] * " << P << "_dy[q];\n"
+          << "                W[q * " << m << " + b] = x;\n"
+          << "                W[b * " << m << " + q] = x;\n"
+          << "            }\n"
+          << chol_solve_c("W", "At", m, n, "W = L L', then At <- W^-1 At")
+          << "        for (a = 0; a < " << n << "; ++a)\n"
+          << "            for (q = 0; q < " << m << "; ++q) {\n"
+          << "                double x = 0;\n"
+          << "                for (kk = 0; kk < " << n << "; ++kk) x += F[a * " << n << " + kk] * At[q * " << n
+          << " + kk];\n"
+          << "                k[a * " << m << " + q] = x;\n"
+          << "            }\n"
+          << "    }\n"
+          << "}\n\n";
+    } else if (!tv) {
         c << "    (void)t;\n"
+          << (g.loss.discrete ? "    (void)" + S + "_drift_jacobian; /* the direct head needs no dA/dx */\n" : "")
           << "    (void)" << S << "_measurement_jacobian; /* the constant-storage head needs no dC/dx */\n"
           << "    /* the constant-storage head: K_aq = rate dx_a o_aq / dy_q */\n"
           << "    for (a = 0; a < " << n << "; ++a)\n"
@@ -499,8 +585,9 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
           << "            for (b = 0; b <= a; ++b) {\n"
           << "                double mm = 0;\n"
           << "                for (kk = 0; kk <= b; ++kk) mm += M[a * " << n << " + kk] * M[b * " << n << " + kk];\n"
-          << "                S[a * " << n << " + b] = S[b * " << n << " + a] = " << lit(g.storage_scale) << " / ("
-          << P << "_sdx[a] * " << P << "_sdx[b]) * (mm + (a == b ? " << lit(g.eps) << " : 0.0));\n"
+          << "                S[a * " << n << " + b] = " << lit(g.storage_scale) << " / (" << P << "_sdx[a] * " << P
+          << "_sdx[b]) * (mm + (a == b ? " << lit(g.eps) << " : 0.0));\n"
+          << "                S[b * " << n << " + a] = S[a * " << n << " + b]; /* two statements: one object at a == b */\n"
           << "            }\n"
           << "        /* K = rho S^-1 (H' + o .* w), H = dC/dx at x^ */\n"
           << "        " << S << "_measurement_jacobian(H, xhat, t);\n"
@@ -511,35 +598,15 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
                              : "(double)o[a * " + std::to_string(m) + " + q] * " + P + "_corr[a * " +
                                    std::to_string(m) + " + q]")
           << ");\n"
-          << "        /* Cholesky S = L L' (kernels/gain.cpp chol), then k <- S^-1 k row by row */\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b <= a; ++b) {\n"
-          << "                double x = S[a * " << n << " + b];\n"
-          << "                for (kk = 0; kk < b; ++kk) x -= L[a * " << n << " + kk] * L[b * " << n << " + kk];\n"
-          << "                L[a * " << n << " + b] = a == b ? sqrt(x > 1e-300 ? x : 1e-300) : x / L[b * " << n
-          << " + b];\n"
-          << "            }\n"
-          << "        for (a = 0; a < " << n << "; ++a) {\n"
-          << "            for (q = 0; q < " << m << "; ++q) tt[q] = k[a * " << m << " + q];\n"
-          << "            for (kk = 0; kk < a; ++kk)\n"
-          << "                for (q = 0; q < " << m << "; ++q) tt[q] -= L[a * " << n << " + kk] * k[kk * " << m
-          << " + q];\n"
-          << "            for (q = 0; q < " << m << "; ++q) k[a * " << m << " + q] = tt[q] / L[a * " << n << " + a];\n"
-          << "        }\n"
-          << "        for (a = " << n - 1 << "; a >= 0; --a) {\n"
-          << "            for (q = 0; q < " << m << "; ++q) tt[q] = k[a * " << m << " + q];\n"
-          << "            for (kk = a + 1; kk < " << n << "; ++kk)\n"
-          << "                for (q = 0; q < " << m << "; ++q) tt[q] -= L[kk * " << n << " + a] * k[kk * " << m
-          << " + q];\n"
-          << "            for (q = 0; q < " << m << "; ++q) k[a * " << m << " + q] = tt[q] / L[a * " << n << " + a];\n"
-          << "        }\n"
+          << chol_solve_c("S", "k", n, m, "S = L L', then k <- S^-1 k")
           << "    }\n"
           << "}\n\n";
     }
     law.code = c.str();
     // z, the head; with S(t): the knots' interpolation, M M', the right-hand side, Cholesky and two solves
     law.flops = 2LL * n + (tv ? 3LL * np + 2LL * n * (n + 1) * (n + 2) / 6 + 4LL * n * m + n * n * n / 3 + 2LL * n * n * m
-                              : 3LL * n * m);
+                           : g.kalman ? n * (n + 1) * (n + 2) / 3 + 4LL * n * n * m + 2LL * m * m * n + m * m * m / 3 + 2LL * n * m * m
+                                      : 3LL * n * m);
     return law;
 }
 

@@ -165,6 +165,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
                               "D^-1, M = diag(exp) + strict tril, linear in t between knots (docs/method.md §16.7)"
                             : "storage V = x~'S x~: S = c D^-1 (M M' + eps I) D^-1, M = I + tril(storage) (docs/method.md §16)");
             h5::set_attr(net.get(), "storage_knots", std::int64_t(sc.gain.knots));
+            h5::set_attr(net.get(), "gain_head", std::string(sc.gain.kalman ? "kalman" : "direct"));
             h5::set_attr(net.get(), "input_shift", sc.gain.shift);
             h5::set_attr(net.get(), "input_spread", sc.gain.spread);
             h5::set_attr(net.get(), "error_scale", sc.gain.dx);

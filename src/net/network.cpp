@@ -129,6 +129,9 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
             }
         }
     }
+    // the Kalman-form head (section 16.16): P(x^) starts at D^2 (1 + eps), so that K H ~ F / 2 on a measured state
+    // (dy_j^2 = sum_a (H_ja dx_a)^2: H P H' = diag(dy)^2 for one output)
+    g.kalman = discrete && cfg.gain_head == "kalman";
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;
     g.loss.rho = cfg.rho;
@@ -165,7 +168,10 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     sc.head.eps = cfg.resolved_eps();
     sc.shape.sizes.push_back(cfg.n);
     for (int h : cfg.hidden) sc.shape.sizes.push_back(h);
-    sc.shape.sizes.push_back(gain ? cfg.n * cfg.m : kern::head_outputs(sc.head.kind, cfg.n));
+    const bool kalman = gain && cfg.gain_head == "kalman";  // P(x^): n(n+1)/2 outputs (section 16.16)
+    sc.shape.sizes.push_back(kalman ? cfg.n * (cfg.n + 1) / 2
+                             : gain ? cfg.n * cfg.m
+                                    : kern::head_outputs(sc.head.kind, cfg.n));
     sc.shape.slope_positive = cfg.slope_positive;
     sc.shape.slope_negative = cfg.slope_negative;
     // the GEMM kernels sum in different orders: the choice is part of the run (and of its checkpoint's config)
@@ -402,12 +408,17 @@ public:
         z_.resize(static_cast<std::size_t>(c * n));
         for (std::int64_t i = 0; i < count; ++i)
             for (int a = 0; a < n; ++a) z_[i * n + a] = g.input(a, xhat[i * n + a]);
-        if (g.knots > 0) {  // the Riccati-form head: the output Jacobian at each estimate
+        if (g.knots > 0 || g.kalman) {  // the Riccati- and Kalman-form heads: the output Jacobian at each estimate
             hx_.resize(static_cast<std::size_t>(c * g.m * n));
             tt_.assign(static_cast<std::size_t>(c), t);
             for (std::int64_t i = 0; i < count; ++i) sys.measurement_jacobian(hx_.data() + i * g.m * n, xhat + i * n, t);
         }
-        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), tt_.data(), count, net_.step, ws_);
+        if (g.kalman) {  // and the map's
+            fx_.resize(static_cast<std::size_t>(c * n * n));
+            for (std::int64_t i = 0; i < count; ++i) sys.drift_jacobian(fx_.data() + i * n * n, xhat + i * n, t);
+        }
+        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), tt_.data(), count, net_.step, ws_,
+                                fx_.data());
         kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
     const kern::StepConfig& step_config() const override { return net_.step; }
@@ -416,7 +427,7 @@ public:
 private:
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
-    std::vector<double> z_, hx_, tt_;
+    std::vector<double> z_, hx_, tt_, fx_;
 };
 }  // namespace
 

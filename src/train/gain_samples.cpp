@@ -10,7 +10,8 @@
 namespace hinf {
 
 kern::HjieSystemView GainSamples::view() const {
-    return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(), Hx.empty() ? nullptr : Hx.data()};
+    return {n,         nv,        m,         xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(),
+            Hx.empty() ? nullptr : Hx.data(), Fx.empty() ? nullptr : Fx.data()};
 }
 
 GainPool gain_pool_build(const RunConfig& cfg) {
@@ -44,7 +45,8 @@ void resize(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::
     s->xhat.resize(N * n);
     s->x.resize(N * n);
     s->t.resize(N);
-    s->Hx.resize(g.knots > 0 ? N * m * n : 0);
+    s->Hx.resize(g.knots > 0 || g.kalman ? N * m * n : 0);
+    s->Fx.resize(g.kalman ? N * n * n : 0);
 }
 
 // the per-sample constants from s->x, s->xhat, s->t (per sample: each has its own time); held: the network input
@@ -66,7 +68,8 @@ void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, st
         for (int j = 0; j < m; ++j) s->dC[i * m + j] -= ch[j];
         s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
         for (int j = 0; j < n; ++j) s->z[i * n + j] = held ? g.input(j, xh[j]) : (xh[j] - g.shift[j]) / g.spread[j];
-        if (g.knots > 0) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);
+        if (g.knots > 0 || g.kalman) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);
+        if (g.kalman) sys.drift_jacobian(s->Fx.data() + i * n * n, xh, s->t[i]);
     }
 }
 

@@ -23,7 +23,8 @@ GainPool gain_pool_build(const RunConfig& cfg);
 struct GainSamples {
     int n = 0, nv = 0, m = 0;
     std::vector<double> xt, dA, Bm, dC, q, z, xhat, x, t;  // [N x n] ... z: standardised x^ (network input)
-    std::vector<double> Hx;  // [N x m x n] output Jacobian at x^ (time-varying storage's Riccati-form head only)
+    std::vector<double> Hx;  // [N x m x n] output Jacobian at x^ (the Riccati- and Kalman-form heads only)
+    std::vector<double> Fx;  // [N x n x n] the map's Jacobian at x^ (the Kalman-form head only)
     kern::HjieSystemView view() const;
 };
 

@@ -161,8 +161,10 @@ private:
         z_.resize(n);
         for (int a = 0; a < n; ++a) z_[a] = g.input(a, xhat_[a]);
         hx_.resize(std::size_t(m) * n);
-        if (g.knots > 0) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
-        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_);
+        fx_.resize(std::size_t(n) * n);
+        if (g.knots > 0 || g.kalman) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
+        if (g.kalman) cfg_->system->drift_jacobian(fx_.data(), xhat_.data(), t);
+        kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_, fx_.data());
         kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
 
@@ -216,7 +218,7 @@ private:
     kern::StepWorkspace<T> ws_;
     GainSamples check_, train_;
     std::vector<std::int64_t> idx_;
-    std::vector<double> xhat_, a_, ch_, e_, K_, S_, Sd_, z_, hx_;
+    std::vector<double> xhat_, a_, ch_, e_, K_, S_, Sd_, z_, hx_, fx_;
     std::uint64_t run_ = 0;
     std::int64_t next_step_ = 0;
     OnlineRetrainCounts counts_;

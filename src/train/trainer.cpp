@@ -312,7 +312,7 @@ private:
         const std::int64_t N = cfg_.samples;
         std::vector<double> S(n * n), Sd(n * n);
         kern::gain_network_eval(K_all_.data(), ck_.net.theta.data(), gsm_.z.data(), view.Hx, gsm_.t.data(), N,
-                                ck_.net.step, ws_);
+                                ck_.net.step, ws_, view.Fx);
         kern::gain_storage_eval(S.data(), Sd.data(), ck_.net.theta.data(), 0.0, ck_.net.step);
         kern::GainLossParams lp = g.loss;
         lp.xt0 = g.xt0.data();
@@ -345,9 +345,11 @@ private:
             z[j] = g.input(j, xhat[j]);  // the filter's input, held in the box (method.md 16.10)
             xt[j] = x[j] - xhat[j];
         }
-        std::vector<double> Hx(static_cast<std::size_t>(m) * n);
-        if (g.knots > 0) sys.measurement_jacobian(Hx.data(), xhat.data(), t);
-        kern::gain_network_eval(K.data(), ck_.net.theta.data(), z.data(), Hx.data(), &t, 1, ck_.net.step, ws_);
+        std::vector<double> Hx(static_cast<std::size_t>(m) * n), Fx(static_cast<std::size_t>(n) * n);
+        if (g.knots > 0 || g.kalman) sys.measurement_jacobian(Hx.data(), xhat.data(), t);
+        if (g.kalman) sys.drift_jacobian(Fx.data(), xhat.data(), t);
+        kern::gain_network_eval(K.data(), ck_.net.theta.data(), z.data(), Hx.data(), &t, 1, ck_.net.step, ws_,
+                                Fx.data());
         kern::gain_storage_eval(S.data(), Sd.data(), ck_.net.theta.data(), t, ck_.net.step);
         sys.drift(ah.data(), xhat.data(), t, 1);
         sys.measurement(ch.data(), xhat.data(), t, 1);

@@ -1,6 +1,7 @@
 // The line after a FAILed acceptance check ("acceptance: next: ..."): each branch from what the check measured.
 // The level against rho* (hinf rho), the run's Adam updates, and what the worst-case search found: a ratio above a
-// feasible rho (a higher level suggested), a divergence (said, no cure offered), nothing found (no level advice).
+// feasible rho (a higher level suggested), a divergence (said; on a discrete-time system with the direct gain head,
+// the Kalman-form head offered), nothing found (no level advice).
 #include <catch2/catch.hpp>
 #include <cmath>
 
@@ -66,6 +67,32 @@ TEST_CASE("acceptance advice says a divergence under the worst signals without o
     CHECK(has(a, "the filter diverged under the worst signals the search found"));
     CHECK_FALSE(has(a, "higher level"));
     CHECK(has(a, "this run made 6000 Adam updates (200 time steps x training.adam_steps = 30)"));
+    CHECK_FALSE(has(a, "gain_head"));  // continuous time: no head to offer
+}
+
+TEST_CASE("acceptance advice offers the Kalman-form head after a divergence on a discrete-time system",
+          "[acceptance][kalman]") {
+    auto discrete = [](const std::string& head) {
+        return load_run_config(ConfigDoc::from_text(
+            "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\n"
+            "f = [\"0.9*x\"]\ng = [[\"1\"]]\nh = [\"x + 0.1*x^3\"]\n[filter]\nvariant = \"gain\"\nrho = 4\nQ = [1.0]\n"
+            "x0 = [1.0]\nxhat0 = [0.0]\ndt = 1\nt_final = 50\n[network]\ngain_head = \"" + head + "\"\n"
+            "[online]\ndisturbance_std = 1\nnoise_std = 1\n",
+            "map.toml"));
+    };
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 1e70;
+    s.diverged = true;
+    const std::string a = acceptance_advice(discrete("direct"), "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "the filter diverged under the worst signals the search found"));
+    CHECK(has(a, "--set network.gain_head=kalman"));
+    // already the Kalman-form head, or no divergence: not offered
+    CHECK_FALSE(has(acceptance_advice(discrete("kalman"), "run/best.h5", s), "gain_head"));
+    s.diverged = false;
+    s.ratio = 9.0;
+    CHECK_FALSE(has(acceptance_advice(discrete("direct"), "run/best.h5", s), "gain_head"));
 }
 
 TEST_CASE("acceptance advice at a level below rho* names rho* and not a higher multiple of rho", "[acceptance]") {

@@ -257,16 +257,23 @@ TEST_CASE("exported C filter with noise and disturbance std lists or covariances
 TEST_CASE("exported C filter of a discrete-time system matches hinf filter to double round-off",
           "[export][gain][discrete]") {
     // the one-step predictor x^ <- f(x^, k) + K e of a map that reads the step index k (t = k dt), one output for
-    // two states; an ensemble of two is the same step with the mean gain
-    for (const int members : {1, 2}) {
-        SECTION(std::to_string(members) + " network(s)") {
+    // two states; an ensemble of two is the same step with the mean gain; the Kalman-form head (method.md 16.16)
+    // K = F P H'(H P H' + R)^-1 needs the map's Jacobian in the C too
+    struct Case {
+        int members;
+        std::string head;
+    };
+    for (const Case& cs : {Case{1, "direct"}, Case{2, "direct"}, Case{1, "kalman"}}) {
+        const int members = cs.members;
+        SECTION(std::to_string(members) + " network(s), gain_head " + cs.head) {
             TempDir d("export-discrete");
             const std::string cfg = write_file(
                 d, "d.toml",
                 "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [\"p\", \"v\"]\ndisturbances = 1\n"
                 "measurements = 1\nf = [\"p + 0.1*v\", \"0.9*v - 0.05*sin(p) + 0.1*cos(0.3*k)\"]\ng = [[\"0\"], [\"1\"]]\n"
                 "h = [\"p + 0.05*p^3\"]\n[filter]\nQ = [1.0, 1.0]\nx0 = [1.0, 0.0]\nxhat0 = [0.0, 0.0]\ndt = 0.5\n"
-                "t_final = 50.0\n[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\n"
+                "t_final = 50.0\n[network]\ngain_head = \"" + cs.head + "\"\nhidden = [8, 8]\nprecision = \"double\"\n"
+                "[training]\nsamples = 64\n"
                 "batch = 32\nadam_steps = 3\ncheckpoint_every = 5\n[online]\ndisturbance_std = 0.1\nnoise_std = 0.2\n");
             Compared c = export_and_compare(d, cfg, "--until 5", members > 1 ? "dnn_gain_ensemble" : "dnn_gain_measured",
                                             members);
@@ -280,6 +287,7 @@ TEST_CASE("exported C filter of a discrete-time system matches hinf filter to do
             const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
             CHECK(code.find("const double k = nearbyint(hinf_t_ / (0.5));") != std::string::npos);
             CHECK(code.find("s->xhat[i] = a[i] + ke;") != std::string::npos);
+            CHECK((code.find("hinf_filter_drift_jacobian(F, xhat, t);") != std::string::npos) == (cs.head == "kalman"));
         }
     }
 }

@@ -45,9 +45,14 @@ adam_steps = 10
 }  // namespace
 
 TEST_CASE("gain variant on a linear discrete system: stable, dissipative at sampled errors, within rho",
-          "[train][gain][discrete]") {
-    test::TempDir d("gain-discrete");
-    RunConfig cfg = load_run_config(ConfigDoc::from_text(kLinear, "linear.toml"));
+          "[train][gain][discrete][kalman]") {
+  // both gain heads: K = rate D o diag(dy)^-1 ("direct") and K = F P H'(H P H' + R)^-1 ("kalman", method.md 16.16)
+  for (const std::string head : {"direct", "kalman"}) {
+    INFO("network.gain_head = " << head);
+    test::TempDir d("gain-discrete-" + head);
+    std::string text = kLinear;
+    text.replace(text.find("hidden = [16, 8]"), 16, "hidden = [16, 8]\ngain_head = \"" + head + "\"");
+    RunConfig cfg = load_run_config(ConfigDoc::from_text(text, "linear.toml"));
     TrainOptions opt;
     opt.out_dir = d / "run";
     opt.quiet = true;
@@ -56,6 +61,7 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
     RunConfig ncfg;
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(d / "run/checkpoint.h5", &ncfg);
     REQUIRE(net->step_config().gain.loss.discrete);
+    REQUIRE(net->step_config().gain.kalman == (head == "kalman"));  // the checkpoint keeps the head
 
     // the trained filter on a run with the on-line seed (never a training run)
     const std::int64_t steps = cfg.steps_until();
@@ -104,6 +110,19 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
     const double v0 = quadratic_form(S0, std::vector<double>{1.0, -1.0}.data(), 2);
     CHECK(error_energy - v0 <= cfg.rho * signal_energy);
     CHECK(error_energy / signal_energy < 0.5 * cfg.rho);
+    if (head == "kalman") {  // K = F A with H A in [0, 1) at any estimate, trained or not (method.md 16.16)
+        for (double a : {-30.0, -1.0, 0.0, 0.7, 50.0}) {
+            double K1[2], S1[4];
+            const double xh[2] = {a, -0.5 * a};
+            net->gain(K1, S1, nullptr, xh, 0.0, *cfg.system, 1);
+            const Eigen::Vector2d A = F.inverse() * Eigen::Vector2d(K1[0], K1[1]);
+            const double ha = H * A;
+            INFO("estimate " << a << ": H A = " << ha);
+            CHECK(ha >= 0.0);
+            CHECK(ha < 1.0);
+        }
+    }
+  }
 }
 
 TEST_CASE("an ensemble of gain networks filters with the mean of their gains and refuses mixed models",
