@@ -462,8 +462,8 @@ void gain_riccati_backward(T* d_o, double* gS, const double* gK, const double* K
 }
 
 namespace {
-// The Kalman-form head's shared part: P from o, PHt = P H' [n x m], W = H P H' + diag(dy)^2 and its Cholesky factor
-// L [m x m], At = W^-1 (P H')' = A' [m x n] (A = P H' W^-1).
+// The Kalman-form head's shared part: P from o, W = H P H' + diag(dy)^2 and its Cholesky factor L [m x m], and
+// At = W^-1 H P = A' [m x n] (A = P H' W^-1; H P is formed in At first). dinv [n] = 1 / dx, P's scale.
 template <typename T>
 void kalman_parts(double* dinv, double* L, double* At, const T* o, const double* Hx, const GainSpec& g, int n, int m) {
     double P[kMax * kMax], W[kMax * kMax];

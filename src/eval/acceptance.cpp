@@ -125,7 +125,7 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
         std::snprintf(buf, sizeof buf,
                       " the filter diverged under the worst signals the search found (of the nominal noise's energy): "
                       "it is not robust at that budget, whatever its mean error (its gain is learned where training's "
-                      "estimates went; docs/byos.md section 4 has a system where no setting cured this);");
+                      "estimates went; docs/byos.md section 4 has such a system);");
         a += buf;
         if (cfg.variant == "gain" && cfg.system != nullptr && cfg.system->discrete_time() && cfg.gain_head != "kalman")
             a += " a gain that divides by the sensor's slope cannot over-correct a steep sensor: train with "

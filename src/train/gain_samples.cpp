@@ -10,7 +10,7 @@
 namespace hinf {
 
 kern::HjieSystemView GainSamples::view() const {
-    return {n,         nv,        m,         xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(),
+    return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(),
             Hx.empty() ? nullptr : Hx.data(), Fx.empty() ? nullptr : Fx.data()};
 }
 
