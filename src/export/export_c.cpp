@@ -356,6 +356,33 @@ struct LawC {
     long long flops = 0;       // per step, besides PREFIX_forward and the system functions
 };
 
+// C for a positive-definite matrix from a network's packed output (kernels/head.cpp's quadratic head, kernels/gain.cpp
+// storage_forward): M = I + tril(o) (row-major lower-triangular packing), dst = c (M M' + eps I), divided by
+// dinv_a dinv_b where `dinv` names an array (empty: not divided); both halves stored, the sums in the kernels' order.
+// One block with its own loop variables, indented by `in` spaces.
+std::string packed_mmt_c(const std::string& dst, int n, double c, double eps, const std::string& dinv, int in) {
+    const std::string i(static_cast<std::size_t>(in), ' ');
+    std::ostringstream s;
+    s << i << "{\n"
+      << i << "    double hM[" << n * n << "];\n"
+      << i << "    int ha, hb, hk = 0;\n"
+      << i << "    for (ha = 0; ha < " << n << "; ++ha)\n"
+      << i << "        for (hb = 0; hb < " << n << "; ++hb) hM[ha * " << n << " + hb] = ha == hb ? 1.0 : 0.0;\n"
+      << i << "    for (ha = 0; ha < " << n << "; ++ha)\n"
+      << i << "        for (hb = 0; hb <= ha; ++hb) hM[ha * " << n << " + hb] += (double)o[hk++];\n"
+      << i << "    for (ha = 0; ha < " << n << "; ++ha)\n"
+      << i << "        for (hb = 0; hb <= ha; ++hb) {\n"
+      << i << "            double x = 0;\n"
+      << i << "            for (hk = 0; hk <= hb; ++hk) x += hM[ha * " << n << " + hk] * hM[hb * " << n << " + hk];\n"
+      << i << "            x = " << lit(c) << " * (x + (ha == hb ? " << lit(eps) << " : 0.0))"
+      << (dinv.empty() ? "" : " / (" + dinv + "[ha] * " + dinv + "[hb])") << ";\n"
+      << i << "            " << dst << "[ha * " << n << " + hb] = x;\n"
+      << i << "            " << dst << "[hb * " << n << " + ha] = x;\n"
+      << i << "        }\n"
+      << i << "}\n";
+    return s.str();
+}
+
 // dissipative / paper: x~ from the innovation, p = dV/dx~ from the network's head, seed 000 eq. (8) with dC = e
 LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::string& P) {
     const int n = sc.head.n, m = cfg.m;
@@ -370,20 +397,9 @@ LawC hinf_gain_c(const RunConfig& cfg, const kern::StepConfig& sc, const std::st
       << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
       << "    const " << P << "_real* o = " << P << "_forward(buf, xt);\n";
     if (quad) {
-        c << "    double M[" << n * n << "], Pm[" << n * n << "];\n"
-          << "    int a, b, k = 0;\n"
-          << "    for (a = 0; a < " << n << "; ++a)\n"
-          << "        for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = (a == b) ? 1.0 : 0.0;\n"
-          << "    for (a = 0; a < " << n << "; ++a)\n"
-          << "        for (b = 0; b <= a; ++b) M[a * " << n << " + b] += (double)o[k++];\n"
-          << "    for (a = 0; a < " << n << "; ++a)\n"
-          << "        for (b = 0; b <= a; ++b) {\n"
-          << "            double s = 0;\n"
-          << "            for (k = 0; k <= b; ++k) s += M[a * " << n << " + k] * M[b * " << n << " + k];\n"
-          << "            s = " << lit(sc.head.scale) << " * (s + (a == b ? " << lit(sc.head.eps) << " : 0.0));\n"
-          << "            Pm[a * " << n << " + b] = s;\n"
-          << "            Pm[b * " << n << " + a] = s;\n"
-          << "        }\n"
+        c << "    double Pm[" << n * n << "];\n"
+          << "    int a, b;\n"
+          << packed_mmt_c("Pm", n, sc.head.scale, sc.head.eps, "", 4)
           << "    for (a = 0; a < " << n << "; ++a) {\n"
           << "        double s = 0;\n"
           << "        for (b = 0; b < " << n << "; ++b) s += Pm[a * " << n << " + b] * xt[b];\n"
@@ -505,22 +521,11 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
         c << "    {\n"
           << "        /* the Kalman-form head (docs/method.md 16.16): P = c D (M M' + eps I) D, M = I + tril(o),\n"
           << "           D = diag(dx); W = H P H' + diag(dy)^2, A' = W^-1 H P, K = F A; F, H the Jacobians at x^ */\n"
-          << "        double M[" << n * n << "], Pm[" << n * n << "], F[" << n * n << "], H[" << m * n << "], At["
-          << m * n << "], W[" << m * m << "], L[" << m * m << "], tt[" << n << "], dinv[" << n << "];\n"
-          << "        int b, e, kk;\n"
+          << "        double Pm[" << n * n << "], F[" << n * n << "], H[" << m * n << "], At[" << m * n << "], W["
+          << m * m << "], L[" << m * m << "], tt[" << n << "], dinv[" << n << "];\n"
+          << "        int b, kk;\n"
           << "        for (a = 0; a < " << n << "; ++a) dinv[a] = 1.0 / " << P << "_dx[a];\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b < " << n << "; ++b) M[a * " << n << " + b] = a == b ? 1.0 : 0.0;\n"
-          << "        for (a = 0, e = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b <= a; ++b, ++e) M[a * " << n << " + b] += (double)o[e];\n"
-          << "        for (a = 0; a < " << n << "; ++a)\n"
-          << "            for (b = 0; b <= a; ++b) {\n"
-          << "                double mm = 0;\n"
-          << "                for (kk = 0; kk <= b; ++kk) mm += M[a * " << n << " + kk] * M[b * " << n << " + kk];\n"
-          << "                Pm[a * " << n << " + b] = " << lit(g.kalman_scale) << " * (mm + (a == b ? "
-          << lit(g.eps) << " : 0.0)) / (dinv[a] * dinv[b]);\n"
-          << "                Pm[b * " << n << " + a] = Pm[a * " << n << " + b];\n"
-          << "            }\n"
+          << packed_mmt_c("Pm", n, g.kalman_scale, g.eps, "dinv", 8)
           << "        " << S << "_measurement_jacobian(H, xhat, t);\n"
           << "        " << S << "_drift_jacobian(F, xhat, t);\n"
           << "        for (q = 0; q < " << m << "; ++q)\n"
