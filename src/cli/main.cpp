@@ -82,11 +82,8 @@ int run(int argc, char** argv) {
         const std::string twice = "At Most 1 required but received ";
         const std::size_t at = what.find(twice);
         if (at != std::string::npos)
-            what = what.substr(0, at) + "given " + what.substr(at + twice.size()) + " times, but it takes one value" +
-                   (what.rfind("--network", 0) == 0
-                        ? " (this command runs one network; compare, filter, worst and export take --network once per "
-                          "network, and --ensemble for their mean gain)"
-                        : " (join several with commas, e.g. --filters ekf,ukf)");
+            what = what.substr(0, at) + "given " + what.substr(at + twice.size()) +
+                   " times, but it takes one value (join several with commas, e.g. --filters ekf,ukf)";
         return "hinf: error: " + what + " (see `hinf" + sub + " --help`)\n";
     });
     hinf::cli::add_train_commands(app);

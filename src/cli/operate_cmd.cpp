@@ -5,6 +5,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "eval/operate.hpp"
+#include "filters/factory.hpp"
 #include "io/checkpoint.hpp"
 #include "lmi/delay_run.hpp"
 
@@ -12,7 +13,9 @@ namespace hinf::cli {
 
 namespace {
 struct OperateArgs {
-    std::string config, network, out, mode;
+    std::string config, out, mode;
+    std::vector<std::string> networks;
+    bool ensemble = false;
     std::int64_t runs = 0;
     double until = -1;
     int threads = 0;
@@ -25,9 +28,13 @@ void add_operate_command(CLI::App& app) {
     auto a = std::make_shared<OperateArgs>();
     CLI::App* op = app.add_subcommand("operate", "Run a trained filter on-line against the simulated true system");
     op->add_option("config", a->config, "Scenario config (TOML): system, noise levels, rho, Q")->required();
-    op->add_option("--network", a->network,
-                   "Trained network: DIR/checkpoint.h5 from `hinf train` (not for [system] kind = \"ito_delay\", "
-                   "whose filter is designed by LMIs on the fly)");
+    op->add_option("--network", a->networks,
+                   "Trained network: DIR/best.h5 or DIR/checkpoint.h5 from `hinf train` (not for [system] kind = "
+                   "\"ito_delay\", whose filter is designed by LMIs on the fly); with --ensemble, two or more gain "
+                   "networks (repeat --network)");
+    op->add_flag("--ensemble", a->ensemble,
+                 "One DNN filter with the mean gain of every --network (variant gain, trained on one model; "
+                 "docs/method.md 16.15); the on-line check tests it against each member's storage");
     op->add_option("--mode", a->mode, "oracle (true x~ and C(x), the paper's protocol) or measured (y and x^ only)");
     op->add_option("--runs", a->runs, "Monte Carlo runs (default: [online] runs)");
     op->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
@@ -50,10 +57,19 @@ void add_operate_command(CLI::App& app) {
                 return;
             }
         }
-        HINF_CHECK(!a->network.empty(),
-                   "operate needs --network DIR/checkpoint.h5 (train one first: hinf train " + a->config + ")");
+        HINF_CHECK(!a->networks.empty(),
+                   "operate needs --network DIR/best.h5 (train one first: hinf train " + a->config + ")");
+        HINF_CHECK(a->ensemble || a->networks.size() == 1,
+                   "operate runs one network and " + std::to_string(a->networks.size()) +
+                       " --network were given (add --ensemble to run the mean of their gains)");
         RunConfig trained;
-        std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(a->network, &trained);
+        std::vector<std::unique_ptr<FrozenNetwork>> nets;
+        if (a->ensemble) {
+            // checked against the config's system as compare --ensemble does (one model, variant gain)
+            nets = load_gain_ensemble(load_config_with_overrides(a->config, a->sets, false), a->networks, &trained);
+        } else {
+            nets.push_back(ckpt_frozen_network(a->networks[0], &trained));
+        }
         // a config that names no variant runs the network's (one trained before `gain` became the default is a
         // `dissipative` network, with its oracle mode by default)
         std::vector<std::string> sets = a->sets;
@@ -70,15 +86,21 @@ void add_operate_command(CLI::App& app) {
         opt.quiet = a->quiet;
         std::string mode = a->mode.empty() ? cfg.mode : a->mode;
         opt.out_dir = a->out.empty() ? default_out_dir(a->config, "operate-" + mode) : a->out;
-        OperateSummary s = operate_run(cfg, *net, a->network, opt);
-        std::printf("on-line phase: %s mode, %lld run(s), filter %s, variant %s\n", s.mode.c_str(),
+        std::vector<FrozenNetwork*> members;
+        for (auto& net : nets) members.push_back(net.get());
+        OperateSummary s = operate_run(cfg, members, a->networks, opt);
+        std::printf("on-line phase: %s mode, %lld run(s), filter %s, variant %s", s.mode.c_str(),
                     static_cast<long long>(s.runs), cfg.type.c_str(), cfg.variant.c_str());
+        if (members.size() > 1) std::printf(", an ensemble of %zu networks (the mean of their gains)", members.size());
+        std::printf("\n");
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",
                         static_cast<long long>(s.diverged_runs), static_cast<long long>(s.runs), s.first_divergence);
         std::printf("attenuation ratio %.5g (open-loop predictor %.5g, rho = %g)", s.attenuation_ratio,
                     s.attenuation_ratio_open_loop, cfg.rho);
-        if (std::isnan(s.attenuation_ratio_minus_v0))
+        if (members.size() > 1)
+            std::printf("; V(x~(0)) undefined for an ensemble (its members' storages differ)\n");
+        else if (std::isnan(s.attenuation_ratio_minus_v0))
             std::printf("; V(x~(0)) undefined for this network\n");
         else
             std::printf("; with V(x~(0)) = %.4g subtracted: %.5g\n", s.v0, s.attenuation_ratio_minus_v0);
@@ -96,6 +118,12 @@ void add_operate_command(CLI::App& app) {
         if (std::isfinite(s.online_check_violation_fraction))
             std::printf("\non-line check from x^ alone (16 sampled errors per step): %.2f%% of them violate the dissipation "
                         "inequality", 100 * s.online_check_violation_fraction);
+        if (members.size() > 1) {
+            std::printf(" with member %d's storage (%s; each member:", s.online_check_network + 1,
+                        a->networks[s.online_check_network].c_str());
+            for (double f : s.online_check_violation_fraction_per_network) std::printf(" %.2f%%", 100 * f);
+            std::printf(")");
+        }
         if (s.retrain)
             std::printf("\non-line retraining (delta %g): %.0f trigger(s), %.0f Adam step(s) over %lld run(s) (%.0f undone); "
                         "violation max H/S at the triggers %.3g -> %.3g; run 0's network: %s", cfg.retrain_delta,

@@ -28,67 +28,91 @@ namespace {
 
 // Does the network satisfy the HJI inequality at the errors it meets on-line? At each step of the DNN filter
 // (filter 0), with the true x~ and x: HJIE(p(x~)) > 0.01 S counts as a violation (seed 000 eq. (16) terms).
+// An ensemble of gain networks (docs/method.md 16.15) filters with the mean gain K̄; it is checked against each
+// member's storage S_e (a member whose inequality K̄ keeps certifies the ensemble), member by member.
 class HjiCheck final : public StepObserver {
 public:
     /// sampled = false: the filter checks itself (on-line retraining: its network changes, the observer's would not)
-    HjiCheck(const RunConfig& cfg, const FrozenNetwork& net, bool sampled = true)
-        : cfg_(cfg), net_(net.clone()), check_here_(sampled) {}
+    HjiCheck(const RunConfig& cfg, const std::vector<FrozenNetwork*>& nets, bool sampled = true)
+        : cfg_(cfg), check_here_(sampled) {
+        for (const FrozenNetwork* net : nets) nets_.push_back(net->clone());
+        counts_.assign(4 * nets_.size(), 0.0);
+    }
     void begin(int filter, std::uint64_t run) override {
         active_ = filter == 0;
-        violations_ = steps_ = sampled_violations_ = sampled_ = 0;
+        std::fill(counts_.begin(), counts_.end(), 0.0);
         run_ = run;
     }
     // The on-line check a user has (variant gain, docs/method.md section 14.5): at the estimate x^ alone, the
     // inequality (14.1) over kCheck errors drawn as in training (Philox stream RNG_STREAM_GAIN, counter
-    // 2^40 + run * 2^24 + step: deterministic, disjoint from training's time-step counters).
-    void check_sampled(std::int64_t k, double t, const double* xhat) {
+    // 2^40 + run * 2^24 + step: deterministic, disjoint from training's time-step counters), for the gain K the
+    // filter runs and member e's storage (its own error scales).
+    void check_sampled(std::size_t e, std::int64_t k, double t, const double* xhat, const double* K) {
         constexpr std::int64_t kCheck = kOnlineCheckErrors;
-        const kern::GainSpec& g = net_->step_config().gain;
+        const kern::GainSpec& g = nets_[e]->step_config().gain;
         gain_samples_at(&smp_, cfg_, g, xhat, t, kCheck, online_check_counter(run_, k));
         const int n = cfg_.n, m = cfg_.m;
-        std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
-        net_->gain(K.data(), S.data(), Sd.data(), xhat, t, *cfg_.system, 1);
+        std::vector<double> Ke(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
+        nets_[e]->gain(Ke.data(), S.data(), Sd.data(), xhat, t, *cfg_.system, 1);
         kern::GainLossParams lp;
         lp.rho = cfg_.rho;
         lp.discrete = cfg_.system->discrete_time();
         const kern::HjieSystemView view = smp_.view();
         for (std::int64_t i = 0; i < kCheck; ++i) {
-            const kern::GainSampleValue v = kern::gain_sample_forward(K.data(), S.data(), view, i, lp, Sd.data());
-            sampled_violations_ += v.residual > 0.01 * v.abs_sum ? 1 : 0;
-            sampled_ += 1;
+            const kern::GainSampleValue v = kern::gain_sample_forward(K == nullptr ? Ke.data() : K, S.data(), view, i,
+                                                                      lp, Sd.data());
+            counts_[4 * e + 2] += v.residual > 0.01 * v.abs_sum ? 1 : 0;
+            counts_[4 * e + 3] += 1;
         }
     }
     void observe(std::int64_t k, double t, const double* x, const double* xhat) override {
         if (!active_) return;
         const int n = cfg_.n;
-        std::vector<double> xt(n), pt(n);
-        for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
-        if (net_->step_config().gain.enabled) {  // variant gain: its own inequality (docs/method.md section 14)
-            double S = 0;
-            const double H = gain_point_residual(&S, nullptr, *net_, *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
-            violations_ += H > 0.01 * S ? 1 : 0;
-            steps_ += 1;
-            if (check_here_) check_sampled(k, t, xhat);
+        if (nets_[0]->step_config().gain.enabled) {  // variant gain: its own inequality (docs/method.md section 14)
+            // the ensemble's gain: the members' gains summed in the order given, then divided (as the filter)
+            std::vector<double> Kbar;
+            if (nets_.size() > 1) {
+                std::vector<double> Ke(static_cast<std::size_t>(n) * cfg_.m);
+                Kbar.assign(Ke.size(), 0.0);
+                for (auto& net : nets_) {
+                    net->gain(Ke.data(), nullptr, nullptr, xhat, t, *cfg_.system, 1);
+                    for (std::size_t j = 0; j < Ke.size(); ++j) Kbar[j] += Ke[j];
+                }
+                for (double& g : Kbar) g /= static_cast<double>(nets_.size());
+            }
+            const double* K = Kbar.empty() ? nullptr : Kbar.data();
+            for (std::size_t e = 0; e < nets_.size(); ++e) {
+                double S = 0;
+                const double H = gain_point_residual(&S, nullptr, *nets_[e], *cfg_.system, x, xhat, t, cfg_.Q.data(),
+                                                     cfg_.rho, K);
+                counts_[4 * e] += H > 0.01 * S ? 1 : 0;
+                counts_[4 * e + 1] += 1;
+                if (check_here_) check_sampled(e, k, t, xhat, K);
+            }
             return;
         }
-        net_->gradient(pt.data(), xt.data(), 1);
+        std::vector<double> xt(n), pt(n);
+        for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+        nets_[0]->gradient(pt.data(), xt.data(), 1);
         double terms[4];
         hjie_point_terms(terms, pt.data(), *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);
         const double S = std::fabs(terms[0]) + std::fabs(terms[1]) + std::fabs(terms[2]) + std::fabs(terms[3]);
-        violations_ += (terms[0] + terms[1] + terms[2] + terms[3]) > 0.01 * S ? 1 : 0;
-        steps_ += 1;
+        counts_[0] += (terms[0] + terms[1] + terms[2] + terms[3]) > 0.01 * S ? 1 : 0;
+        counts_[1] += 1;
     }
-    std::vector<double> end() override {
-        if (sampled_ > 0) return {violations_, steps_, sampled_violations_, sampled_};
-        return {violations_, steps_};
+    /// per network: violations at the true x~, steps, sampled errors violating, sampled errors
+    std::vector<double> end() override { return counts_; }
+    std::unique_ptr<StepObserver> clone() const override {
+        std::vector<FrozenNetwork*> nets;
+        for (const auto& net : nets_) nets.push_back(net.get());
+        return std::make_unique<HjiCheck>(cfg_, nets, check_here_);
     }
-    std::unique_ptr<StepObserver> clone() const override { return std::make_unique<HjiCheck>(cfg_, *net_, check_here_); }
 
 private:
     const RunConfig& cfg_;
-    std::unique_ptr<FrozenNetwork> net_;
+    std::vector<std::unique_ptr<FrozenNetwork>> nets_;
     bool check_here_ = true, active_ = false;
-    double violations_ = 0, steps_ = 0, sampled_violations_ = 0, sampled_ = 0;
+    std::vector<double> counts_;  // [4 x networks], as end()
     std::uint64_t run_ = 0;
     GainSamples smp_;
 };
@@ -127,9 +151,29 @@ void mean_std(std::vector<double>* mean, std::vector<double>* sd, const std::vec
 
 OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const std::string& network_path,
                            const OperateOptions& opt) {
-    HINF_CHECK(network.step_config().head.n == cfg.n,
-               "network '" + network_path + "' was trained for " + std::to_string(network.step_config().head.n) +
-                   " states, the config's system has " + std::to_string(cfg.n) + " (use the matching config)");
+    return operate_run(cfg, std::vector<FrozenNetwork*>{&network}, std::vector<std::string>{network_path}, opt);
+}
+
+OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork*>& networks,
+                           const std::vector<std::string>& network_paths, const OperateOptions& opt) {
+    HINF_CHECK(!networks.empty() && networks.size() == network_paths.size(),
+               "operate: one path per network (" + std::to_string(networks.size()) + " networks, " +
+                   std::to_string(network_paths.size()) + " paths)");
+    FrozenNetwork& network = *networks[0];
+    const std::string& network_path = network_paths[0];
+    const bool ensemble = networks.size() > 1;
+    for (std::size_t e = 0; e < networks.size(); ++e) {
+        const int trained_n = networks[e]->step_config().head.n;
+        HINF_CHECK(trained_n == cfg.n, "network '" + network_paths[e] + "' was trained for " + std::to_string(trained_n) +
+                                           " states, the config's system has " + std::to_string(cfg.n) +
+                                           " (use the matching config)");
+        HINF_CHECK(!ensemble || networks[e]->step_config().gain.enabled,
+                   "an ensemble averages gains K(x^): network '" + network_paths[e] +
+                       "' is not variant \"gain\" (train every member with [filter] variant = \"gain\")");
+    }
+    HINF_CHECK(!ensemble || !cfg.retrain,
+               "online.retrain = true retrains one network and an ensemble of " + std::to_string(networks.size()) +
+                   " was given (operate one --network at a time to retrain it, or set online.retrain = false)");
     auto t0 = std::chrono::steady_clock::now();
     OperateSummary sum;
     sum.mode = opt.mode.empty() ? cfg.mode : opt.mode;
@@ -155,7 +199,8 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     // on-line retraining (docs/method.md section 16.6): the filter reads the checkpoint itself (weights and Adam state)
     std::unique_ptr<OnlineFilter> dnn =
         cfg.retrain ? make_retrain_gain_filter(model, cfg, network_path, online_retrain_settings(cfg, network_path), "dnn")
-        : gain      ? make_gain_filter(model, network, "dnn")
+        : gain      ? make_gain_ensemble_filter(model, std::vector<const FrozenNetwork*>(networks.begin(), networks.end()),
+                                                "dnn")
                     : make_dnn_filter(model, network, *make_hinf_gain_law(cfg.rho), measured, "dnn");
     std::unique_ptr<OnlineFilter> open_loop = make_open_loop_filter(model);
     EngineOptions eo;
@@ -164,7 +209,7 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     eo.stride = steps;  // no error subsampling needed
     eo.label = "operate";
     eo.quiet = opt.quiet;
-    HjiCheck hji(cfg, network, !cfg.retrain);
+    HjiCheck hji(cfg, networks, !cfg.retrain);
     EngineResult er = engine_run(cfg, {dnn.get(), open_loop.get()}, eo, &hji);
     const std::vector<FilterRunStats>& D = er.runs[0];
     const std::vector<FilterRunStats>& O = er.runs[1];
@@ -172,12 +217,13 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     // V(x~(0)) along the segment (defined for the quadratic head: p^T x~ > 0 on every ray)
     std::vector<double> xt0(n);
     for (int i = 0; i < n; ++i) xt0[i] = cfg.x0[i] - cfg.xhat0[i];
-    const bool v_defined = network.step_config().head.kind == kern::HEAD_QUADRATIC || gain;
+    // an ensemble has no common storage: its members' V_e(x~(0)) differ and none is its own
+    const bool v_defined = !ensemble && (network.step_config().head.kind == kern::HEAD_QUADRATIC || gain);
     if (gain) {
         std::vector<double> S(static_cast<std::size_t>(n) * n), K(static_cast<std::size_t>(n) * cfg.m);
         std::unique_ptr<FrozenNetwork> net = network.clone();
         net->gain(K.data(), S.data(), nullptr, cfg.xhat0.data(), 0.0, *cfg.system, 1);  // V(x~(0), 0)
-        sum.v0 = quadratic_form(S.data(), xt0.data(), n);
+        sum.v0 = ensemble ? NAN : quadratic_form(S.data(), xt0.data(), n);
     } else {
         sum.v0 = network.value(xt0.data(), n);
     }
@@ -193,7 +239,9 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
         }
     }
     std::vector<double> es(n, 0), eq(n, 0), eso(n, 0), eqo(n, 0), ss(n, 0), sq(n, 0);
-    double set_count = 0, hji_v = 0, hji_n = 0, chk_v = 0, chk_n = 0, eps_before = 0, eps_after = 0;
+    double set_count = 0, eps_before = 0, eps_after = 0;
+    const std::size_t E = networks.size();
+    std::vector<double> hji_v(E, 0.0), hji_n(E, 0.0), chk_v(E, 0.0), chk_n(E, 0.0);  // per network (HjiCheck::end)
     std::vector<double> triggers(sum.runs, 0.0), adam_steps(sum.runs, 0.0);
     sum.retrain = cfg.retrain;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
@@ -219,14 +267,16 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
             const double mse = settled ? D[r].err_sq_settled[i] / D[r].settled_steps : D[r].err_sq[i] / double(steps);
             sum.run_mse_settled.push_back(D[r].diverged_at >= 0 ? INFINITY : mse);
         }
-        hji_v += D[r].observed[0];
-        hji_n += D[r].observed[1];
-        chk_v += D[r].observed.size() > 3 ? D[r].observed[2] : 0.0;
-        chk_n += D[r].observed.size() > 3 ? D[r].observed[3] : 0.0;
+        for (std::size_t e = 0; e < E; ++e) {
+            hji_v[e] += D[r].observed[4 * e];
+            hji_n[e] += D[r].observed[4 * e + 1];
+            chk_v[e] += D[r].observed[4 * e + 2];
+            chk_n[e] += D[r].observed[4 * e + 3];
+        }
         if (cfg.retrain) {  // the retraining filter's own check, with its network of the moment
             const OnlineRetrainCounts c = OnlineRetrainCounts::from_vector(D[r].reported);
-            chk_v += c.check_violations;
-            chk_n += c.check_samples;
+            chk_v[0] += c.check_violations;
+            chk_n[0] += c.check_samples;
             triggers[r] = c.triggers;
             adam_steps[r] = c.adam_steps;
             sum.retrain_triggers += c.triggers;
@@ -244,10 +294,19 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     const double count = double(steps) * double(sum.runs);
     mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
     mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
-    sum.online_hji_violation_fraction = hji_n > 0 ? hji_v / hji_n : 0.0;
+    for (std::size_t e = 0; e < E; ++e) {
+        sum.online_hji_violation_fraction_per_network.push_back(hji_n[e] > 0 ? hji_v[e] / hji_n[e] : 0.0);
+        sum.online_check_violation_fraction_per_network.push_back(chk_n[e] > 0 ? chk_v[e] / chk_n[e] : NAN);
+    }
+    // an ensemble's figures are those of the member whose storage the mean gain keeps best on the sampled errors
+    for (std::size_t e = 1; e < E; ++e)
+        if (sum.online_check_violation_fraction_per_network[e] <
+            sum.online_check_violation_fraction_per_network[sum.online_check_network])
+            sum.online_check_network = static_cast<int>(e);
+    sum.online_hji_violation_fraction = sum.online_hji_violation_fraction_per_network[sum.online_check_network];
     // with retraining the network changes along each run and the observer holds the checkpoint's: no such figure
     if (cfg.retrain) sum.online_hji_violation_fraction = NAN;
-    sum.online_check_violation_fraction = chk_n > 0 ? chk_v / chk_n : NAN;
+    sum.online_check_violation_fraction = sum.online_check_violation_fraction_per_network[sum.online_check_network];
     if (set_count > 0) mean_std(&sum.error_mean_settled, &sum.error_std_settled, ss, sq, set_count);
     else sum.error_mean_settled = sum.error_std_settled = std::vector<double>(n, NAN);
     for (int i : state_unit_group(*cfg.system, 0)) {  // the states of the first state's unit
@@ -271,7 +330,10 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     hid_t root = f.get();
     h5::set_attr(root, "format", "hinf-operate");
     h5::set_attr(root, "mode", sum.mode);
-    h5::set_attr(root, "network", network_path);
+    std::string paths;
+    for (const std::string& p : network_paths) paths += (paths.empty() ? "" : ",") + p;
+    h5::set_attr(root, "network", paths);  // an ensemble's members, comma-separated
+    h5::set_attr(root, "ensemble_size", std::int64_t(E));
     h5::set_attr(root, "filter_type", cfg.type);
     h5::set_attr(root, "variant", cfg.variant);
     h5::set_attr(root, "runs", sum.runs);
@@ -288,6 +350,16 @@ OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const s
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "online_hji_violation_fraction", sum.online_hji_violation_fraction);
     h5::set_attr(root, "online_check_violation_fraction", sum.online_check_violation_fraction);
+    if (ensemble) {
+        h5::set_attr(root, "online_check_network", std::int64_t(sum.online_check_network));
+        h5::write_doubles(root, "online_check_violation_fraction_per_network",
+                          sum.online_check_violation_fraction_per_network.data(), {hsize_t(E)}, "1",
+                          "the ensemble's mean gain against each member's storage: share of the sampled errors at x^ "
+                          "violating (14.1); online_check_violation_fraction is the smallest (member online_check_network)");
+        h5::write_doubles(root, "online_hji_violation_fraction_per_network",
+                          sum.online_hji_violation_fraction_per_network.data(), {hsize_t(E)}, "1",
+                          "the same at the true x~: share of the steps violating (14.1) by more than 1 % of its scale");
+    }
     h5::set_attr(root, "online_retrain", std::int64_t(cfg.retrain ? 1 : 0));
     if (cfg.retrain) {
         h5::set_attr(root, "retrain_delta", cfg.retrain_delta);

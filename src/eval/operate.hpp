@@ -35,6 +35,10 @@ struct OperateSummary {
     double rmse_position = 0, rmse_position_open_loop = 0;
     double online_check_violation_fraction = NAN;  // variant gain: share of sampled errors at x^ violating (14.1)
     double online_hji_violation_fraction = 0;  // share of on-line steps where HJIE(p(x~), x, x^) > 0.01 S
+    // per network given: an ensemble's mean gain against each member's storage; the two figures above are those of
+    // member online_check_network, the one with the smallest sampled violation share (0 for one network)
+    std::vector<double> online_check_violation_fraction_per_network, online_hji_violation_fraction_per_network;
+    int online_check_network = 0;
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none
     double wall_seconds = 0;
@@ -48,5 +52,10 @@ struct OperateSummary {
 /// Runs the frozen network of `network` on the system of `cfg`; writes out_dir/operate.h5.
 OperateSummary operate_run(const RunConfig& cfg, FrozenNetwork& network, const std::string& network_path,
                            const OperateOptions& opt);
+/// The same for an ensemble of gain networks (two or more, checked to be one model by the caller:
+/// load_gain_ensemble): the filter runs their mean gain (docs/method.md 16.15), the on-line check tests it against
+/// each member's storage; V(x~(0)) is undefined (no common storage), and online.retrain is refused.
+OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork*>& networks,
+                           const std::vector<std::string>& network_paths, const OperateOptions& opt);
 
 }  // namespace hinf

@@ -90,32 +90,16 @@ bool has_measured(const std::vector<std::string>& modes) {
     return std::find(modes.begin(), modes.end(), "measured") != modes.end();
 }
 
-// --ensemble: every --network is a gain network trained on one model (the [system] table and the noise weights
-// of their checkpoints agree); one filter "dnn_gain_ensemble" with the mean of their gains (method.md 16.15)
+// --ensemble: one filter "dnn_gain_ensemble" with the mean of the networks' gains (method.md 16.15)
 std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& exact,
                                             FilterSet& set) {
-    HINF_CHECK(a.networks.size() >= 2, "--ensemble averages the gains of two or more networks: give --network "
-                                       "once per network (" + std::to_string(a.networks.size()) + " given)");
     HINF_CHECK(has_measured(dnn_modes(a.modes)),
                "--ensemble: gain networks run from measurements only (use --mode measured)");
-    std::vector<const FrozenNetwork*> nets;
     RunConfig first;
-    for (std::size_t i = 0; i < a.networks.size(); ++i) {
-        const std::string& path = a.networks[i];
-        RunConfig ncfg;
-        std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
-        HINF_CHECK(ncfg.variant == "gain", "--ensemble: network '" + path + "' is variant \"" + ncfg.variant +
-                                               "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
-        if (i == 0) {
-            gain_filter_check_time(*net, *cfg.system, "dnn_gain_ensemble");
-            first = ncfg;
-            set.models.push_back(ncfg.system);
-        } else {
-            HINF_CHECK(same_trained_model(ncfg, first),
-                       "--ensemble: network '" + path + "' was trained on another model than '" + a.networks[0] +
-                           "' (its [system] table or its noise levels differ); an ensemble averages networks "
-                           "trained on one model, e.g. with different training.seed");
-        }
+    std::vector<std::unique_ptr<FrozenNetwork>> loaded = load_gain_ensemble(cfg, a.networks, &first);
+    set.models.push_back(first.system);
+    std::vector<const FrozenNetwork*> nets;
+    for (auto& net : loaded) {
         nets.push_back(net.get());
         set.networks.push_back(std::move(net));
     }
@@ -126,6 +110,31 @@ std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSe
 }
 
 }  // namespace
+
+std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
+                                                               RunConfig* first) {
+    HINF_CHECK(paths.size() >= 2, "--ensemble averages the gains of two or more networks: give --network "
+                                  "once per network (" + std::to_string(paths.size()) + " given)");
+    std::vector<std::unique_ptr<FrozenNetwork>> nets;
+    for (std::size_t i = 0; i < paths.size(); ++i) {
+        const std::string& path = paths[i];
+        RunConfig ncfg;
+        std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
+        HINF_CHECK(ncfg.variant == "gain", "--ensemble: network '" + path + "' is variant \"" + ncfg.variant +
+                                               "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
+        if (i == 0) {
+            gain_filter_check_time(*net, *cfg.system, "dnn_gain_ensemble");
+            *first = ncfg;
+        } else {
+            HINF_CHECK(same_trained_model(ncfg, *first),
+                       "--ensemble: network '" + path + "' was trained on another model than '" + paths[0] +
+                           "' (its [system] table or its noise levels differ); an ensemble averages networks "
+                           "trained on one model, e.g. with different training.seed");
+        }
+        nets.push_back(std::move(net));
+    }
+    return nets;
+}
 
 std::string filter_names() {
     std::string all;

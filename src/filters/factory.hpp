@@ -37,6 +37,12 @@ std::vector<std::string> split_list(const std::string& s);
 /// a DNN filter takes its level from its checkpoint, the others have none.
 bool filters_need_level(const std::string& filters);
 
+/// --ensemble's networks (`paths`, two or more): variant-gain checkpoints trained on one model (the [system] table and
+/// the noise weights of their checkpoints agree), each for cfg's system and time domain; one line names the network
+/// that differs. `first` gets the first checkpoint's effective config (the model they were trained on).
+std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
+                                                               RunConfig* first);
+
 /// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters but the
 /// `gain` variant's, which filters with the system in its checkpoint (the model it was trained on, docs/compare.md).
 /// Throws hinf::Error naming the option for an unknown filter or mode, a missing --network, or a network

@@ -2,6 +2,7 @@
 #include "filters/gain_law.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 
 #include "gain.hpp"
 #include "hjie.hpp"
@@ -63,10 +64,11 @@ void gain_filter_correct(double* xhat_filtered, const System& sys, const double*
 }
 
 double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
-                           const double* xhat, double t, const double* Q, double rho) {
+                           const double* xhat, double t, const double* Q, double rho, const double* K_given) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
     std::vector<double> K(static_cast<std::size_t>(n) * m), S(static_cast<std::size_t>(n) * n), Sd(S.size());
     net.gain(K.data(), S.data(), Sd.data(), xhat, t, sys, 1);
+    if (K_given != nullptr) std::copy(K_given, K_given + K.size(), K.begin());
     const PointTerms pt = point_terms(sys, x, xhat, t, Q);
     const kern::HjieSystemView view = pt.view(n, nv, m);
     kern::GainLossParams lp;

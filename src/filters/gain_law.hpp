@@ -108,7 +108,8 @@ void hjie_point_terms(double* terms, const double* p, const System& sys, const d
 class FrozenNetwork;
 /// Variant gain (docs/method.md section 14): the dissipation inequality's value H at x~ = x - x^ for the network's
 /// K(x^) and storage S (kern::gain_sample_forward); *abs_sum gets its scale. *v0 (may be null) gets x~'S x~.
+/// K (n x m, may be null): this gain instead of the network's, against the network's storage (an ensemble's mean gain).
 double gain_point_residual(double* abs_sum, double* v, FrozenNetwork& net, const System& sys, const double* x,
-                           const double* xhat, double t, const double* Q, double rho);
+                           const double* xhat, double t, const double* Q, double rho, const double* K = nullptr);
 
 }  // namespace hinf

@@ -82,6 +82,32 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     auto op = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 2 --out " + (d / "op"));
     INFO(op.output);
     CHECK(op.status == 0);
+    {  // operate --ensemble of two copies of one network: that network's figures, the check against both storages
+        auto ope = run_hinf("operate " + cfg + " --network " + net + " --network " + net +
+                            " --ensemble --mode measured --runs 2 --out " + (d / "ope"));
+        INFO(ope.output);
+        REQUIRE(ope.status == 0);
+        CHECK(ope.output.find("an ensemble of 2 networks") != std::string::npos);
+        CHECK(ope.output.find("V(x~(0)) undefined for an ensemble") != std::string::npos);
+        hinf::h5::Handle a = hinf::h5::open_file(d / "op/operate.h5", false), b = hinf::h5::open_file(d / "ope/operate.h5", false);
+        CHECK(hinf::h5::get_attr_int(b.get(), "ensemble_size") == 2);
+        for (const char* key : {"attenuation_ratio", "rmse_position", "online_check_violation_fraction",
+                                "online_hji_violation_fraction"})
+            CHECK(hinf::h5::get_attr_double(a.get(), key) == hinf::h5::get_attr_double(b.get(), key));
+        CHECK(std::isnan(hinf::h5::get_attr_double(b.get(), "attenuation_ratio_minus_v0")));
+        auto two = run_hinf("operate " + cfg + " --network " + net + " --network " + net + " --mode measured --runs 2 --out " +
+                            (d / "ope2"));
+        CHECK(two.status == 2);
+        CHECK(two.output.find("add --ensemble") != std::string::npos);
+        auto one = run_hinf("operate " + cfg + " --network " + net + " --ensemble --mode measured --runs 2 --out " +
+                            (d / "ope3"));
+        CHECK(one.status == 2);
+        CHECK(one.output.find("two or more networks") != std::string::npos);
+        auto re = run_hinf("operate " + cfg + " --network " + net + " --network " + net +
+                           " --ensemble --set online.retrain=true --mode measured --runs 2 --out " + (d / "ope4"));
+        CHECK(re.status == 2);
+        CHECK(re.output.find("retrains one network") != std::string::npos);
+    }
     auto orc = run_hinf("operate " + cfg + " --network " + net + " --mode oracle --runs 2 --out " + (d / "op2"));
     CHECK(orc.status == 2);
     CHECK(orc.output.find("--mode oracle is meaningless") != std::string::npos);

@@ -7,12 +7,15 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 
+#include "eval/engine.hpp"
+#include "eval/operate.hpp"
 #include "filters/dnn.hpp"
 #include "filters/factory.hpp"
 #include "filters/gain_law.hpp"
 #include "gain.hpp"
 #include "helpers.hpp"
 #include "hinf/config.hpp"
+#include "hinf/h5.hpp"
 #include "io/checkpoint.hpp"
 #include "sim/truth.hpp"
 #include "train/gain_samples.hpp"
@@ -181,6 +184,52 @@ TEST_CASE("an ensemble of gain networks filters with the mean of their gains and
             for (int i = 0; i < 2; ++i) REQUIRE(f->estimate()[i] == Approx(want[i]).margin(1e-12));
         }
         CHECK(gain_gap > 1e-3);  // the seeds' gains differ, so the mean is not either member's
+    }
+    SECTION("operate: the mean gain runs on-line, checked against each member's storage") {
+        OperateOptions oo;
+        oo.out_dir = d / "op";
+        oo.mode = "measured";
+        oo.runs = 2;
+        oo.quiet = true;
+        const OperateSummary s = operate_run(cfg, {n1.get(), n2.get()}, {p1, p2}, oo);
+        REQUIRE(s.online_check_violation_fraction_per_network.size() == 2);
+        REQUIRE(s.online_hji_violation_fraction_per_network.size() == 2);
+        const std::vector<double>& f = s.online_check_violation_fraction_per_network;
+        INFO("sampled violations against each storage: " << f[0] << ", " << f[1]);
+        CHECK(s.online_check_violation_fraction == std::min(f[0], f[1]));
+        CHECK(s.online_check_violation_fraction == f[s.online_check_network]);
+        CHECK(s.online_hji_violation_fraction == s.online_hji_violation_fraction_per_network[s.online_check_network]);
+        CHECK(std::isnan(s.attenuation_ratio_minus_v0));
+        for (double v : f) CHECK((v >= 0.0 && v <= 1.0));
+        // run 0's estimates are those of the ensemble filter on run 0's measurements
+        const std::int64_t K = cfg.steps_until();
+        const TruthRun t0 = truth_simulate(cfg, Scenario{}, 0, K);
+        std::unique_ptr<OnlineFilter> ens = make_gain_ensemble_filter(model, {n1.get(), n2.get()}, "dnn");
+        ens->reset(engine_filter_start(cfg, 0));
+        h5::Handle file = h5::open_file(d / "op/operate.h5", false);
+        const std::vector<double> xhat = h5::read_doubles(file.get(), "xhat");
+        REQUIRE(xhat.size() == std::size_t(K) * 2);
+        for (std::int64_t k = 0; k < K; ++k) {
+            for (int i = 0; i < 2; ++i) REQUIRE(ens->estimate()[i] == xhat[std::size_t(k) * 2 + i]);
+            FilterInput in;
+            in.y = t0.y.data() + k;
+            in.t = cfg.time_of(k);
+            in.step = k;
+            REQUIRE(ens->step(in) == FILTER_OK);
+        }
+        // one network's operate gives the same figures as an "ensemble" of its two copies, bit for bit
+        oo.out_dir = d / "op1";
+        const OperateSummary one = operate_run(cfg, *n1, p1, oo);
+        oo.out_dir = d / "op11";
+        const OperateSummary twice = operate_run(cfg, {n1.get(), n1.get()}, {p1, p1}, oo);
+        CHECK(one.attenuation_ratio == twice.attenuation_ratio);
+        CHECK(one.online_check_violation_fraction == twice.online_check_violation_fraction);
+        CHECK(twice.online_check_violation_fraction_per_network[0] == twice.online_check_violation_fraction_per_network[1]);
+        CHECK(one.online_hji_violation_fraction == twice.online_hji_violation_fraction);
+        // retraining is per network: refused for an ensemble
+        RunConfig re = cfg;
+        re.retrain = true;
+        CHECK_THROWS_WITH(operate_run(re, {n1.get(), n2.get()}, {p1, p2}, oo), Catch::Contains("retrains one network"));
     }
     SECTION("the factory: --ensemble gives one filter, and refuses one network or networks of two models") {
         const FilterModel told = model;
