@@ -619,16 +619,20 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
                 double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
                 storage_tv_parts(Si, Sd, Mt, Mdt, sparams, sys.t[i0], gs, n);
                 gain_riccati_forward(K, out + std::int64_t(s) * O, Si, sys.Hx + i0 * m * n, gs, n, m, lp.rho, L);
+                double Km[kMax * kMax];  // the gain the filter runs: K with its structural zeros (ws.K keeps K)
+                gs.gain_mask(Km, K, n, m);
                 for (int g = 0; g < G; ++g)
-                    vals[std::int64_t(r) * G + g] = gain_sample_forward(K, Si, sys, idx[std::int64_t(r) * G + g], lp, Sd);
+                    vals[std::int64_t(r) * G + g] = gain_sample_forward(Km, Si, sys, idx[std::int64_t(r) * G + g], lp, Sd);
             } else {
                 if (gs.kalman)
                     gain_kalman_forward(K, static_cast<double*>(nullptr), out + std::int64_t(s) * O,
                                         sys.Fx + i0 * n * n, sys.Hx + i0 * m * n, gs, n, m);
                 else
                     gain_head_forward(K, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m, gs.rate);
+                double Km[kMax * kMax];
+                gs.gain_mask(Km, K, n, m);
                 for (int g = 0; g < G; ++g)
-                    vals[std::int64_t(r) * G + g] = gain_sample_forward(K, S, sys, idx[std::int64_t(r) * G + g], lp);
+                    vals[std::int64_t(r) * G + g] = gain_sample_forward(Km, S, sys, idx[std::int64_t(r) * G + g], lp);
             }
         }
     }
@@ -670,26 +674,30 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
             const int r = b0 + s;
             const std::int64_t i0 = idx[std::int64_t(r) * G];
             const double* K = ws.K.data() + std::int64_t(r) * n * m;
+            double Km[kMax * kMax];  // the samples saw mask .* K: their dL/dK is masked before the head's backward
+            gs.gain_mask(Km, K, n, m);
             double* gSs = ws.P.data() + std::int64_t(r) * n * n;
             for (int e = 0; e < n * n; ++e) gSs[e] = 0.0;
             if (tv) {
                 for (int e = 0; e < n * n; ++e) gSd[e] = 0.0;
                 const double* st = ws.storage.data() + std::int64_t(r) * 5 * n * n;
                 const double *Si = st, *Sd = st + n * n, *L = st + 2 * n * n, *Mt = st + 3 * n * n, *Mdt = st + 4 * n * n;
-                gain_sample_backward(gK, gSs, K, Si, sys, i0, lp, d_hinge, d_h2, Sd, gSd);
+                gain_sample_backward(gK, gSs, Km, Si, sys, i0, lp, d_hinge, d_h2, Sd, gSd);
                 for (int g = 1; g < G; ++g) {
-                    gain_sample_backward(gKg, gSs, K, Si, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2, Sd, gSd);
+                    gain_sample_backward(gKg, gSs, Km, Si, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2, Sd, gSd);
                     for (int e = 0; e < n * m; ++e) gK[e] += gKg[e];
                 }
+                gs.gain_mask(gK, gK, n, m);
                 gain_riccati_backward(dout + std::int64_t(s) * O, gSs, gK, K, Si, gs, n, m, lp.rho, L);
                 double* kp = knot_part.data() + std::int64_t(r) * 2 * np;
                 storage_tv_back_parts(kp, kp + np, &knot_j[r], gSs, gSd, Mt, Mdt, sys.t[i0], gs, n);
             } else {
-                gain_sample_backward(gK, gSs, K, S, sys, i0, lp, d_hinge, d_h2);
+                gain_sample_backward(gK, gSs, Km, S, sys, i0, lp, d_hinge, d_h2);
                 for (int g = 1; g < G; ++g) {
-                    gain_sample_backward(gKg, gSs, K, S, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2);
+                    gain_sample_backward(gKg, gSs, Km, S, sys, idx[std::int64_t(r) * G + g], lp, d_hinge, d_h2);
                     for (int e = 0; e < n * m; ++e) gK[e] += gKg[e];
                 }
+                gs.gain_mask(gK, gK, n, m);
                 if (gs.kalman)
                     gain_kalman_backward(dout + std::int64_t(s) * O, gK, out + std::int64_t(s) * O, sys.Fx + i0 * n * n,
                                          sys.Hx + i0 * m * n, gs, n, m);
@@ -735,6 +743,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
             }
         }
         for (std::size_t e = 0; e < gk.size(); ++e) grad[P + std::int64_t(e)] = T(gk[e]);
+        gs.hold_storage(grad + P, n);
         return loss;
     }
     // the storage's gradient: dL/dS summed in sample order, then through S = c D^-1 (M M' + eps I) D^-1
@@ -744,6 +753,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         for (int e = 0; e < n * n; ++e) gS[e] += gSs[e];
     }
     storage_backward(grad + P, gS, sparams, gs.dx.data(), n, gs.storage_scale);
+    gs.hold_storage(grad + P, n);
     return loss;
 }
 
@@ -783,6 +793,7 @@ void gain_network_eval(double* K, const T* theta, const double* z, const double*
                 gain_head_forward(K + (b0 + s) * n * m, out + std::int64_t(s) * O, gs.dx.data(), gs.dy.data(), n, m,
                                   gs.rate);
             }
+            gs.gain_mask(K + (b0 + s) * n * m, K + (b0 + s) * n * m, n, m);
         }
     }
 }
@@ -966,9 +977,14 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     };
     double K[kMax * kMax], S[kMax * kMax], Sd[kMax * kMax];
     double sum_hinge = 0, sum_h2 = 0;
+    double Km[kMax * kMax];  // K with its structural zeros, by its definition
+    auto masked = [&]() {
+        for (int e = 0; e < n * m; ++e) Km[e] = gs.mask.empty() ? K[e] : (gs.mask[e] != 0.0 ? K[e] : 0.0);
+    };
     for (int s = 0; s < M; ++s) {
         sample(s, K, S, Sd);
-        const GainSampleValue v = gain_sample_forward(K, S, sys, idx[s], lp, tv ? Sd : nullptr);
+        masked();
+        const GainSampleValue v = gain_sample_forward(Km, S, sys, idx[s], lp, tv ? Sd : nullptr);
         sum_hinge += v.hinge;
         sum_h2 += v.h2;
     }
@@ -990,8 +1006,11 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     for (int s = 0; s < M; ++s) {
         const std::int64_t i = idx[s];
         sample(s, K, S, Sd);
+        masked();
         double gK[kMax * kMax], gS[kMax * kMax] = {}, gSd[kMax * kMax] = {};
-        gain_sample_backward(gK, gS, K, S, sys, i, lp, d_hinge, d_h2, tv ? Sd : nullptr, tv ? gSd : nullptr);
+        gain_sample_backward(gK, gS, Km, S, sys, i, lp, d_hinge, d_h2, tv ? Sd : nullptr, tv ? gSd : nullptr);
+        for (int e = 0; e < n * m && !gs.mask.empty(); ++e)
+            if (gs.mask[e] == 0.0) gK[e] = 0.0;
         if (tv) {
             // K = rho S^-1 R: dL/dR = rho S^-1 gK, dL/dS -= (S^-1 gK) K'
             double G[kMax * kMax];
@@ -1028,6 +1047,8 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     for (std::int64_t e = 0; e < P; ++e) grad[e] = gtheta[e];
     if (!tv) {
         storage_backward(grad + P, gSsum, sp, gs.dx.data(), n, gs.storage_scale);
+        for (int e = 0; e < np && !gs.smask.empty(); ++e)  // entries between components: held
+            if (gs.smask[e] == 0.0) grad[P + e] = T(0);
         return loss;
     }
     if (initial_weight > 0) {
@@ -1041,7 +1062,8 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
             gk[std::size_t(j0 + 1) * np + e] += d1[e];
         }
     }
-    for (std::size_t e = 0; e < gk.size(); ++e) grad[P + std::int64_t(e)] = T(gk[e]);
+    for (std::size_t e = 0; e < gk.size(); ++e)  // entries between components: held
+        grad[P + std::int64_t(e)] = !gs.smask.empty() && gs.smask[e % np] == 0.0 ? T(0) : T(gk[e]);
     return loss;
 }
 

@@ -62,7 +62,27 @@ struct GainSpec {
     std::vector<double> sdx;
     // the Riccati head's correction scale w [n x m]: K = rho S^-1 (H' + o .* w) (empty: w_aj = dy_j / dx_a)
     std::vector<double> corr;
+    // the gain's structural zeros (network.gain_structure = "components", docs/method.md section 16.17): K_aj is kept
+    // only where state a and output j are in one component of the system's dependency graph, 0 elsewhere [n x m]
+    // (1 or 0; empty: every entry kept). Applied to K where it is used (gain_mask below); the heads form K unmasked.
+    std::vector<double> mask;
+    // and the storage's: S(t)'s factor M has no entry between two components, so S is block-diagonal and V splits
+    // into one storage per component [n(n+1)/2, the packing of tril] (1 or 0; empty: every entry). The entries held at
+    // 0 start at 0 and their gradient is 0 (hold_storage)
+    std::vector<double> smask;
+    /// The storage parameters' (gradient's) entries between components set to 0, for every knot.
+    template <typename T>
+    void hold_storage(T* sparams, int n) const {
+        const int np = n * (n + 1) / 2, sets = knots > 0 ? knots + 1 : 1;
+        for (int j = 0; j < sets && !smask.empty(); ++j)
+            for (int e = 0; e < np; ++e)
+                if (smask[e] == 0.0) sparams[j * np + e] = T(0);
+    }
     const double* storage_dx() const { return sdx.empty() ? dx.data() : sdx.data(); }
+    /// Km = mask .* K (Km may be K); a copy when there is no mask.
+    void gain_mask(double* Km, const double* K, int n, int m_out) const {
+        for (int e = 0; e < n * m_out; ++e) Km[e] = mask.empty() || mask[e] != 0.0 ? K[e] : 0.0;
+    }
     int storage_params(int n) const { return enabled ? (knots > 0 ? knots + 1 : 1) * (n * (n + 1) / 2) : 0; }
 };
 

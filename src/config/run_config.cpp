@@ -475,6 +475,12 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         net.reject("gain_head", "the Kalman-form head is built for [filter] variant = \"gain\" on a discrete-time "
                                 "system (a continuous one's gain carries H(x^) through its time-varying storage, "
                                 "network.storage_knots > 0; docs/method.md §16.7)");
+    c.gain_structure = net.get_string("gain_structure", c.gain_structure, {"components", "full"});
+    if (net.has("gain_structure") && c.variant != "gain")
+        net.reject("gain_structure", "shapes the gain K(x^) of [filter] variant = \"gain\" (remove the key)");
+    if (net.has("gain_structure") && c.gain_structure == "components" && c.gain_head == "kalman")
+        net.reject("gain_structure", "the Kalman-form head's gain F P H'(H P H' + R)^-1 takes its structure from P: "
+                                     "set network.gain_structure = \"full\" with it, or remove the key");
     c.storage_scaling = net.get_string("storage_scaling", c.storage_scaling, {"output", "mean"});
     if (net.has("storage_scaling") && (c.variant != "gain" || c.storage_knots == 0))
         net.reject("storage_scaling", "scales a time-varying storage: it needs [filter] variant = \"gain\" and "

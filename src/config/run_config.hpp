@@ -50,6 +50,7 @@ struct TrainingConfig {
     double output_scale = 0.0;  // 0: auto
     std::string storage_scaling = "output";  // variant gain with S(t): "output" (per state, from H(x^0)) or "mean" (one scale, before 2026-11-25)
     std::string storage_init = "riccati";  // variant gain with S(t): the knots start on the game's Riccati solution along the nominal trajectory ("riccati", §16.7) or at S(0) ("flat", before 2026-11-25)
+    std::string gain_structure = "components";  // variant gain: K_aj = 0 where state a and output j are in different components of the system's dependency graph ("components", §16.17) or every entry learned ("full", before 2026-11-28)
     std::string gain_head = "direct";  // variant gain on a discrete-time system: K = rate D o diag(dy)^-1 ("direct") or F P H'(H P H' + diag(dy)^2)^-1 with a learned P(x^) ("kalman", §16.16)
     std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
     double eps = 0.0;  // 0: auto from max_step_correction

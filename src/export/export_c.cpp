@@ -505,7 +505,8 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
         if (!g.corr.empty()) c << array(P + "_corr", g.corr.data(), n * m);
     }
     c << "\n/* K(x^, t) [n x m], the trained gain (kernels/gain.cpp gain_network_eval) */\n"
-      << (member ? "static " : "") << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
+      << (member || !g.mask.empty() ? "static " : "") << "void " << P
+      << (g.mask.empty() ? "_gain_matrix" : "_gain_matrix_unmasked") << "(double* k, const double* xhat, double t) {\n"
       << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
       << "    double z[" << n << "];\n"
       << "    const " << P << "_real* o;\n"
@@ -605,6 +606,17 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
           << ");\n"
           << chol_solve_c("S", "k", n, m, "S = L L', then k <- S^-1 k")
           << "    }\n"
+          << "}\n\n";
+    }
+    if (!g.mask.empty()) {  // the structural zeros (network.gain_structure = "components", docs/method.md 16.17)
+        c << "/* the gain's structural zeros: K_aq = 0 where state a and output q lie in different components of the\n"
+          << "   system's dependency graph (network.gain_structure = \"components\", docs/method.md 16.17) */\n"
+          << array(P + "_mask", g.mask.data(), n * m)
+          << (member ? "static " : "") << "void " << P << "_gain_matrix(double* k, const double* xhat, double t) {\n"
+          << "    int e;\n"
+          << "    " << P << "_gain_matrix_unmasked(k, xhat, t);\n"
+          << "    for (e = 0; e < " << n * m << "; ++e)\n"
+          << "        if (" << P << "_mask[e] == 0.0) k[e] = 0.0;\n"
           << "}\n\n";
     }
     law.code = c.str();

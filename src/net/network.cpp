@@ -25,6 +25,82 @@ double gain_discrete_rho_floor(const RunConfig& cfg) {
     return nv > 0 ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(BQB).eigenvalues().maxCoeff() : 0.0;
 }
 
+std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component) {
+    const int n = cfg.n, m = cfg.m, nv = cfg.nv;
+    const System& sys = *cfg.system;
+    std::vector<int> parent(static_cast<std::size_t>(n + m));
+    for (int i = 0; i < n + m; ++i) parent[i] = i;
+    auto find = [&](int i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    auto join = [&](int a, int b) { parent[find(a)] = find(b); };
+    // the points: x0 and x^0 at t = 0, and 16 points of the estimates' region (the noise-free trajectory's mean
+    // and spread widened by the error scale, as the network's input standardisation) at times across the horizon
+    std::vector<double> mean, sd;
+    nominal_moments(cfg, &mean, &sd);
+    std::vector<std::vector<double>> points = {cfg.x0, cfg.xhat0};
+    std::vector<double> times = {0.0, 0.0};
+    std::uint64_t h = 0x9e3779b97f4a7c15ULL;
+    auto uniform = [&h]() {  // splitmix64 to [-1, 1): the same points on every machine
+        std::uint64_t z = (h += 0x9e3779b97f4a7c15ULL);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+        z ^= z >> 31;
+        return double(z >> 11) / double(1ULL << 52) - 1.0;
+    };
+    for (int k = 0; k < 16; ++k) {
+        std::vector<double> x(n);
+        for (int a = 0; a < n; ++a) {
+            const double scale = std::fabs(cfg.x0[a] - cfg.xhat0[a]) + cfg.error_floor[a];
+            const double mu = std::isfinite(mean[a]) ? mean[a] : cfg.x0[a];
+            const double spread = (std::isfinite(sd[a]) ? sd[a] : 0.0) + scale;
+            x[a] = mu + spread * uniform();
+        }
+        points.push_back(x);
+        times.push_back(cfg.t_final * (k + 0.5) / 16.0);
+    }
+    std::vector<double> J(static_cast<std::size_t>(n) * n), B(static_cast<std::size_t>(n) * nv),
+        H(static_cast<std::size_t>(m) * n);
+    for (std::size_t p = 0; p < points.size(); ++p) {
+        const double* x = points[p].data();
+        sys.drift_jacobian(J.data(), x, times[p]);
+        sys.disturbance_gain(B.data(), x, times[p], 1);
+        sys.measurement_jacobian(H.data(), x, times[p]);
+        for (int l = 0; l < n; ++l)
+            for (int k = 0; k < n; ++k)
+                if (k != l && J[l * n + k] != 0.0) join(k, l);  // NaN counts as non-zero
+        for (int s = 0; s < nv; ++s) {
+            int first = -1;
+            for (int l = 0; l < n; ++l)
+                if (B[l * nv + s] != 0.0) {
+                    if (first >= 0) join(first, l);
+                    first = l;
+                }
+        }
+        for (int j = 0; j < m; ++j)
+            for (int k = 0; k < n; ++k)
+                if (H[j * n + k] != 0.0) join(n + j, k);
+    }
+    for (int k = 0; k < n; ++k)
+        for (int l = 0; l < n; ++l)
+            if (k != l && cfg.Q[k * n + l] != 0.0) join(k, l);
+    std::vector<double> mask(static_cast<std::size_t>(n) * m);
+    for (int a = 0; a < n; ++a)
+        for (int j = 0; j < m; ++j) mask[a * m + j] = find(a) == find(n + j) ? 1.0 : 0.0;
+    if (component != nullptr) {
+        component->assign(static_cast<std::size_t>(n + m), 0);
+        std::vector<int> number(static_cast<std::size_t>(n + m), -1);
+        int next = 0;
+        for (int i = 0; i < n + m; ++i) {
+            const int r = find(i);
+            if (number[r] < 0) number[r] = next++;
+            (*component)[i] = number[r];
+        }
+    }
+    return mask;
+}
+
 namespace {
 
 // The gain variant's fixed scales (docs/method.md section 14.4), all from the config: the error scale
@@ -132,6 +208,15 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     // the Kalman-form head (section 16.16): P(x^) starts at D^2 (1 + eps), so that K H ~ F / 2 on a measured state
     // (dy_j^2 = sum_a (H_ja dx_a)^2: H P H' = diag(dy)^2 for one output)
     g.kalman = discrete && cfg.gain_head == "kalman";
+    // the structural zeros (section 16.17); a mask of ones is no mask (the same arithmetic and bits as before it)
+    if (cfg.gain_structure == "components" && !g.kalman) {
+        std::vector<int> comp;
+        g.mask = gain_component_mask(cfg, &comp);
+        if (std::all_of(g.mask.begin(), g.mask.end(), [](double v) { return v != 0.0; })) g.mask.clear();
+        for (int a = 0; a < n; ++a)  // the storage's entries (a, b <= a), tril's packing
+            for (int b = 0; b <= a; ++b) g.smask.push_back(comp[a] == comp[b] ? 1.0 : 0.0);
+        if (std::all_of(g.smask.begin(), g.smask.end(), [](double v) { return v != 0.0; })) g.smask.clear();
+    }
     g.eps = cfg.eps > 0 ? cfg.eps : 1e-3;
     g.h2_weight = cfg.h2_weight;
     g.loss.rho = cfg.rho;
@@ -328,9 +413,21 @@ Network<T> network_create(const RunConfig& cfg) {
         // biases start at zero
     }
     const kern::GainSpec& g = net.step.gain;
+    if (g.enabled && !g.mask.empty()) {
+        std::vector<int> comp;
+        gain_component_mask(cfg, &comp);
+        std::fprintf(stderr,
+                     "hinf: note: network.gain_structure = \"components\": the system splits into %d independent "
+                     "parts, so the gain takes each state's correction only from the outputs of its own part (%d of "
+                     "%d entries) and the storage is block-diagonal; \"full\" learns every entry (docs/method.md "
+                     "section 16.17)\n",
+                     *std::max_element(comp.begin(), comp.end()) + 1,
+                     int(std::count(g.mask.begin(), g.mask.end(), 1.0)), int(g.mask.size()));
+    }
     if (g.enabled && g.knots > 0 && cfg.storage_init == "riccati") {
         T* knots = net.theta.data() + sh.param_count();
         const RiccatiStart r = riccati_knots(knots, cfg, g);
+        g.hold_storage(knots, cfg.n);  // zero already for a block-diagonal Riccati solution; held there (16.17)
         // held before its first knot: every knot after S(0) sits at the floor, where the gain is at the sampled-data
         // cap, and none carries the game's solution (there is none of level rho from this start, or none within the
         // cap). Such a start was far worse than the flat one (a stiff spring chain, continuous Lorenz-63 with x

@@ -34,6 +34,16 @@ kern::StepConfig network_step_config(const RunConfig& cfg);
 /// inequality, B'S B <= G'S G < rho from its concavity; docs/method.md section 16.8).
 double gain_discrete_rho_floor(const RunConfig& cfg);
 
+/// Variant gain, network.gain_structure = "components" (docs/method.md section 16.17): which entries K_aj of the gain
+/// may be non-zero. States and outputs are nodes of one graph; an edge joins states k and l where dA_l/dx_k or
+/// dA_k/dx_l is non-zero, states one disturbance input enters (B), states Q couples, and output j with each state
+/// its C_j depends on. K_aj is kept (1) where state a and output j are in one connected component, 0 elsewhere:
+/// outside it, y_j is independent of x_a's error given the rest, so a non-zero K_aj only lets noise in. The
+/// Jacobians and B are read at x0, x^0 and 16 points of the training estimates' region over [0, t_final] (a
+/// structural zero is zero at all of them); component (may be null) gets each state's then each output's
+/// component number. Row-major [n x m].
+std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component = nullptr);
+
 /// A frozen network as a function, whatever its precision: for the on-line phase.
 class FrozenNetwork {
 public:

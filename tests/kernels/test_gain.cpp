@@ -245,10 +245,12 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
           "[kernel][gain][grad][determinism]") {
   // knots = 0: constant storage and the rate head; knots = 3: S(t) on knots (samples before, between, on and after
   // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o diag(dy))
-  for (int knots : {0, 3}) {
-    INFO("knots " << knots);
+  // masked: the gain's structural zeros (network.gain_structure, docs/method.md 16.17) on two of the six entries
+  for (const auto& [knots, masked] : std::vector<std::pair<int, bool>>{{0, false}, {3, false}, {0, true}, {3, true}}) {
+    INFO("knots " << knots << " masked " << masked);
     const int n = 3, nv = 2, m = 2, N = 11;
     StepConfig sc = small_gain_config(n, m);
+    if (masked) sc.gain.mask = {1, 0, 0, 1, 1, 1};
     sc.gain.knots = knots;
     sc.gain.knot_span = 2.0;
     const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
@@ -281,8 +283,15 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
     std::vector<double> K(N * n * m), S(n * n), Sd(n * n), S2(n * n);
     const std::vector<double> Ktrain(ws.K.begin(), ws.K.begin() + M * n * m);  // K of minibatch row s = sample idx[s]
     gain_network_eval(K.data(), theta.data(), z.data(), Hx.data(), t.data(), N, sc, ws);
-    for (int s = 0; s < M; ++s)
-        for (int e = 0; e < n * m; ++e) CHECK(K[idx[s] * n * m + e] == Approx(Ktrain[s * n * m + e]).epsilon(1e-12));
+    for (int s = 0; s < M; ++s)  // ws.K is the head's K; the gain the filter runs has the mask's zeros
+        for (int e = 0; e < n * m; ++e) {
+            if (masked && sc.gain.mask[e] == 0.0) {
+                CHECK(K[idx[s] * n * m + e] == 0.0);
+                CHECK(Ktrain[s * n * m + e] != 0.0);
+            } else {
+                CHECK(K[idx[s] * n * m + e] == Approx(Ktrain[s * n * m + e]).epsilon(1e-12));
+            }
+        }
     if (knots == 0) {
         gain_storage_eval(S.data(), Sd.data(), theta.data(), 0.0, sc);
         storage_forward(S2.data(), theta.data() + sc.shape.param_count(), sc.gain.dx.data(), n, sc.gain.storage_scale,
@@ -346,16 +355,18 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
     // the fast path's chunking, kept S(t)/Cholesky/M(t), row-wise solves and chunk-ordered sums against plain loops
     const int n = 6, nv = 1, m = 6, N = 2000, M = 800;
     // group > 1: errors per estimate (samples idx[r G .. r G + G - 1] share z, t and Hx; one network row each)
+    // masked: the missile's structural zeros (two positions see only their own output; docs/method.md 16.17)
     struct Case {
         int knots;
         bool discrete, output_scale;
         int group;
+        bool masked = false;
     };
     for (const Case cs : {Case{0, false, false, 1}, Case{0, true, false, 1}, Case{35, false, false, 1},
                           Case{35, false, true, 1}, Case{0, false, false, 4}, Case{0, true, false, 4},
-                          Case{35, false, true, 4}}) {
+                          Case{35, false, true, 4}, Case{35, false, true, 4, true}, Case{0, true, false, 1, true}}) {
         INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale << " group "
-                      << cs.group);
+                      << cs.group << " masked " << cs.masked);
         StepConfig sc;
         sc.shape.sizes = {n, 256, 128, 32, n * m};
         sc.head.n = n;
@@ -377,6 +388,14 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         sc.gain.knots = cs.knots;
         sc.gain.knot_span = 70.0;
         sc.gain.group = cs.group;
+        if (cs.masked) {
+            sc.gain.mask.assign(n * m, 1.0);
+            for (int a = 0; a < n; ++a)
+                for (int j = 0; j < m; ++j)
+                    if (a != j && (a < 2 || j < 2)) sc.gain.mask[a * m + j] = 0.0;
+            for (int a = 0; a < n; ++a)  // the storage: no entry between the components {x1}, {x2}, {x3, v}
+                for (int b = 0; b <= a; ++b) sc.gain.smask.push_back(a == b || (a >= 2 && b >= 2) ? 1.0 : 0.0);
+        }
         if (cs.output_scale) {
             sc.gain.sdx = {3e3, 2e3, 4e3, 150, 200, 170};
             sc.gain.corr.resize(n * m);
@@ -433,6 +452,9 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
             CHECK(Lf.h2 == Approx(Ln.h2).epsilon(1e-12));
             CHECK(relative(fast, naive, 0, Pm) < 1e-10);
             CHECK(relative(fast, naive, Pm, P) < 1e-10);
+            const int np = n * (n + 1) / 2;
+            for (std::int64_t k = Pm; k < P && cs.masked; ++k)  // the held storage entries get no gradient
+                if (sc.gain.smask[(k - Pm) % np] == 0.0) CHECK(fast[k] == 0.0);
         }
         {  // float (the default precision): the same up to single-precision sums in another order
             std::vector<float> th(theta.begin(), theta.end()), fast(P), naive(P);
