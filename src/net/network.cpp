@@ -25,7 +25,8 @@ double gain_discrete_rho_floor(const RunConfig& cfg) {
     return nv > 0 ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(BQB).eigenvalues().maxCoeff() : 0.0;
 }
 
-std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component) {
+std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component,
+                                        const std::vector<double>* mean_given, const std::vector<double>* sd_given) {
     const int n = cfg.n, m = cfg.m, nv = cfg.nv;
     const System& sys = *cfg.system;
     std::vector<int> parent(static_cast<std::size_t>(n + m));
@@ -38,7 +39,12 @@ std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* 
     // the points: x0 and x^0 at t = 0, and 16 points of the estimates' region (the noise-free trajectory's mean
     // and spread widened by the error scale, as the network's input standardisation) at times across the horizon
     std::vector<double> mean, sd;
-    nominal_moments(cfg, &mean, &sd);
+    if (mean_given != nullptr && sd_given != nullptr) {
+        mean = *mean_given;
+        sd = *sd_given;
+    } else {
+        nominal_moments(cfg, &mean, &sd);
+    }
     std::vector<std::vector<double>> points = {cfg.x0, cfg.xhat0};
     std::vector<double> times = {0.0, 0.0};
     std::uint64_t h = 0x9e3779b97f4a7c15ULL;
@@ -136,6 +142,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     // the noise-free trajectory: where the estimates will be
     std::vector<double> sd;
     nominal_moments(cfg, &g.shift, &sd);
+    const std::vector<double> mean = g.shift;  // before the escape check below changes it
     g.spread.resize(n);
     for (int j = 0; j < n; ++j) {
         g.spread[j] = sd[j] + g.dx[j];
@@ -211,7 +218,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     // the structural zeros (section 16.17); a mask of ones is no mask (the same arithmetic and bits as before it)
     if (cfg.gain_structure == "components" && !g.kalman) {
         std::vector<int> comp;
-        g.mask = gain_component_mask(cfg, &comp);
+        g.mask = gain_component_mask(cfg, &comp, &mean, &sd);
         if (std::all_of(g.mask.begin(), g.mask.end(), [](double v) { return v != 0.0; })) g.mask.clear();
         for (int a = 0; a < n; ++a)  // the storage's entries (a, b <= a), tril's packing
             for (int b = 0; b <= a; ++b) g.smask.push_back(comp[a] == comp[b] ? 1.0 : 0.0);

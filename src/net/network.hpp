@@ -42,7 +42,10 @@ double gain_discrete_rho_floor(const RunConfig& cfg);
 /// Jacobians and B are read at x0, x^0 and 16 points of the training estimates' region over [0, t_final] (a
 /// structural zero is zero at all of them); component (may be null) gets each state's then each output's
 /// component number. Row-major [n x m].
-std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component = nullptr);
+/// mean, sd (may be null): the noise-free trajectory's moments (nominal_moments), when the caller has them.
+std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* component = nullptr,
+                                        const std::vector<double>* mean = nullptr,
+                                        const std::vector<double>* sd = nullptr);
 
 /// A frozen network as a function, whatever its precision: for the on-line phase.
 class FrozenNetwork {
