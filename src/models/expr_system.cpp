@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <set>
 #include <sstream>
 
@@ -100,8 +101,15 @@ std::string c_text_plain(const GiNaC::ex& e) {
     return os.str();
 }
 
-// muParser reads the user's text first: it reports unknown symbols and syntax errors with a position.
-void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, const std::string& known) {
+// muParser reads the user's text first: it reports unknown symbols and syntax errors with a position. One parser
+// serves a system's expressions (building one per expression was a fifth of a 40-state system's construction);
+// symbols added since the last call (the definitions, in order) are defined on it first.
+struct SyntaxParser {
+    mu::Parser p;
+    std::deque<double> values;  // the symbols' dummy values (a deque: their addresses stay put as it grows)
+    std::size_t defined = 0;
+};
+void check_syntax(SyntaxParser& sp, const ExprText& e, const std::vector<std::string>& symbols, const std::string& known) {
     // GiNaC's parser and diff recurse on the nesting: bound it before either sees the text
     const std::size_t max_length = 5000;
     int depth = 0, max_depth = 0;
@@ -114,11 +122,12 @@ void check_syntax(const ExprText& e, const std::vector<std::string>& symbols, co
                                                 " (split it with definitions = [\"name = ...\"])");
     HINF_CHECK(max_depth <= 100, quoted(e) + ": parentheses nest " + std::to_string(max_depth) +
                                      " deep, more than 100 (split it with definitions = [\"name = ...\"])");
-    mu::Parser p;
-    define_functions(p);
-    std::vector<double> dummy(symbols.size(), 1.0);
+    mu::Parser& p = sp.p;
     try {
-        for (std::size_t i = 0; i < symbols.size(); ++i) p.DefineVar(symbols[i], &dummy[i]);
+        for (; sp.defined < symbols.size(); ++sp.defined) {
+            sp.values.push_back(1.0);
+            p.DefineVar(symbols[sp.defined], &sp.values.back());
+        }
         p.SetExpr(e.text);
         p.Eval();
     } catch (const mu::Parser::exception_type& err) {
@@ -363,10 +372,10 @@ private:
     }
 };
 
-// A constant entry (g = 0/1, dC/dx of a linear h, 2*pi) is evaluated once, from its canonical text.
-double constant_value(const std::string& text) {
-    mu::Parser p;
-    define_functions(p);
+// A constant entry (g = 0/1, dC/dx of a linear h, 2*pi) is evaluated once, from its canonical text, by a parser
+// the caller keeps for all of them (a muParser parser is costly to build: one per entry of a 40-state Jacobian made
+// the system's construction most of a short training run, 14x slower under AddressSanitizer)
+double constant_value(mu::Parser& p, const std::string& text) {
     try {
         p.SetExpr(text);
         return p.Eval();
@@ -438,8 +447,10 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         for (const auto& s : symbols) out += (out.empty() ? "" : ", ") + s;
         return out + ", pi";
     };
+    SyntaxParser syntax;
+    define_functions(syntax.p);
     auto read = [&](const ExprText& e) {
-        check_syntax(e, symbols, known_list());
+        check_syntax(syntax, e, symbols, known_list());
         GiNaC::ex x = read_symbolic(e, table);
         check_expression_size(x, quoted(e));
         return x;
@@ -468,6 +479,8 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
             for (const auto& xj : state_symbols) dh.push_back(no_step(hi.diff(xj)));
 
         const CanonicalPrinter canonical;
+        mu::Parser constants;
+        define_functions(constants);
         auto compile = [&](const std::vector<GiNaC::ex>& exprs, std::vector<Compiled>* out) {
             for (const auto& e : exprs) {
                 Compiled c;
@@ -475,8 +488,11 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
                 c.text = canonical(e);
                 GiNaC::ex value = e.evalf();
                 if (GiNaC::is_a<GiNaC::numeric>(value) && GiNaC::ex_to<GiNaC::numeric>(value).is_real()) {
-                    // the number muParser gives for the canonical text: GiNaC's evalf sums in its hash order
-                    c.value = constant_value(c.text);
+                    // the number muParser gives for the canonical text: GiNaC's evalf sums in its hash order. An
+                    // integer below 2^53 (the zeros of a Jacobian, mostly) is that number exactly either way
+                    const bool integer = GiNaC::is_a<GiNaC::numeric>(e) && GiNaC::ex_to<GiNaC::numeric>(e).is_integer() &&
+                                         std::fabs(GiNaC::ex_to<GiNaC::numeric>(e).to_double()) < 9007199254740992.0;
+                    c.value = integer ? GiNaC::ex_to<GiNaC::numeric>(e).to_double() : constant_value(constants, c.text);
                 } else {
                     c.constant = false;
                     HINF_CHECK(c.text.size() <= std::size_t(mu::MaxLenExpression),
