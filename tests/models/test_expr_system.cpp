@@ -338,6 +338,10 @@ TEST_CASE("expression errors are one line naming the key, the expression and the
                  "[system] f entry 2 \"mu*(1 - p^2)*v - p\": unknown symbol 'v' at character 14 (known: p, w, c, mu, "
                  "t, pi)");
     }
+    SECTION("a definition is unknown to the expressions before it (one parser checks them all, in order)") {
+        bad("definitions = [\"r = s + p\", \"s = w\"]\n", "definitions entry 1 \" s + p\": unknown symbol 's' at character");
+        bad("definitions = [\"r = s + p\", \"s = w\"]\n", "(known: p, w, c, mu, t, pi)");
+    }
     SECTION("parse error, with its position") {
         bad_text(replace(ok, "p + c*p^3", "p + c*(p^3"), "[system] h entry 1 \"p + c*(p^3\": ");
         bad_text(replace(ok, "p + c*p^3", "p + c*(p^3"), "Missing parenthesis at character 12");
