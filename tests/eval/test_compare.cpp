@@ -39,8 +39,8 @@ struct SpyRecord {
 
 class SpyFilter final : public OnlineFilter {
 public:
-    SpyFilter(std::string name, int n, int m, std::int64_t diverge_at = -1)
-        : name_(std::move(name)), n_(n), m_(m), diverge_at_(diverge_at) {}
+    SpyFilter(std::string name, int m, std::int64_t diverge_at = -1)
+        : name_(std::move(name)), m_(m), diverge_at_(diverge_at) {}
     std::string name() const override { return name_; }
     void reset(const FilterStart& s) override {
         xhat_ = s.xhat0;
@@ -68,7 +68,7 @@ public:
 
 private:
     std::string name_;
-    int n_, m_;
+    int m_;
     std::int64_t diverge_at_;
     std::vector<double> xhat_;
     std::uint64_t run_ = 0;
@@ -98,7 +98,7 @@ TEST_CASE("compare feeds every filter the identical measurement stream", "[eval]
 
     // independently of the harness's own hash: two spies record what they were fed (one run, so the one
     // clone of each spy sees the whole stream); it must be the measurements of run 0 stored in compare.h5
-    SpyFilter a("spy_a", cfg.n, cfg.m), b("spy_b", cfg.n, cfg.m);
+    SpyFilter a("spy_a", cfg.m), b("spy_b", cfg.m);
     opt.runs = 1;
     CompareSummary s1 = compare_run(cfg, {&a, &b}, opt);
     h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
@@ -149,7 +149,7 @@ TEST_CASE("compare results do not depend on the thread count", "[eval][compare][
 TEST_CASE("compare counts a diverging filter and keeps it in the results", "[eval][compare]") {
     RunConfig cfg = missile_config();
     TempDir d("compare-div");
-    SpyFilter ok("steady", cfg.n, cfg.m), bad("diverges", cfg.n, cfg.m, 3);
+    SpyFilter ok("steady", cfg.m), bad("diverges", cfg.m, 3);
     CompareOptions opt;
     opt.out_dir = d / "c";
     opt.runs = 4;
@@ -177,7 +177,6 @@ namespace {
 // unstable model or a record on the wrong time base does. Only the plausible range can catch it.
 class RunawayFilter final : public OnlineFilter {
 public:
-    explicit RunawayFilter(int n) : n_(n) {}
     std::string name() const override { return "runaway"; }
     void reset(const FilterStart& s) override {
         xhat_ = s.xhat0;
@@ -191,7 +190,6 @@ public:
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<RunawayFilter>(*this); }
 
 private:
-    int n_;
     std::vector<double> xhat_;
 };
 }  // namespace
@@ -199,8 +197,8 @@ private:
 TEST_CASE("an estimate that leaves the plausible range is reported as diverged", "[eval][compare][divergence]") {
     RunConfig cfg = missile_config();
     TempDir d("compare-runaway");
-    SpyFilter ok("steady", cfg.n, cfg.m);
-    RunawayFilter away(cfg.n);
+    SpyFilter ok("steady", cfg.m);
+    RunawayFilter away;
     CompareOptions opt;
     opt.out_dir = d / "c";
     opt.runs = 2;
@@ -232,7 +230,7 @@ TEST_CASE("compare scenarios: Student-t and biased measurement noise have the st
     // error is ~ 0.01, so the bands below are > 3 standard errors wide. Bias: mean n / sigma_n = 1 +- 0.03.
     RunConfig cfg = missile_config();
     TempDir d("compare-scen");
-    SpyFilter spy("spy", cfg.n, cfg.m);
+    SpyFilter spy("spy", cfg.m);
     for (const char* name : {"nominal", "student_t", "bias"}) {
         CompareOptions opt;
         opt.out_dir = d / name;
