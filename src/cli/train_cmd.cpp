@@ -104,7 +104,8 @@ void add_train_commands(CLI::App& app) {
     auto sw = std::make_shared<TrainArgs>();
     auto vary = std::make_shared<std::string>();
     CLI::App* sweep = app.add_subcommand(
-        "sweep", "Train one config for several values of one key as one job (mpirun: one training per process group)");
+        "sweep", "Train one config for several values of one key as one job (mpirun: one training per process group), "
+                 "each ending as `hinf train` does (best.h5, the acceptance check); choose by the validation MSE");
     sweep->add_option("config", sw->config, "Scenario config (TOML)")->required();
     sweep->add_option("--vary", *vary, "KEY=V1,V2,...: one training per value, e.g. training.seed=1,2,3")->required();
     sweep->add_option("--out", sw->out, "Output directory (default runs/out/<config name>/sweep); one KEY=V inside per value");
@@ -127,16 +128,54 @@ void add_train_commands(CLI::App& app) {
         std::printf("sweep: %zu value(s) of %s over %d process group(s) of %d process(es)\n", opt.values.size(),
                     opt.key.c_str(), std::max(groups, 1), par_world_size() / std::max(groups, 1));
         std::fflush(stdout);
+        // each value ends as `hinf train` does: the checkpoint selection during training, the acceptance check after
+        opt.around = [](const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions o,
+                        const SweepTrain& train, TrainSummary& s) {
+            SweepVerdict v;
+            const std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/!resumed, o);
+            s = train(o);
+            if (best && best->step >= 0) {
+                v.best_step = best->step;
+                v.select_score = best->score;
+            }
+            const AcceptanceOutcome a = acceptance_after(cfg, dir, s, best.get(), resumed, /*quiet=*/true);
+            if (a.ran) {
+                v.acceptance = a.pass ? "pass" : "fail";
+                v.rmse_position = a.rmse_position;
+                v.worst_ratio = a.worst_ratio;
+            }
+            return v;
+        };
         std::vector<SweepRow> rows = sweep_run(sw->config, opt);
-        std::printf("%-24s %-12s %6s %9s %10s %12s %10s %10s %8s\n", opt.key.c_str(), "how", "status", "steps",
-                    "wall [s]", "final loss", "rel.resid", "viol.ok", "cos");
-        for (const auto& r : rows)
-            std::printf("%-24s %-12s %6d %9lld %10.2f %12.4g %10.3g %9.1f%% %8.3f\n", r.value.c_str(), r.how.c_str(),
-                        r.summary.status, static_cast<long long>(r.summary.last_step), r.summary.wall_seconds,
-                        r.summary.final_loss, r.summary.median_rel_residual,
-                        100 * r.summary.fraction_steps_violation_ok, r.summary.mean_cosine);
-        std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv)\n",
-                    opt.out_dir.c_str());
+        std::printf("%-24s %-12s %6s %9s %10s %12s %9s %12s %10s %10s %10s\n", opt.key.c_str(), "how", "status", "steps",
+                    "wall [s]", "final loss", "best step", "valid. MSE", "accept", "RMSE pos", "worst");
+        for (const auto& r : rows) {
+            const SweepVerdict& v = r.verdict;
+            std::printf("%-24s %-12s %6d %9lld %10.2f %12.4g %9s %12.4g %10s %10.4g %10.4g\n", r.value.c_str(),
+                        r.how.c_str(), r.summary.status, static_cast<long long>(r.summary.last_step),
+                        r.summary.wall_seconds, r.summary.final_loss,
+                        v.best_step >= 0 ? std::to_string(v.best_step).c_str() : "-", v.select_score,
+                        v.acceptance.c_str(), v.rmse_position, v.worst_ratio);
+        }
+        std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, best.h5, trajectory.h5, "
+                    "summary.csv; valid. MSE: best.h5's settled Q-weighted MSE on the validation noise, the one to "
+                    "choose by)\n", opt.out_dir.c_str());
+        // training.require_acceptance: a sweep is for finding a value that passes, so it fails when none does
+        bool required = false, checked = false, passed = false;
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            std::vector<std::string> sets = opt.sets;
+            sets.push_back(opt.key + "=" + opt.values[i]);
+            required = required || load_config_with_overrides(sw->config, sets).require_acceptance;
+            checked = checked || rows[i].verdict.acceptance != "-";
+            passed = passed || rows[i].verdict.acceptance == "pass";
+        }
+        if (required && checked && !passed) {
+            if (par_root())  // every rank holds the gathered table; one line
+                std::fprintf(stderr, "hinf: error: no value of %s passed its acceptance check (sweep.csv, column "
+                                     "acceptance) and training.require_acceptance is set (try other values, or unset "
+                                     "it)\n", opt.key.c_str());
+            throw CLI::RuntimeError(5);
+        }
     });
 
     CLI::App* resume = app.add_subcommand("resume", "Continue a training run from its checkpoint (bit-identical)");

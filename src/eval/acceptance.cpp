@@ -217,6 +217,8 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.pass = pass;
     o.file = path;
     o.line = line;
+    o.rmse_position = s.rmse_position;
+    o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
     if (!pass) {
         AcceptanceSearch found;
         found.ran = search && w.skipped.empty();

@@ -52,6 +52,8 @@ struct AcceptanceOutcome {
     std::string file;   // the checkpoint judged: DIR/best.h5 where a selection kept one, else DIR/checkpoint.h5
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
     std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
+    double rmse_position = std::numeric_limits<double>::quiet_NaN();  // the Monte Carlo's position RMSE
+    double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
 };
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {

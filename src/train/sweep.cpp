@@ -9,6 +9,7 @@
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
 #include "io/atomic.hpp"
+#include "io/checkpoint.hpp"
 #include "par/par.hpp"
 
 namespace hinf {
@@ -17,7 +18,10 @@ namespace {
 
 const char* kSummaryHeader =
     "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
-    "fraction_steps_violation_ok,mean_cosine";
+    "fraction_steps_violation_ok,mean_cosine,best_step,select_score,acceptance,acceptance_rmse_position,"
+    "acceptance_worst_ratio";
+// a summary line written before the selection and acceptance columns: the trainer's 11 fields alone
+constexpr std::size_t kFieldsBefore = 11, kFields = 16;
 
 // one CSV line per value (values with a comma are refused up front)
 std::string row_line(const SweepRow& r) {
@@ -27,6 +31,9 @@ std::string row_line(const SweepRow& r) {
     o << r.value << ',' << r.how << ',' << s.status << ',' << s.first_step << ',' << s.last_step << ','
       << s.wall_seconds << ',' << s.final_loss << ',' << s.median_rel_residual << ',' << s.fraction_steps_rel_ok
       << ',' << s.fraction_steps_violation_ok << ',' << s.mean_cosine;
+    const SweepVerdict& v = r.verdict;
+    o << ',' << v.best_step << ',' << v.select_score << ',' << v.acceptance << ',' << v.rmse_position << ','
+      << v.worst_ratio;
     return o.str();
 }
 
@@ -34,7 +41,8 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     std::vector<std::string> f;
     std::stringstream in(line);
     for (std::string cell; std::getline(in, cell, ',');) f.push_back(cell);
-    HINF_CHECK(f.size() == 11, where + ": not a sweep summary line (delete the file to train that value again)");
+    HINF_CHECK(f.size() == kFields || f.size() == kFieldsBefore,
+               where + ": not a sweep summary line (delete the file to train that value again)");
     SweepRow r;
     r.value = f[0];
     r.how = f[1];
@@ -48,6 +56,14 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     s.fraction_steps_rel_ok = std::stod(f[8]);
     s.fraction_steps_violation_ok = std::stod(f[9]);
     s.mean_cosine = std::stod(f[10]);
+    if (f.size() == kFields) {  // stod reads "nan" back
+        SweepVerdict& v = r.verdict;
+        v.best_step = std::stoll(f[11]);
+        v.select_score = std::stod(f[12]);
+        v.acceptance = f[13];
+        v.rmse_position = std::stod(f[14]);
+        v.worst_ratio = std::stod(f[15]);
+    }
     return r;
 }
 
@@ -72,13 +88,26 @@ SweepRow train_value(const std::string& config_path, const SweepOptions& opt, co
     to.quiet = true;  // several trainings at once: the table at the end says how each went
     if (std::filesystem::exists(ckpt)) {
         row.how = "resumed";
-        row.summary = train_resume(ckpt, to);
+        const SweepTrain train = [&](const TrainOptions& o) { return train_resume(ckpt, o); };
+        RunConfig cfg;
+        bool readable = false;
+        try {  // read in a child first: a damaged file may crash the HDF5 library; train_resume reports it
+            ckpt_verify(ckpt);
+            cfg = ckpt_config(ckpt);
+            readable = true;
+        } catch (const std::exception&) {
+        }
+        if (opt.around && readable) row.verdict = opt.around(cfg, row.dir, true, to, train, row.summary);
+        else row.summary = train(to);
     } else {
         ConfigDoc doc = ConfigDoc::from_file(config_path);
         for (const auto& s : opt.sets) doc.set(s);
         doc.set(opt.key + "=" + value);
         row.how = "trained";
-        row.summary = train_start(load_run_config(std::move(doc)), to);
+        const RunConfig cfg = load_run_config(std::move(doc));
+        const SweepTrain train = [&](const TrainOptions& o) { return train_start(cfg, o); };
+        if (opt.around) row.verdict = opt.around(cfg, row.dir, false, to, train, row.summary);
+        else row.summary = train(to);
     }
     write_text_atomic(done, [&](std::ostream& o) { o << kSummaryHeader << '\n' << row_line(row) << '\n'; });
     return row;

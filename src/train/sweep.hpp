@@ -2,8 +2,12 @@
 // Under mpirun the processes form min(values, processes) groups; group g trains values g, g + groups, ...
 // (each training data-parallel over its group), each in its own directory with its own checkpoints. Run again
 // after a kill, it skips finished values and resumes the others from their checkpoints.
-// Not the training itself (trainer.hpp) and not the printing (cli/train_cmd.cpp).
+// Not the training itself (trainer.hpp), not what is checked around it (SweepOptions::around: the caller's, e.g.
+// the CLI's checkpoint selection and acceptance check of src/eval) and not the printing (cli/train_cmd.cpp).
 #pragma once
+#include <cmath>
+#include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -11,22 +15,42 @@
 
 namespace hinf {
 
+/// What a value's training ended with beyond the trainer's summary, for choosing between the values: the checkpoint
+/// the selection kept and its validation score, and the acceptance check's verdict (filled in by SweepOptions::around).
+struct SweepVerdict {
+    std::int64_t best_step = -1;   // the step of DIR/best.h5 (-1: no selection ran, or none kept)
+    double select_score = NAN;     // its settled Q-weighted MSE on the validation noise (training.select_runs runs)
+    std::string acceptance = "-";  // "pass", "fail", or "-" (no check ran)
+    double rmse_position = NAN;    // the acceptance Monte Carlo's position RMSE ([online] noise)
+    double worst_ratio = NAN;      // the largest attenuation ratio the acceptance search found (NaN: none ran)
+};
+
+/// Trains one value: calls `train` once with its options; `resumed`: from the value's own checkpoint.
+using SweepTrain = std::function<TrainSummary(const TrainOptions&)>;
+
 struct SweepOptions {
     std::string out_dir = "runs/out/sweep";
     std::string key;                  // a config key, e.g. training.seed
     std::vector<std::string> values;  // its values, one training each
     std::vector<std::string> sets;    // --set overrides common to all
     double until = -1;
+    /// Runs around each value's training, in its process group: given the value's config (its checkpoint's when
+    /// resumed), directory and options, it calls train(options) once, returns the summary in `s` and what it
+    /// checked. Empty: the training alone.
+    std::function<SweepVerdict(const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions options,
+                               const SweepTrain& train, TrainSummary& s)> around;
 };
 
 struct SweepRow {
     std::string value, dir;
     std::string how;  // "trained", "resumed" (from a checkpoint), "done before" (an earlier job finished it)
     TrainSummary summary;
+    SweepVerdict verdict;
 };
 
 /// Trains every value (see above); returns one row per value, in the order given, on every process. Writes
-/// DIR/<key>=<value>/{checkpoint.h5, trajectory.h5, summary.csv} and DIR/sweep.csv.
+/// DIR/<key>=<value>/{checkpoint.h5, trajectory.h5, summary.csv} (and what `around` writes there, e.g. best.h5)
+/// and DIR/sweep.csv.
 std::vector<SweepRow> sweep_run(const std::string& config_path, const SweepOptions& opt);
 
 /// "key=value" with characters that cannot be in a file name replaced by '_'.

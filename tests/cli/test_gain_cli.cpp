@@ -423,3 +423,76 @@ TEST_CASE("paired_difference: the mean run-by-run difference and its standard er
     CHECK_FALSE(hinf::select_keeps("one_se", INFINITY, false, hinf::PairedDifference{0.0, 0.5}));
     CHECK_FALSE(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{}));  // no per-run scores: strict
 }
+
+namespace {
+// sweep.csv's rows: column name -> cell, one map per value
+std::vector<std::map<std::string, std::string>> read_sweep_csv(const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    std::vector<std::string> head;
+    std::vector<std::map<std::string, std::string>> rows;
+    for (bool first = true; std::getline(in, line); first = false) {
+        std::vector<std::string> cells;
+        std::stringstream s(line);
+        for (std::string c; std::getline(s, c, ',');) cells.push_back(c);
+        if (first) {
+            head = cells;
+            continue;
+        }
+        std::map<std::string, std::string> row;
+        for (std::size_t i = 0; i < cells.size() && i < head.size(); ++i) row[head[i]] = cells[i];
+        rows.push_back(row);
+    }
+    return rows;
+}
+}  // namespace
+
+TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the acceptance verdict per value, and exit 5 "
+          "when no value passes under training.require_acceptance", "[cli][gain][sweep]") {
+    hinf::test::TempDir d("gainsweep");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << kVdp;
+    // rho far below any filter's ratio fails (as in the require_acceptance test above), rho = 5 passes
+    const std::string sets = " --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
+    auto sw = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,5 --out " + (d / "sweep") + sets);
+    INFO(sw.output);
+    CHECK(sw.status == 0);  // one value passed
+    CHECK(sw.output.find(" fail ") != std::string::npos);
+    CHECK(sw.output.find(" pass ") != std::string::npos);
+    const auto rows = read_sweep_csv(d / "sweep/sweep.csv");
+    REQUIRE(rows.size() == 2);
+    CHECK(rows[0].at("acceptance") == "fail");
+    CHECK(rows[1].at("acceptance") == "pass");
+    // the value's run is `hinf train` with that value: the same best.h5 step, score and acceptance figures
+    auto plain = run_hinf("train " + cfg + " --out " + (d / "plain") + " --quiet" + sets + " --set filter.rho=5");
+    INFO(plain.output);
+    REQUIRE(plain.status == 0);
+    for (const std::string& dir : {d / "plain", d / "sweep/filter.rho=5"}) {
+        hinf::h5::Handle f = hinf::h5::open_file(dir + "/best.h5", false);
+        CHECK(hinf::h5::get_attr_string(f.get(), "acceptance_verdict") == "pass");
+        CHECK(std::to_string(hinf::h5::get_attr_int(f.get(), "select_step")) == rows[1].at("best_step"));
+        CHECK(same_bits(hinf::h5::get_attr_double(f.get(), "select_score"), std::stod(rows[1].at("select_score"))));
+        CHECK(same_bits(hinf::h5::get_attr_double(f.get(), "acceptance_rmse_position"),
+                        std::stod(rows[1].at("acceptance_rmse_position"))));
+        CHECK(same_bits(hinf::h5::get_attr_double(f.get(), "acceptance_worst_ratio"),
+                        std::stod(rows[1].at("acceptance_worst_ratio"))));
+    }
+    // no value passes: the table, then one error line and exit 5
+    auto none = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,2e-9 --out " + (d / "none") + sets);
+    INFO(none.output);
+    CHECK(none.status == 5);
+    CHECK(none.output.find("hinf: error: no value of filter.rho passed its acceptance check") != std::string::npos);
+    // a value finished by a sweep before these columns existed (11 fields in its summary.csv): read back, no verdict
+    const std::string old = d / "none/filter.rho=2e-9/summary.csv";
+    std::ofstream(old) << "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,"
+                          "fraction_steps_rel_ok,fraction_steps_violation_ok,mean_cosine\n"
+                          "2e-9,trained,0,0,50,1.5,0.25,0.5,0,0,0.75\n";
+    auto again = run_hinf("sweep " + cfg + " --vary filter.rho=2e-9 --out " + (d / "none") + sets);
+    INFO(again.output);
+    CHECK(again.status == 0);  // no check ran in this job
+    const auto back = read_sweep_csv(d / "none/sweep.csv");
+    REQUIRE(back.size() == 1);
+    CHECK(back[0].at("how") == "done before");
+    CHECK(back[0].at("acceptance") == "-");
+    CHECK(back[0].at("best_step") == "-1");
+}
