@@ -25,7 +25,7 @@ struct SweepVerdict {
     double worst_ratio = NAN;      // the largest attenuation ratio the acceptance search found (NaN: none ran)
 };
 
-/// Trains one value: calls `train` once with its options; `resumed`: from the value's own checkpoint.
+/// One value's training with the given options: a fresh start, or a resume from the value's own checkpoint.
 using SweepTrain = std::function<TrainSummary(const TrainOptions&)>;
 
 struct SweepOptions {
