@@ -394,7 +394,7 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
         std::filesystem::remove(dir + "/best.h5");
         std::filesystem::remove(dir + "/select.csv");
     }
-    if (!(cfg.select_every > 0 && par_world_size() == 1)) return nullptr;
+    if (!(cfg.select_every > 0 && par_size() == 1)) return nullptr;
     std::shared_ptr<Selection> best = fresh ? std::make_shared<Selection>() : select_state(dir);
     auto validate = select_on_step(cfg, dir, best);
     auto before = opt.on_step;
@@ -408,7 +408,7 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
                                    const Selection* best, bool resumed, bool quiet) {
     if (!(cfg.acceptance_runs > 0 && s.status == 0 && s.last_step == cfg.steps_until() &&
-          (!resumed || s.last_step > s.first_step) && par_world_size() == 1))
+          (!resumed || s.last_step > s.first_step) && par_size() == 1))
         return {};
     return acceptance_check(cfg, dir, quiet, best != nullptr && best->step >= 0 ? "best.h5" : "checkpoint.h5");
 }

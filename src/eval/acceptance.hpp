@@ -38,7 +38,8 @@ PairedDifference paired_difference(const std::vector<double>& a, const std::vect
 /// NaN keeps nothing).
 bool select_keeps(const std::string& rule, double score, bool lowest, const PairedDifference& d);
 
-/// Starts the selection of a run in `dir` when cfg.select_every > 0 and the job is one process (null otherwise):
+/// Starts the selection of a run in `dir` when cfg.select_every > 0 and the run is one process (the whole job, or
+/// its group of one in a sweep; null otherwise):
 /// a fresh run removes an earlier run's best.h5 and select.csv, a resumed one continues from its best.h5. Chains
 /// the validation after opt.on_step (the caller's progress callback, if any).
 std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt);
@@ -66,7 +67,7 @@ struct AcceptanceSearch {
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);
 
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
-/// trained at least one step), on one process, with cfg.acceptance_runs > 0; its verdict and figures are written
+/// trained at least one step), on one process (or a sweep's group of one), with cfg.acceptance_runs > 0; its verdict and figures are written
 /// into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
                                    const Selection* best, bool resumed, bool quiet);

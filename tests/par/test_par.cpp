@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <cstdlib>
 #include <filesystem>
+#include <sstream>
 
 #include "eval/engine.hpp"
 #include "helpers.hpp"
@@ -264,7 +265,9 @@ TEST_CASE("kill -9 of an MPI training run, resume under another process count: t
 TEST_CASE("hinf sweep: one training per value and process group, each as its own run, and a second job resumes what "
           "a killed one left and skips what it finished", "[par][mpi][sweep]") {
     TempDir d("par-sweep");
-    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.04"));
+    // with the checkpoint selection ([training] is the config's last section): a sweep's values validate as
+    // `hinf train` does, in their groups
+    const std::string cfg = hinf::test::write_file(d, "dp.toml", data_parallel_config("0.04") + "select_every = 2\n");
     // seed 2 as a killed job leaves it: a checkpoint part of the way, no summary
     CommandResult part = hinf::test::run_hinf("train " + cfg + " --set training.seed=2 --until 0.02 --threads 1 --quiet --out " +
                                               d / "sweep/training.seed=2");
@@ -279,7 +282,18 @@ TEST_CASE("hinf sweep: one training per value and process group, each as its own
     std::ifstream csv(d / "sweep/sweep.csv");
     std::string line;
     int rows = 0;
-    while (std::getline(csv, line)) rows += line.rfind("training.seed,", 0) == 0;
+    while (std::getline(csv, line)) {
+        if (line.rfind("training.seed,", 0) != 0) continue;
+        ++rows;
+        // column 13: best.h5's step, validated at steps 2 and 4 (column 15: the acceptance check, off in this config)
+        std::vector<std::string> cells;
+        std::stringstream s(line);
+        for (std::string c; std::getline(s, c, ',');) cells.push_back(c);
+        REQUIRE(cells.size() == 18);
+        CHECK((cells[12] == "2" || cells[12] == "4"));
+        CHECK(std::filesystem::exists(cells[17] + "/best.h5"));
+        CHECK(cells[14] == "-");
+    }
     CHECK(rows == 3);
     // each value's run is the run `hinf train --set training.seed=V` gives
     for (const char* seed : {"2", "3"}) {
