@@ -10,6 +10,8 @@
 #include <fstream>
 #include <functional>
 #include <filesystem>
+#include <map>
+#include <sstream>
 #include <string>
 #include <sys/wait.h>
 #include <vector>
@@ -175,6 +177,28 @@ double max_rel_diff(const std::vector<T>& a, const std::vector<T>& b, double flo
         worst = std::max(worst, d / s);
     }
     return worst;
+}
+
+/// A CSV file with a header line (no quoted cells): one map per row, column name -> cell.
+inline std::vector<std::map<std::string, std::string>> read_csv_rows(const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    std::vector<std::string> head;
+    std::vector<std::map<std::string, std::string>> rows;
+    for (bool first = true; std::getline(in, line); first = false) {
+        std::vector<std::string> cells;
+        std::stringstream s(line);
+        for (std::string c; std::getline(s, c, ',');) cells.push_back(c);
+        if (first) {
+            head = cells;
+            continue;
+        }
+        REQUIRE(cells.size() == head.size());
+        std::map<std::string, std::string> row;
+        for (std::size_t i = 0; i < cells.size(); ++i) row[head[i]] = cells[i];
+        rows.push_back(row);
+    }
+    return rows;
 }
 
 }  // namespace hinf::test

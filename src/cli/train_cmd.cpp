@@ -157,9 +157,9 @@ void add_train_commands(CLI::App& app) {
                         v.best_step >= 0 ? std::to_string(v.best_step).c_str() : "-", v.select_score,
                         v.acceptance.c_str(), v.rmse_position, v.worst_ratio);
         }
-        std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, best.h5, trajectory.h5, "
-                    "summary.csv; valid. MSE: best.h5's settled Q-weighted MSE on the validation noise, the one to "
-                    "choose by)\n", opt.out_dir.c_str());
+        std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv, "
+                    "best.h5 where the selection runs; valid. MSE: best.h5's settled Q-weighted MSE on the validation "
+                    "noise, the one to choose by)\n", opt.out_dir.c_str());
         // training.require_acceptance: a sweep is for finding a value that passes, so it fails when none does
         bool required = false, checked = false, passed = false;
         for (std::size_t i = 0; i < rows.size(); ++i) {

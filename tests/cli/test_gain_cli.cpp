@@ -124,16 +124,9 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         CHECK(ens.output.find("dnn_gain_measured") == std::string::npos);
         // the filter's row of compare.csv as named fields
         auto row = [](const std::string& csv, const std::string& filter) {
-            std::ifstream in(csv);
-            std::string header, line;
-            std::getline(in, header);
-            std::map<std::string, std::string> out;
-            while (std::getline(in, line)) {
-                if (line.find("," + filter + ",") == std::string::npos) continue;
-                std::stringstream h(header), v(line);
-                for (std::string key, val; std::getline(h, key, ',') && std::getline(v, val, ',');) out[key] = val;
-            }
-            return out;
+            for (const auto& r : hinf::test::read_csv_rows(csv))
+                if (r.at("filter") == filter) return r;
+            return std::map<std::string, std::string>();
         };
         auto one = row(d / "cmp/compare.csv", "dnn_gain_measured"), two = row(d / "cmpe/compare.csv", "dnn_gain_ensemble");
         REQUIRE(one.size() > 20);
@@ -424,29 +417,6 @@ TEST_CASE("paired_difference: the mean run-by-run difference and its standard er
     CHECK_FALSE(hinf::select_keeps("one_se", 1.0, false, hinf::PairedDifference{}));  // no per-run scores: strict
 }
 
-namespace {
-// sweep.csv's rows: column name -> cell, one map per value
-std::vector<std::map<std::string, std::string>> read_sweep_csv(const std::string& path) {
-    std::ifstream in(path);
-    std::string line;
-    std::vector<std::string> head;
-    std::vector<std::map<std::string, std::string>> rows;
-    for (bool first = true; std::getline(in, line); first = false) {
-        std::vector<std::string> cells;
-        std::stringstream s(line);
-        for (std::string c; std::getline(s, c, ',');) cells.push_back(c);
-        if (first) {
-            head = cells;
-            continue;
-        }
-        std::map<std::string, std::string> row;
-        for (std::size_t i = 0; i < cells.size() && i < head.size(); ++i) row[head[i]] = cells[i];
-        rows.push_back(row);
-    }
-    return rows;
-}
-}  // namespace
-
 TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the acceptance verdict per value, and exit 5 "
           "when no value passes under training.require_acceptance", "[cli][gain][sweep]") {
     hinf::test::TempDir d("gainsweep");
@@ -459,7 +429,7 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     CHECK(sw.status == 0);  // one value passed
     CHECK(sw.output.find(" fail ") != std::string::npos);
     CHECK(sw.output.find(" pass ") != std::string::npos);
-    const auto rows = read_sweep_csv(d / "sweep/sweep.csv");
+    const auto rows = hinf::test::read_csv_rows(d / "sweep/sweep.csv");
     REQUIRE(rows.size() == 2);
     CHECK(rows[0].at("acceptance") == "fail");
     CHECK(rows[1].at("acceptance") == "pass");
@@ -490,7 +460,7 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     auto again = run_hinf("sweep " + cfg + " --vary filter.rho=2e-9 --out " + (d / "none") + sets);
     INFO(again.output);
     CHECK(again.status == 0);  // no check ran in this job
-    const auto back = read_sweep_csv(d / "none/sweep.csv");
+    const auto back = hinf::test::read_csv_rows(d / "none/sweep.csv");
     REQUIRE(back.size() == 1);
     CHECK(back[0].at("how") == "done before");
     CHECK(back[0].at("acceptance") == "-");
