@@ -187,6 +187,10 @@ struct TrainReport {
     /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line; after
     /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise)
     std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice;
+    /// variant gain with knots: the first time step after which a knot's log-diagonal lay where it no longer moves
+    /// S(t), the sign of every failed training measured (the note `hinf train` prints; docs/method.md 16.7); -1: none
+    std::int64_t knot_runaway_step = -1;
+    int knot_runaway_knot = -1;  ///< that knot (0 .. network.storage_knots)
 };
 
 /// What `hinf export` wrote: the C99 pair of a trained DNN filter (docs/export.md).

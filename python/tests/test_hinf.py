@@ -238,6 +238,7 @@ def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     assert report["best_checkpoint"] == str(tmp_path / "run" / "best.h5")
     assert os.path.exists(report["best_checkpoint"])
     assert report["best_step"] > 0 and report["best_step"] % 10 == 0
+    assert report["knot_runaway_step"] == -1 and report["knot_runaway_knot"] == -1
     assert report["acceptance"] in ("pass", "fail")
     assert report["acceptance_checkpoint"] == report["best_checkpoint"]
     assert report["acceptance_line"].startswith("acceptance (")

@@ -376,6 +376,8 @@ TrainReport report_of(const TrainSummary& s, const std::string& dir) {
     r.fraction_steps_violation_ok = s.fraction_steps_violation_ok;
     r.mean_cosine = s.mean_cosine;
     r.checkpoint = dir + "/checkpoint.h5";
+    r.knot_runaway_step = s.runaway_step;
+    r.knot_runaway_knot = s.runaway_knot;
     return r;
 }
 

@@ -540,6 +540,25 @@ std::unique_ptr<FrozenNetwork> network_freeze(Network<T> net) {
     return std::make_unique<FrozenImpl<T>>(std::move(net));
 }
 
+template <typename T>
+StorageLow storage_lowest_log_diagonal(const Network<T>& net) {
+    StorageLow low;
+    const kern::GainSpec& g = net.step.gain;
+    if (!g.enabled || g.knots <= 0) return low;
+    const int n = net.step.head.n, np = n * (n + 1) / 2;
+    const T* sp = net.theta.data() + net.step.shape.param_count();
+    for (int j = 0; j <= g.knots; ++j)
+        for (int a = 0; a < n; ++a) {
+            const double v = double(sp[std::int64_t(j) * np + a * (a + 1) / 2 + a]);  // packed tril, row by row
+            if (low.knot < 0 || v < low.value) low = StorageLow{v, j, a};
+        }
+    return low;
+}
+
+double storage_runaway_level(const kern::GainSpec& g) { return 0.5 * std::log(g.eps) - 3.0; }
+
+template StorageLow storage_lowest_log_diagonal<float>(const Network<float>&);
+template StorageLow storage_lowest_log_diagonal<double>(const Network<double>&);
 template Network<float> network_create<float>(const RunConfig&);
 template Network<float> network_shell<float>(const RunConfig&);
 template Network<double> network_shell<double>(const RunConfig&);

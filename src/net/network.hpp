@@ -30,6 +30,21 @@ Network<T> network_shell(const RunConfig& cfg);
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);
 
+/// A time-varying storage's lowest knot log-diagonal (M's diagonal is exp of it): its value, knot and state;
+/// knot = -1 for a storage without knots.
+struct StorageLow {
+    double value = 0;
+    int knot = -1, state = -1;
+};
+template <typename T>
+StorageLow storage_lowest_log_diagonal(const Network<T>& net);
+
+/// The log-diagonal below which a knot has run away (docs/method.md section 16.7, "Why 280 knots fail"): below
+/// 0.5 ln(eps) its exp(2 v) adds less than eps to M M' + eps I, and 3 below that, less than 0.25 % of eps, so S
+/// no longer moves with it. In every missile training where a knot went there the filter failed (5-12 times the
+/// EKF's error); in every one that trained well, none did (lowest -4.9).
+double storage_runaway_level(const kern::GainSpec& g);
+
 /// Variant gain on a discrete system: lambda_max(B(x0)'Q B(x0)), the floor rho must exceed (S >= Q from the one-step
 /// inequality, B'S B <= G'S G < rho from its concavity; docs/method.md section 16.8).
 double gain_discrete_rho_floor(const RunConfig& cfg);

@@ -21,6 +21,7 @@
 #include "io/progress.hpp"
 #include "io/run_lock.hpp"
 #include "io/trajectory.hpp"
+#include "net/network.hpp"
 #include "par/par.hpp"
 #include "sampling.hpp"
 #include "filters/gain_law.hpp"
@@ -235,6 +236,7 @@ public:
                 break;
             }
             ++ck_.state.step;
+            if (gain_ && sum.runaway_step < 0) runaway_check(&sum);
             medians.push_back(rec.rel_median);
             sum.fraction_steps_rel_ok += rec.rel_median <= 0.01 ? 1 : 0;
             sum.fraction_steps_violation_ok += rec.violation <= 0.01 ? 1 : 0;
@@ -278,6 +280,28 @@ public:
     }
 
 private:
+    // A knot whose log-diagonal ran below storage_runaway_level: recorded once, and said once, with the way out
+    // (docs/method.md section 16.7, "Why 280 knots fail")
+    void runaway_check(TrainSummary* sum) {
+        const StorageLow low = storage_lowest_log_diagonal(ck_.net);
+        if (low.knot < 0 || !(low.value < storage_runaway_level(ck_.net.step.gain))) return;
+        sum->runaway_step = ck_.state.step;
+        sum->runaway_knot = low.knot;
+        sum->runaway_state = low.state;
+        sum->runaway_value = low.value;
+        if (!writer_) return;
+        const int J = ck_.net.step.gain.knots;
+        std::fprintf(stderr,
+                     "\nhinf: note: at time step %lld the storage's knot %d (of 0-%d; t = %.4g s) has the log-diagonal of "
+                     "state %d at %.3g, below %.3g, where it no longer moves S(t). On seed 000's missile every training "
+                     "where this happened gave a filter 5-12 times the EKF's error, every one without it 1.06-1.40 times: "
+                     "compare fewer knots, e.g. hinf sweep CONFIG --vary network.storage_knots=%d,%d (docs/method.md "
+                     "section 16.7)\n",
+                     static_cast<long long>(ck_.state.step), low.knot, J, ck_.net.step.gain.knot_span * low.knot / J,
+                     low.state + 1, low.value, storage_runaway_level(ck_.net.step.gain), std::max(1, J / 2),
+                     std::max(1, J / 4));
+    }
+
     // One time step of the offline phase (docs/architecture.md): four named phases filling one record,
     // which becomes one trajectory row. false on numerical trouble (diagnostic printed).
     bool time_step(StepRecord* rec) {

@@ -49,6 +49,11 @@ struct TrainSummary {
     double fraction_steps_violation2_ok = 0;   // share with hji2_violation_fraction <= 0.01
     double max_consistency_gap = 0;            // largest consistency_gap over the run [state units]
     double max_consistency_gap_printed = 0;    // the same with eqs. (11) and (23) as printed
+    // variant gain with knots: the first time step after which a knot's log-diagonal lay below
+    // storage_runaway_level (a note says so when it happens; docs/method.md section 16.7), -1 if none did
+    std::int64_t runaway_step = -1;
+    int runaway_knot = -1, runaway_state = -1;
+    double runaway_value = 0;
 };
 
 /// Asks a running training to stop at the next safe point (between time steps): it writes a checkpoint at the

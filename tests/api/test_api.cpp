@@ -177,6 +177,8 @@ TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with
     REQUIRE(r.best_checkpoint == d / "run/best.h5");
     CHECK(r.best_step > 0);
     CHECK(r.best_step % 10 == 0);  // validated checkpoints only (checkpoint_every = 10)
+    CHECK(r.knot_runaway_step == -1);  // no knot ran away (tests/train/test_gain_scaling.cpp has one that does)
+    CHECK(r.knot_runaway_knot == -1);
     REQUIRE((r.acceptance == "pass" || r.acceptance == "fail"));
     CHECK(r.acceptance_checkpoint == r.best_checkpoint);
     CHECK(r.acceptance_line.rfind("acceptance (5 measured runs", 0) == 0);

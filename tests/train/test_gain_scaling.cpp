@@ -17,6 +17,7 @@
 #include "hinf/h5.hpp"
 #include "io/checkpoint.hpp"
 #include "net/network.hpp"
+#include "train/trainer.hpp"
 
 namespace {
 
@@ -273,4 +274,62 @@ TEST_CASE("storage_init = riccati: a noise-free trajectory that escapes stops th
     // knots 5..8 (t >= 1.25 s, past the escape) equal knot 4's or an earlier one's: the last set before the stop
     const int np = 3;
     for (int e = 0; e < np; ++e) CHECK(net.theta[P + 8 * np + e] == net.theta[P + 5 * np + e]);
+}
+
+namespace {
+// knot j's log-diagonal for state a set to v in a checkpoint (packed tril per knot, row by row), rewritten whole
+template <typename T>
+void put_log_diagonal(const std::string& path, int j, int a, double v) {
+    hinf::Checkpoint<T> ck = hinf::ckpt_read<T>(path);
+    const hinf::RunConfig cfg = hinf::ckpt_config(path);
+    const hinf::kern::StepConfig sc = hinf::network_step_config(cfg);
+    const int np = cfg.n * (cfg.n + 1) / 2;
+    ck.net.theta[sc.shape.param_count() + j * np + a * (a + 1) / 2 + a] = T(v);
+    hinf::ckpt_write(path, ck, cfg);
+}
+}  // namespace
+
+TEST_CASE("a knot whose log-diagonal runs below the runaway level is said once and recorded in the summary",
+          "[cli][gain][scaling]") {
+    // method.md 16.7 "Why 280 knots fail": every failed missile training had a knot there, no good one had
+    hinf::test::TempDir d("runaway");
+    std::ofstream(d / "k.toml") << two_scale_config("storage_knots = 4\n");
+    const hinf::RunConfig cfg = load(two_scale_config("storage_knots = 4\n"));
+    const double level = hinf::storage_runaway_level(hinf::network_step_config(cfg).gain);
+    CHECK(level == Approx(0.5 * std::log(1e-3) - 3.0));
+    const hinf::StorageLow start = hinf::storage_lowest_log_diagonal(hinf::network_create<double>(cfg));
+    CHECK(start.knot >= 0);
+    CHECK(start.value > level);
+    // knot 2 (t = 0.15 s) of state b put where a run-away knot sits, in a run stopped at 0.1 s
+    auto stopped = [&](const std::string& dir) {
+        auto r = hinf::test::run_hinf("train " + (d / "k.toml") + " --out " + (d / dir) + " --until 0.1");
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+        CHECK(r.output.find("no longer moves S(t)") == std::string::npos);
+        const std::string ck = d / (dir + "/checkpoint.h5");
+        if (hinf::ckpt_precision(ck) == "float")
+            put_log_diagonal<float>(ck, 2, 1, level - 5.0);
+        else
+            put_log_diagonal<double>(ck, 2, 1, level - 5.0);
+        return ck;
+    };
+    // the CLI says so once, naming the knot, the state and fewer knots to compare
+    auto s = hinf::test::run_hinf("resume " + stopped("cli"));
+    INFO(s.output);
+    REQUIRE(s.status == 0);
+    const std::string note = "the storage's knot 2 (of 0-4; t = 0.15 s) has the log-diagonal of state 2 at";
+    const std::size_t at = s.output.find(note);
+    CHECK(at != std::string::npos);
+    CHECK(s.output.find(note, at + 1) == std::string::npos);
+    CHECK(s.output.find("storage_knots=2,1") != std::string::npos);
+    // the library's summary records it
+    hinf::TrainOptions opt;
+    opt.out_dir = d / "lib";
+    opt.quiet = true;
+    const hinf::TrainSummary sum = hinf::train_resume(stopped("lib"), opt);
+    CHECK(sum.status == 0);
+    CHECK(sum.runaway_step == sum.first_step + 1);
+    CHECK(sum.runaway_knot == 2);
+    CHECK(sum.runaway_state == 1);
+    CHECK(sum.runaway_value < level);
 }
