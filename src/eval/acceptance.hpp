@@ -54,6 +54,10 @@ struct AcceptanceOutcome {
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
     std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
     double rmse_position = std::numeric_limits<double>::quiet_NaN();  // the Monte Carlo's position RMSE
+    // the DNN filter's and the EKF's on the same runs after settle_time (the whole run where that is empty; the DNN
+    // filter's is NaN when a run diverged): the mean error the verdict, which judges rho, does not
+    double rmse_position_settled = std::numeric_limits<double>::quiet_NaN();
+    double rmse_position_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
 };
 /// What the acceptance's worst-case search found, for the advice after a FAIL.

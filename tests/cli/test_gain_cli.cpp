@@ -79,6 +79,31 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), a.worst_ratio));
         CHECK(hinf::h5::exists(w.get(), "filters/ekf"));
     }
+    {  // the Monte Carlo's runs against the EKF: the figures `hinf compare` gives on the same seed and run count, bit
+       // for bit (t_final 0.5 s is inside the settle time, so over the whole run), in the line and the checkpoint
+        CHECK(t.output.find("position RMSE") != std::string::npos);
+        const std::size_t vs = t.output.find(" against the EKF's ");
+        REQUIRE(vs != std::string::npos);
+        CHECK(t.output.find(" after t = ") == std::string::npos);
+        auto c = run_hinf("compare " + cfg + " --network " + (d / "run/best.h5") + " --filters dnn,ekf --runs 5 --out " +
+                          (d / "vs") + " --quiet");
+        INFO(c.output);
+        REQUIRE(c.status == 0);
+        hinf::h5::Handle ck = hinf::h5::open_file(d / "run/best.h5", false);
+        hinf::h5::Handle cmp = hinf::h5::open_file(d / "vs/compare.h5", false);
+        hinf::h5::Handle own = hinf::h5::open_file(d / "run/acceptance/compare.h5", false);
+        for (const auto& [filter, attr] : {std::pair<std::string, std::string>{"dnn_gain_measured", "acceptance_rmse_position_settled"},
+                                           {"ekf", "acceptance_rmse_position_settled_ekf"}}) {
+            INFO(filter);
+            hinf::h5::Handle g = hinf::h5::open_group(cmp.get(), filter);
+            hinf::h5::Handle h = hinf::h5::open_group(own.get(), filter);
+            const double want = hinf::h5::get_attr_double(g.get(), "rmse_position");
+            CHECK(std::isfinite(want));
+            CHECK(same_bits(hinf::h5::get_attr_double(ck.get(), attr.c_str()), want));
+            CHECK(same_bits(hinf::h5::get_attr_double(h.get(), "rmse_position"), want));
+        }
+        CHECK(hinf::h5::get_attr_double(ck.get(), "acceptance_settle_time") == 0.0);
+    }
     auto op = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 2 --out " + (d / "op"));
     INFO(op.output);
     CHECK(op.status == 0);
