@@ -143,23 +143,29 @@ void add_train_commands(CLI::App& app) {
                 v.acceptance = a.pass ? "pass" : "fail";
                 v.rmse_position = a.rmse_position;
                 v.worst_ratio = a.worst_ratio;
+                v.rmse_settled = a.rmse_position_settled;
+                v.rmse_settled_ekf = a.rmse_position_settled_ekf;
             }
             return v;
         };
         std::vector<SweepRow> rows = sweep_run(sw->config, opt);
-        std::printf("%-24s %-12s %6s %9s %10s %12s %9s %12s %10s %10s %10s\n", opt.key.c_str(), "how", "status", "steps",
-                    "wall [s]", "final loss", "best step", "valid. MSE", "accept", "RMSE pos", "worst");
+        std::printf("%-24s %-12s %6s %9s %10s %12s %9s %12s %10s %10s %10s %8s %9s\n", opt.key.c_str(), "how", "status",
+                    "steps", "wall [s]", "final loss", "best step", "valid. MSE", "accept", "RMSE pos", "worst", "x EKF",
+                    "knots ran");
         for (const auto& r : rows) {
             const SweepVerdict& v = r.verdict;
-            std::printf("%-24s %-12s %6d %9lld %10.2f %12.4g %9s %12.4g %10s %10.4g %10.4g\n", r.value.c_str(),
+            std::printf("%-24s %-12s %6d %9lld %10.2f %12.4g %9s %12.4g %10s %10.4g %10.4g %8.3g %9s\n", r.value.c_str(),
                         r.how.c_str(), r.summary.status, static_cast<long long>(r.summary.last_step),
                         r.summary.wall_seconds, r.summary.final_loss,
                         v.best_step >= 0 ? std::to_string(v.best_step).c_str() : "-", v.select_score,
-                        v.acceptance.c_str(), v.rmse_position, v.worst_ratio);
+                        v.acceptance.c_str(), v.rmse_position, v.worst_ratio, v.rmse_settled / v.rmse_settled_ekf,
+                        r.summary.runaway_step >= 0 ? std::to_string(r.summary.runaway_step).c_str() : "-");
         }
         std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv, "
                     "best.h5 where the selection runs; valid. MSE: best.h5's settled Q-weighted MSE on the validation "
-                    "noise, the one to choose by)\n", opt.out_dir.c_str());
+                    "noise, the one to choose by; x EKF: the acceptance runs' settled position RMSE over the EKF's on "
+                    "the same runs; knots ran: the time step after which a knot of S(t) ran away, docs/method.md "
+                    "section 16.7)\n", opt.out_dir.c_str());
         // training.require_acceptance: a sweep is for finding a value that passes, so it fails when none does
         bool required = false, checked = false, passed = false;
         for (std::size_t i = 0; i < rows.size(); ++i) {

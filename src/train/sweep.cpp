@@ -19,9 +19,10 @@ namespace {
 const char* kSummaryHeader =
     "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
     "fraction_steps_violation_ok,mean_cosine,best_step,select_score,acceptance,acceptance_rmse_position,"
-    "acceptance_worst_ratio";
-// a summary line written before the selection and acceptance columns: the trainer's 11 fields alone
-constexpr std::size_t kFieldsBefore = 11, kFields = 16;
+    "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,knot_runaway_step";
+// older summary lines: the trainer's 11 fields alone (before the selection and acceptance columns), and 16 (before
+// the comparison with the EKF and the knot run-away)
+constexpr std::size_t kFieldsBefore = 11, kFieldsVerdict = 16, kFields = 19;
 
 // one CSV line per value (values with a comma are refused up front)
 std::string row_line(const SweepRow& r) {
@@ -33,7 +34,7 @@ std::string row_line(const SweepRow& r) {
       << ',' << s.fraction_steps_violation_ok << ',' << s.mean_cosine;
     const SweepVerdict& v = r.verdict;
     o << ',' << v.best_step << ',' << v.select_score << ',' << v.acceptance << ',' << v.rmse_position << ','
-      << v.worst_ratio;
+      << v.worst_ratio << ',' << v.rmse_settled << ',' << v.rmse_settled_ekf << ',' << s.runaway_step;
     return o.str();
 }
 
@@ -41,7 +42,7 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     std::vector<std::string> f;
     std::stringstream in(line);
     for (std::string cell; std::getline(in, cell, ',');) f.push_back(cell);
-    HINF_CHECK(f.size() == kFields || f.size() == kFieldsBefore,
+    HINF_CHECK(f.size() == kFields || f.size() == kFieldsVerdict || f.size() == kFieldsBefore,
                where + ": not a sweep summary line (delete the file to train that value again)");
     SweepRow r;
     r.value = f[0];
@@ -56,13 +57,18 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     s.fraction_steps_rel_ok = std::stod(f[8]);
     s.fraction_steps_violation_ok = std::stod(f[9]);
     s.mean_cosine = std::stod(f[10]);
-    if (f.size() == kFields) {  // stod reads "nan" back
+    if (f.size() >= kFieldsVerdict) {  // stod reads "nan" back
         SweepVerdict& v = r.verdict;
         v.best_step = std::stoll(f[11]);
         v.select_score = std::stod(f[12]);
         v.acceptance = f[13];
         v.rmse_position = std::stod(f[14]);
         v.worst_ratio = std::stod(f[15]);
+    }
+    if (f.size() == kFields) {
+        r.verdict.rmse_settled = std::stod(f[16]);
+        r.verdict.rmse_settled_ekf = std::stod(f[17]);
+        s.runaway_step = std::stoll(f[18]);
     }
     return r;
 }

@@ -23,6 +23,9 @@ struct SweepVerdict {
     std::string acceptance = "-";  // "pass", "fail", or "-" (no check ran)
     double rmse_position = NAN;    // the acceptance Monte Carlo's position RMSE ([online] noise)
     double worst_ratio = NAN;      // the largest attenuation ratio the acceptance search found (NaN: none ran)
+    // the acceptance Monte Carlo's runs against the EKF: the DNN filter's and the EKF's position RMSE after
+    // settle_time (AcceptanceOutcome::rmse_position_settled, _ekf)
+    double rmse_settled = NAN, rmse_settled_ekf = NAN;
 };
 
 /// One value's training with the given options: a fresh start, or a resume from the value's own checkpoint.

@@ -471,7 +471,14 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
                         std::stod(rows[1].at("acceptance_rmse_position"))));
         CHECK(same_bits(hinf::h5::get_attr_double(f.get(), "acceptance_worst_ratio"),
                         std::stod(rows[1].at("acceptance_worst_ratio"))));
+        for (const char* key : {"acceptance_rmse_position_settled", "acceptance_rmse_position_settled_ekf"}) {
+            INFO(key);
+            CHECK(std::isfinite(hinf::h5::get_attr_double(f.get(), key)));
+            CHECK(same_bits(hinf::h5::get_attr_double(f.get(), key), std::stod(rows[1].at(key))));
+        }
     }
+    CHECK(rows[0].at("knot_runaway_step") == "-1");  // no storage knots in this config
+    CHECK(sw.output.find("x EKF") != std::string::npos);
     // no value passes: the table, then one error line and exit 5
     auto none = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,2e-9 --out " + (d / "none") + sets);
     INFO(none.output);
@@ -490,4 +497,19 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     CHECK(back[0].at("how") == "done before");
     CHECK(back[0].at("acceptance") == "-");
     CHECK(back[0].at("best_step") == "-1");
+    // and one from before the comparison with the EKF (16 fields): its verdict read back, no EKF figure
+    std::ofstream(old) << "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,"
+                          "fraction_steps_rel_ok,fraction_steps_violation_ok,mean_cosine,best_step,select_score,"
+                          "acceptance,acceptance_rmse_position,acceptance_worst_ratio\n"
+                          "2e-9,trained,0,0,50,1.5,0.25,0.5,0,0,0.75,40,0.125,fail,0.5,3.5\n";
+    auto verdict = run_hinf("sweep " + cfg + " --vary filter.rho=2e-9 --out " + (d / "none") + sets);
+    INFO(verdict.output);
+    CHECK(verdict.status == 5);  // a failed check read back counts, as a check of this job would
+    const auto v16 = hinf::test::read_csv_rows(d / "none/sweep.csv");
+    REQUIRE(v16.size() == 1);
+    CHECK(v16[0].at("acceptance") == "fail");
+    CHECK(v16[0].at("best_step") == "40");
+    CHECK(v16[0].at("acceptance_worst_ratio") == "3.5");
+    CHECK(v16[0].at("acceptance_rmse_position_settled") == "nan");
+    CHECK(v16[0].at("knot_runaway_step") == "-1");
 }
