@@ -5,6 +5,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -187,6 +188,11 @@ struct TrainReport {
     /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line; after
     /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise)
     std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice;
+    /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
+    /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
+    /// filter's, where a run diverged)
+    double acceptance_rmse_settled = std::numeric_limits<double>::quiet_NaN();
+    double acceptance_rmse_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     /// variant gain with knots: the first time step after which a knot's log-diagonal lay where it no longer moves
     /// S(t), the sign of every failed training measured (the note `hinf train` prints; docs/method.md 16.7); -1: none
     std::int64_t knot_runaway_step = -1;

@@ -1,6 +1,7 @@
 """pytest over the Python module: bit for bit against the `hinf` program on the same record (built-in system), the progress callback,
 and bad use raising hinf.Error with hinf's one-line message. Run: PYTHONPATH=build/python HINF_CLI=build/hinf
 python3 -m pytest python/tests (ctest runs it as python_pytest; scripts/test also against the installed module)."""
+import math
 import os
 import shutil
 import subprocess
@@ -239,6 +240,7 @@ def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     assert os.path.exists(report["best_checkpoint"])
     assert report["best_step"] > 0 and report["best_step"] % 10 == 0
     assert report["knot_runaway_step"] == -1 and report["knot_runaway_knot"] == -1
+    assert math.isfinite(report["acceptance_rmse_settled"]) and report["acceptance_rmse_settled_ekf"] > 0
     assert report["acceptance"] in ("pass", "fail")
     assert report["acceptance_checkpoint"] == report["best_checkpoint"]
     assert report["acceptance_line"].startswith("acceptance (")

@@ -2,6 +2,7 @@
 // name giving `hinf filter`'s bits on the same record, step() against run(), and bad use as one-line hinf::Error.
 // (python/tests covers the same through the Python module; this runs under the sanitizers too.)
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -182,6 +183,9 @@ TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with
     REQUIRE((r.acceptance == "pass" || r.acceptance == "fail"));
     CHECK(r.acceptance_checkpoint == r.best_checkpoint);
     CHECK(r.acceptance_line.rfind("acceptance (5 measured runs", 0) == 0);
+    CHECK(std::isfinite(r.acceptance_rmse_settled));  // the check's runs against the EKF (outside the verdict)
+    CHECK(std::isfinite(r.acceptance_rmse_settled_ekf));
+    CHECK(r.acceptance_line.find(" against the EKF's ") != std::string::npos);
     hinf::h5::Handle f = hinf::h5::open_file(r.best_checkpoint, false);
     CHECK(hinf::h5::get_attr_string(f.get(), "acceptance_verdict") == r.acceptance);
     CHECK(hinf::h5::get_attr_int(f.get(), "select_step") == r.best_step);
