@@ -41,7 +41,7 @@ StorageLow storage_lowest_log_diagonal(const Network<T>& net);
 
 /// The log-diagonal below which a knot has run away (docs/method.md section 16.7, "Why 280 knots fail"): below
 /// 0.5 ln(eps) its exp(2 v) adds less than eps to M M' + eps I, and 3 below that, less than 0.25 % of eps, so S
-/// no longer moves with it. In every missile training where a knot went there the filter failed (5-12 times the
+/// no longer moves with it. In every missile training where a knot went there the filter failed (5-30 times the
 /// EKF's error); in every one that trained well, none did (lowest -4.9).
 double storage_runaway_level(const kern::GainSpec& g);
 
