@@ -317,7 +317,7 @@ TEST_CASE("a knot whose log-diagonal runs below the runaway level is said once a
     auto s = hinf::test::run_hinf("resume " + stopped("cli"));
     INFO(s.output);
     REQUIRE(s.status == 0);
-    const std::string note = "the storage's knot 2 (of 0-4; t = 0.15 s) has the log-diagonal of state 2 at";
+    const std::string note = "the storage's knot 2 (of 0-4; t = 0.15 s) has the log-diagonal of state b at";
     const std::size_t at = s.output.find(note);
     CHECK(at != std::string::npos);
     CHECK(s.output.find(note, at + 1) == std::string::npos);
