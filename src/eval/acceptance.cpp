@@ -22,6 +22,13 @@ namespace hinf {
 
 namespace {
 
+// The two filters both checks run: the checkpoint's DNN filter (`measured`) first, then the EKF told the nominal
+// statistics
+FilterSet dnn_and_ekf(const RunConfig& cfg, const std::string& network) {
+    const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
+    return build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
+}
+
 // The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
 // (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
 // budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
@@ -57,8 +64,7 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0);
     wo.evals = int(std::max<std::int64_t>(1, cfg.acceptance_worst_evals / restarts));
     wo.quiet = quiet;
-    const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
-    FilterSet set = build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
+    const FilterSet set = dnn_and_ekf(cfg, network);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
     std::vector<WorstGame> games(filters.size());
@@ -83,8 +89,7 @@ struct AcceptanceVsEkf {
 };
 
 AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& network, const std::string& out_dir) {
-    const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
-    FilterSet set = build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
+    const FilterSet set = dnn_and_ekf(cfg, network);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
     CompareOptions co;
