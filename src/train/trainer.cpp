@@ -643,11 +643,13 @@ private:
                                        lower_rate() + ", or --set training.on_divergence=rollback)"
                                      : "No checkpoint was written yet (train again with a lower rate: hinf train CONFIG --force "
                                        "--set training.learning_rate=" + lower_rate() + ")";
-        // a gain S(t) started on the Riccati solution can be the cause (a stiff system with error scales far apart:
-        // method.md section 16.7, "Initial knots"); the flat start and the constant storage are the alternatives
-        const std::string alt = cfg_.variant == "gain" && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati"
-                                    ? " If it diverges in the first steps, try --set network.storage_init=flat or "
-                                      "--set network.storage_knots=0."
+        // a gain S(t) started on the Riccati solution can be the cause (a stiff system with error scales far apart,
+        // a chaotic one whose runs leave the nominal trajectory: method.md section 16.7, "Initial knots"); the flat
+        // start and the constant storage are the alternatives
+        const std::string alt = cfg_.variant == "gain" && cfg_.storage_knots > 0 && cfg_.storage_init != "flat"
+                                    ? " The knots of S(t) started on the game's Riccati solution along the noise-free "
+                                      "trajectory can be the cause: try --set network.storage_init=flat or --set "
+                                      "network.storage_knots=0."
                                     : "";
         char last_loss[32] = "none yet";  // no time step has ended finite
         if (std::isfinite(rec_loss_finite_)) std::snprintf(last_loss, sizeof last_loss, "%g", rec_loss_finite_);
