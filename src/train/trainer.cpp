@@ -293,16 +293,18 @@ private:
         const int J = ck_.net.step.gain.knots;
         const std::vector<std::string> names = cfg_.system->state_names();
         const std::string state = low.state < int(names.size()) ? names[low.state] : std::to_string(low.state + 1);
+        std::string counts = std::to_string(J);  // J, J/2, J/4 in falling order, each once (a small J repeats them)
+        if (J / 2 >= 1) counts += "," + std::to_string(J / 2);
+        if (J / 4 >= 1 && J / 4 < J / 2) counts += "," + std::to_string(J / 4);
         std::fprintf(stderr,
                      "\nhinf: note: at time step %lld the storage's knot %d (of 0-%d; t = %.4g s) has the log-diagonal of "
                      "state %s at %.3g, below %.3g, where it no longer moves S(t). On seed 000's missile every training "
                      "where this happened gave a filter 5-30 times the EKF's error, every one without it 1.06-1.40 times; "
                      "on a chaotic Roessler system it happened at 1.7 times, and fewer knots were worse. Compare this "
-                     "count with fewer knots: hinf sweep CONFIG --vary network.storage_knots=%d,%d,%d (docs/method.md "
+                     "count with fewer knots: hinf sweep CONFIG --vary network.storage_knots=%s (docs/method.md "
                      "section 16.7)\n",
                      static_cast<long long>(ck_.state.step), low.knot, J, ck_.net.step.gain.knot_span * low.knot / J,
-                     state.c_str(), low.value, storage_runaway_level(ck_.net.step.gain), J, std::max(1, J / 2),
-                     std::max(1, J / 4));
+                     state.c_str(), low.value, storage_runaway_level(ck_.net.step.gain), counts.c_str());
     }
 
     // One time step of the offline phase (docs/architecture.md): four named phases filling one record,
