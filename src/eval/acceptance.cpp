@@ -446,6 +446,17 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
     }
     if (!(cfg.select_every > 0 && par_size() == 1)) return nullptr;
     std::shared_ptr<Selection> best = fresh ? std::make_shared<Selection>() : select_state(dir);
+    if (fresh) {  // the start check of a Riccati start (docs/method.md section 16.7), on the selection's noise and runs
+        opt.start_diverged = [dir](const RunConfig& c, const std::string& path) {
+            const std::string out = path.substr(0, path.size() - 3);  // DIR/start/riccati.h5 -> DIR/start/riccati
+            return measured_validation(c, path, out, c.select_runs, select_seed(c.seed), true).diverged_runs;
+        };
+        opt.on_restart = [dir, best]() {  // the run starts again: what it validated so far is not its any more
+            *best = Selection();
+            std::filesystem::remove(dir + "/best.h5");
+            std::filesystem::remove(dir + "/select.csv");
+        };
+    }
     auto validate = select_on_step(cfg, dir, best);
     auto before = opt.on_step;
     opt.on_step = [before, validate](const TrainStepInfo& info) {

@@ -41,7 +41,8 @@ bool select_keeps(const std::string& rule, double score, bool lowest, const Pair
 /// Starts the selection of a run in `dir` when cfg.select_every > 0 and the run is one process (the whole job, or
 /// its group of one in a sweep; null otherwise):
 /// a fresh run removes an earlier run's best.h5 and select.csv, a resumed one continues from its best.h5. Chains
-/// the validation after opt.on_step (the caller's progress callback, if any).
+/// the validation after opt.on_step (the caller's progress callback, if any). A fresh run also gets
+/// opt.start_diverged: the check of a Riccati start on the same validation runs (DIR/start/).
 std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt);
 /// The one summary line of a selection ("select: best validated checkpoint at step ...").
 std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir);

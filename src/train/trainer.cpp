@@ -33,6 +33,25 @@ namespace hinf {
 
 namespace {
 
+// The run's config with the storage's knots started flat instead of on the Riccati solution, recorded in its text, at
+// the margin the run trains with (a config naming the flat start would read the other default margin)
+RunConfig flat_start_config(const RunConfig& cfg) {
+    RunConfig flat = cfg;
+    flat.storage_init = "flat";
+    flat.doc.set("network.storage_init=\"flat\"");
+    char margin[64];
+    std::snprintf(margin, sizeof margin, "objective.margin=%.17g", cfg.margin);
+    flat.doc.set(margin);
+    return flat;
+}
+
+// Whether hinf may replace the run's Riccati start by the flat one (docs/method.md section 16.7, "A start that
+// diverges"): a gain run with S(t) whose config does not name network.storage_init
+bool riccati_start_replaceable(const RunConfig& cfg) {
+    return cfg.variant == "gain" && cfg.storage_knots > 0 && cfg.storage_init == "riccati" &&
+           !ConfigSection(cfg.doc, "network").has("storage_init");
+}
+
 // The trajectory columns of a config: one list, used to create, reopen (resume, roll-back) and fill the file.
 std::vector<TrajectoryColumn> trajectory_columns(const RunConfig& c) {
     const int n = c.n, m = c.m, nv = c.nv;
@@ -164,12 +183,52 @@ public:
         ck_.state.xhat = cfg_.xhat0;
         ck_.config_text = cfg_.doc.text();
         std::filesystem::create_directories(dir_);
+        if (writer_) std::filesystem::remove_all(dir_ + "/start");  // an earlier run's (train --force)
+        if (start_diverged_ && par_size() == 1 && gain_ && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati")
+            check_start();
         if (writer_) traj_ = TrajectoryWriter::create(dir_ + "/trajectory.h5", trajectory_columns(cfg_),
                                          {{"format", "hinf-trajectory"},
                                           {"filter_type", cfg_.type},
                                           {"variant", cfg_.variant},
                                           {"system", cfg_.system->name()},
                                           {"config", ck_.config_text}});
+    }
+
+    // A start that diverges (docs/method.md section 16.7, "A start that diverges"): the untrained filter from the
+    // Riccati knots runs on the validation noise; where some runs diverge, so does the one from flat knots, and the
+    // run starts flat when that diverges in fewer -- unless the config names network.storage_init itself. The knots
+    // are shaped along the noise-free trajectory from x0; runs that leave it (a chaotic system) can meet them where
+    // they fit none of them. The switch is recorded in the config (storage_init and the margin the run trains with)
+    void check_start() {
+        const std::int64_t first = ck_.net.step.shape.param_count(), count = ck_.net.step.gain.storage_params(cfg_.n);
+        if (std::all_of(ck_.net.theta.begin() + first, ck_.net.theta.begin() + first + count, [](T v) { return v == T(0); }))
+            return;  // network_create started it flat already (held before the first knot)
+        const std::string d = dir_ + "/start";
+        std::filesystem::create_directories(d);
+        Checkpoint<T> probe = ck_;
+        ckpt_write(d + "/riccati.h5", probe, cfg_);
+        const std::int64_t riccati = start_diverged_(cfg_, d + "/riccati.h5");
+        if (riccati == 0) return;
+        RunConfig flat = flat_start_config(cfg_);
+        std::fill(probe.net.theta.begin() + first, probe.net.theta.begin() + first + count, T(0));  // flat knots
+        probe.config_text = flat.doc.text();
+        ckpt_write(d + "/flat.h5", probe, flat);
+        const std::int64_t flat_diverged = start_diverged_(flat, d + "/flat.h5");
+        const bool named = !riccati_start_replaceable(cfg_);
+        const bool change = flat_diverged < riccati && !named;
+        std::fprintf(stderr,
+                     "hinf: note: network.storage_init = \"riccati\": the untrained filter diverged in %lld of %lld "
+                     "validation runs from the knots on the game's Riccati solution along the noise-free trajectory, "
+                     "in %lld from flat knots; %s (docs/method.md section 16.7, \"A start that diverges\")\n",
+                     static_cast<long long>(riccati), static_cast<long long>(cfg_.select_runs),
+                     static_cast<long long>(flat_diverged),
+                     change ? "the run starts flat (recorded in its config)"
+                     : named ? "the config names the Riccati start, so it is kept (remove the key to let hinf choose)"
+                             : "the Riccati start is kept");
+        if (!change) return;
+        cfg_ = std::move(flat);
+        ck_.net = std::move(probe.net);
+        ck_.config_text = probe.config_text;
     }
 
     /// written_text: the config the checkpoint and trajectory were written with (differs from ck.config_text
@@ -649,7 +708,10 @@ private:
         // a gain S(t) started on the Riccati solution can be the cause (a stiff system with error scales far apart,
         // a chaotic one whose runs leave the nominal trajectory: method.md section 16.7, "Initial knots"); the flat
         // start and the constant storage are the alternatives
-        const std::string alt = cfg_.variant == "gain" && cfg_.storage_knots > 0 && cfg_.storage_init != "flat"
+        const std::string alt = restart_flat_ ? "The knots of S(t) started on the game's Riccati solution along the "
+                                                "noise-free trajectory can be the cause: the run starts again from "
+                                                "flat knots (below)."
+                                : cfg_.variant == "gain" && cfg_.storage_knots > 0 && cfg_.storage_init != "flat"
                                     ? " The knots of S(t) started on the game's Riccati solution along the noise-free "
                                       "trajectory can be the cause: try --set network.storage_init=flat or --set "
                                       "network.storage_knots=0."
@@ -661,7 +723,7 @@ private:
                      "\nhinf: error: training diverged at time step %lld (t = %.2f s): %s = %g; last finite values: "
                      "loss %s, |x~| %g, learning rate %g. %s%s\n",
                      static_cast<long long>(step), cfg_.time_of(step), what, value, last_loss, std::sqrt(err),
-                     cfg_.learning_rate * ck_.state.learning_rate_scale, kept.c_str(), alt.c_str());
+                     cfg_.learning_rate * ck_.state.learning_rate_scale, restart_flat_ ? "" : kept.c_str(), alt.c_str());
         traj_.flush();
     }
 
@@ -687,6 +749,10 @@ private:
 
 public:
     std::function<void(const TrainStepInfo&)> on_step_;  // TrainOptions::on_step
+    std::function<std::int64_t(const RunConfig&, const std::string&)> start_diverged_;  // TrainOptions::start_diverged
+    bool restart_flat_ = false;  // a divergence starts the run again from flat knots (start_typed)
+    const RunConfig& config() const { return cfg_; }
+    void close_files() { traj_ = TrajectoryWriter(); }
 };
 
 // What the game to be trained needs, checked before any file is touched: a level (a config naming no rho whose
@@ -716,6 +782,7 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     train_check_game(cfg);
     const RunDirLock lock(opt.out_dir, "hinf train");  // before trajectory.h5 is created (truncated)
     Trainer<T> tr(cfg, opt.out_dir);
+    tr.start_diverged_ = opt.start_diverged;
     tr.start_fresh();
     if (cfg.rho_auto && par_root())  // after the refusals: a refused run stays one line
         std::fprintf(stderr, "hinf: note: [filter] rho is not set: training at rho = %.4g = %g rho*, where rho* = %.4g is "
@@ -723,7 +790,21 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                              "docs/method.md section 16.12)\n",
                      cfg.rho, kAutoRhoFactor, cfg.rho_bound, cfg.doc.source().c_str());
     tr.on_step_ = opt.on_step;
-    return tr.run(cfg.steps_until(opt.until), opt.quiet);
+    // a run that diverges from a Riccati start hinf chose starts again from flat knots, once (docs/method.md
+    // section 16.7, "A start that diverges"); the caller's on_restart forgets what the diverged run validated
+    tr.restart_flat_ = opt.on_restart && par_size() == 1 && riccati_start_replaceable(tr.config());
+    TrainSummary s = tr.run(cfg.steps_until(opt.until), opt.quiet);
+    if (s.status != 4 || !tr.restart_flat_) return s;
+    std::fprintf(stderr, "hinf: note: the run diverged from the knots on the game's Riccati solution (network.storage_init "
+                         "= \"riccati\", the default; above); it starts again from flat knots, recorded in its config, "
+                         "and replaces the diverged run's files (docs/method.md section 16.7, \"A start that "
+                         "diverges\")\n");
+    opt.on_restart();
+    tr.close_files();  // before trajectory.h5 is created again
+    Trainer<T> flat(flat_start_config(tr.config()), opt.out_dir);
+    flat.start_fresh();
+    flat.on_step_ = opt.on_step;
+    return flat.run(cfg.steps_until(opt.until), opt.quiet);
 }
 
 // The checkpoint's config with `resume --set` applied; only kResumeKeys may change. The change is recorded in the

@@ -25,6 +25,15 @@ struct TrainOptions {
     // called after each time step (after its checkpoint); an exception thrown here ends the run with the
     // last checkpoint in place
     std::function<void(const TrainStepInfo&)> on_step;
+    // a fresh run whose storage S(t) starts on the Riccati solution (network.storage_init = "riccati"): runs the
+    // untrained network in the checkpoint at the given path as a filter on validation runs and returns how many of
+    // them diverged (eval's selection_begin installs it; docs/method.md section 16.7, "A start that diverges").
+    // Where some did, the flat start is validated too, and the run starts from it when it diverges in fewer
+    std::function<std::int64_t(const RunConfig&, const std::string&)> start_diverged;
+    // a fresh run that diverged from a Riccati start hinf chose (the config does not name network.storage_init) starts
+    // again once from flat knots; this is called first, to forget what the diverged run validated (eval's
+    // selection_begin installs it; no restart without it)
+    std::function<void()> on_restart;
     std::vector<std::string> sets;  // resume only: "section.key=value" for the keys of kResumeKeys
 };
 

@@ -253,7 +253,8 @@ TEST_CASE("an h2hinf run rolled back keeps every column growing and resumes", "[
     for (const auto& c : column_rows(d / "run/trajectory.h5")) CHECK(c.second == column_rows(d / "run/trajectory.h5").at("t"));
 }
 
-TEST_CASE("a diverging gain run with the Riccati start names the other starts in its one line", "[train][divergence][gain]") {
+TEST_CASE("a gain run diverging from the Riccati start hinf chose starts again flat once and one that names it gets the advice",
+          "[train][divergence][gain]") {
     test::TempDir d("divgain");
     std::string text = kDiverging;
     text.replace(text.find("variant = \"dissipative\""), 23, "variant = \"gain\"");
@@ -263,11 +264,30 @@ TEST_CASE("a diverging gain run with the Riccati start names the other starts in
     std::ofstream(d / "gain.toml") << text;
     // every gain entry learned: with the missile's structural zeros (method.md 16.17) this setting no longer diverges
     const std::string full = " --set network.gain_structure='\"full\"'";
+    // the config names no start: hinf chose the Riccati one, and a divergence from it starts the run again from flat
+    // knots, once (method.md 16.7, "A start that diverges"); here the flat start diverges too, and the run says so
+    auto a = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + (d / "gain.toml") + " --out " +
+                               (d / "auto") + " --quiet" + full);
+    INFO(a.output);
+    CHECK(a.status == 4);
+    REQUIRE(diverged_step(a.output) > 0);
+    auto count = [](const std::string& out, const std::string& what) {
+        int c = 0;
+        for (std::size_t at = out.find(what); at != std::string::npos; at = out.find(what, at + 1)) ++c;
+        return c;
+    };
+    CHECK(count(a.output, "training diverged at time step ") == 2);
+    CHECK(count(a.output, "the run starts again from flat knots (below).") == 1);
+    CHECK(count(a.output, "it starts again from flat knots, recorded in its config") == 1);
+    CHECK(a.output.find("try --set network.storage_init=flat") == std::string::npos);
+    CHECK(ckpt_config(d / "auto/checkpoint.h5").storage_init == "flat");  // the second run's checkpoint
+    // a config that names the Riccati start keeps it, and its one line names the other starts
     auto r = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + (d / "gain.toml") + " --out " +
-                               (d / "run") + " --quiet" + full);
+                               (d / "run") + " --quiet --set network.storage_init=riccati" + full);
     INFO(r.output);
     CHECK(r.status == 4);
     REQUIRE(diverged_step(r.output) > 0);
+    CHECK(count(r.output, "training diverged at time step ") == 1);
     CHECK(r.output.find("try --set network.storage_init=flat or --set network.storage_knots=0.") != std::string::npos);
     // the flat start (and every other variant) does not get that advice
     auto f = test::run_command("timeout 120 " + std::string(HINF_CLI_PATH) + " train " + (d / "gain.toml") + " --out " +
