@@ -106,6 +106,7 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["acceptance_checkpoint"] = r.acceptance_checkpoint;
     d["acceptance_line"] = r.acceptance_line;
     d["acceptance_advice"] = r.acceptance_advice.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_advice));
+    d["acceptance_note"] = r.acceptance_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_note));
     d["acceptance_rmse_settled"] = r.acceptance_rmse_settled;
     d["acceptance_rmse_settled_ekf"] = r.acceptance_rmse_settled_ekf;
     d["knot_runaway_step"] = r.knot_runaway_step;

@@ -186,8 +186,10 @@ struct TrainReport {
     std::int64_t best_step = -1;
     /// the acceptance check at t_final (docs/method.md 16.5): "pass", "fail", or "" where it did not run (a run
     /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line; after
-    /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise)
-    std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice;
+    /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise); after a
+    /// "pass" whose settled error is above 1.25 times the EKF's on the check's runs, the level to try for a lower mean
+    /// error ("acceptance: note: ..."; "" otherwise)
+    std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice, acceptance_note;
     /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
     /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
     /// filter's, where a run diverged)

@@ -394,6 +394,7 @@ void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, c
         r.acceptance_checkpoint = a.file;
         r.acceptance_line = a.line;
         r.acceptance_advice = a.advice;
+        r.acceptance_note = a.note;
         r.acceptance_rmse_settled = a.rmse_position_settled;
         r.acceptance_rmse_settled_ekf = a.rmse_position_settled_ekf;
     }

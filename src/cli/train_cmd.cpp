@@ -93,6 +93,7 @@ void add_train_commands(CLI::App& app) {
         const AcceptanceOutcome a = acceptance_after(cfg, opt.out_dir, s, best.get(), /*resumed=*/false, args->quiet);
         if (a.ran) std::printf("%s\n", a.line.c_str());
         if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
+        if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
         if (a.ran && !a.pass && cfg.require_acceptance) {
             std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s: attenuation ratio or "
                                  "worst-case ratio above [filter] rho, or a diverged run); training.require_acceptance "
@@ -225,6 +226,7 @@ void add_train_commands(CLI::App& app) {
         const AcceptanceOutcome a = acceptance_after(after, dir, s, best.get(), /*resumed=*/true, args->quiet);
         if (a.ran) std::printf("%s\n", a.line.c_str());
         if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
+        if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
         if (a.ran && !a.pass && after.require_acceptance) {
             std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s); "
                                  "training.require_acceptance is set\n", a.file.c_str());

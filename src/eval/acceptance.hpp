@@ -54,6 +54,9 @@ struct AcceptanceOutcome {
     std::string file;   // the checkpoint judged: DIR/best.h5 where a selection kept one, else DIR/checkpoint.h5
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
     std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
+    // after a PASS whose settled error is above kBehindEkf times the EKF's on the same runs (variant gain): the level
+    // to try for a lower mean error, one line ("acceptance: note: ..."); empty otherwise
+    std::string note;
     double rmse_position = std::numeric_limits<double>::quiet_NaN();  // the Monte Carlo's position RMSE
     // the DNN filter's and the EKF's on the same runs after settle_time (the whole run where that is empty; the DNN
     // filter's is NaN when a run diverged): the mean error the verdict, which judges rho, does not
@@ -61,6 +64,12 @@ struct AcceptanceOutcome {
     double rmse_position_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
 };
+/// The settled error, over the EKF's on the acceptance runs, above which a PASS gets AcceptanceOutcome::note
+inline constexpr double kBehindEkf = 1.25;
+/// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
+/// section 16.12, "Kept, and behind the EKF"); `behind` the settled error over the EKF's. Empty where no higher level
+/// is known (rho* not bracketed and rho not set above it).
+std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double behind);
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)

@@ -3,6 +3,7 @@
 // one line; a checkpoint whose config was changed is refused.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -215,6 +216,17 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     CHECK(ok.status == 0);
     CHECK(ok.output.find("PASS") != std::string::npos);
     CHECK(ok.output.find("acceptance: next:") == std::string::npos);
+    // after a PASS: a note naming a higher level exactly when the filter settles above 1.25 times the EKF's error on
+    // the check's runs (the line's "(1.69x)"; method.md 16.12, "Kept, and behind the EKF")
+    const std::string key = "on the same runs (";
+    const std::size_t at = ok.output.find(key);
+    REQUIRE(at != std::string::npos);
+    const double behind = std::atof(ok.output.c_str() + at + key.size());
+    INFO("behind the EKF " << behind);
+    REQUIRE(behind > 0);
+    const std::size_t note = ok.output.find("acceptance: note: the filter keeps rho = 5, but on these runs it settles at ");
+    CHECK((note != std::string::npos) == (behind > 1.25));
+    if (note != std::string::npos) CHECK(ok.output.find("--set filter.rho=10 (twice rho)", note) != std::string::npos);
 }
 
 TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes, and 0 evaluations skip it",

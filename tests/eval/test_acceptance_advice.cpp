@@ -56,6 +56,21 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", AcceptanceSearch{}), "higher level"));
 }
 
+TEST_CASE("after a PASS far behind the EKF the note names a higher level and the comparison", "[acceptance]") {
+    const RunConfig c = scalar("2");
+    const double star = game_level_rho_star(c);
+    REQUIRE(star > 0);
+    const std::string a = acceptance_behind_note(c, "run/best.h5", 1.69);
+    INFO(a);
+    CHECK(a.rfind("acceptance: note: the filter keeps rho = 2, but on these runs it settles at 1.69 times the EKF's "
+                  "error.", 0) == 0);
+    CHECK(has(a, "--set filter.rho=4 (twice rho)"));  // 4 rho* < 2 rho here
+    CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
+    const RunConfig near = scalar(std::to_string(1.25 * star));
+    CHECK(has(acceptance_behind_note(near, "run/best.h5", 2.0), "(4 rho*, hinf rho)"));
+    CHECK(kBehindEkf == 1.25);
+}
+
 TEST_CASE("acceptance advice says a divergence under the worst signals without offering a cure", "[acceptance]") {
     const RunConfig c = scalar("2");  // 200 steps x 30 Adam steps: a short run too
     AcceptanceSearch s;
