@@ -143,6 +143,22 @@ OperateSummary measured_validation(const RunConfig& cfg, const std::string& path
 constexpr std::int64_t kShortRunUpdates = 30000;
 constexpr double kHigherRhoFactor = 4.0;
 
+// The higher level the advice and the note name: 4 rho* (rho* = bound, hinf rho), or twice rho where that is more;
+// `label` says which
+double higher_level(const RunConfig& cfg, double bound, const char** label) {
+    const double higher = std::max(kHigherRhoFactor * bound, 2.0 * cfg.rho);
+    *label = bound > 0 && higher == kHigherRhoFactor * bound ? "4 rho*, hinf rho" : "twice rho";
+    return higher;
+}
+
+// The config of the printed comparison command: the file training read, where it read one (a resumed run's config
+// comes from its checkpoint), else the placeholder CONFIG
+std::string advice_config(const RunConfig& cfg) {
+    const std::string& src = cfg.doc.source();
+    const bool file = src.size() > 5 && src.compare(src.size() - 5, 5, ".toml") == 0 && std::filesystem::exists(src);
+    return file ? src : std::string("CONFIG");
+}
+
 }  // namespace
 
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search) {
@@ -168,12 +184,12 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
             a += " a gain that divides by the sensor's slope cannot over-correct a steep sensor: train with "
                  "--set network.gain_head=kalman (the Kalman-form head, docs/method.md section 16.16) and compare both;";
     } else if (search.ran && search.ratio > cfg.rho && !below) {
-        const double higher = std::max(kHigherRhoFactor * bound, 2.0 * cfg.rho);
+        const char* label = "";
+        const double higher = higher_level(cfg, bound, &label);
         std::snprintf(buf, sizeof buf,
                       " the worst-case search found a ratio of %.4g above rho = %.4g: a higher level, a weaker promise, "
                       "is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
-                      search.ratio, cfg.rho, higher,
-                      bound > 0 && higher == kHigherRhoFactor * bound ? "4 rho*, hinf rho" : "twice rho");
+                      search.ratio, cfg.rho, higher, label);
         a += buf;
     }
     const std::int64_t steps = cfg.steps_until(), updates = steps * cfg.adam_steps;
@@ -187,11 +203,7 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       static_cast<long long>(cfg.adam_steps), static_cast<long long>(more));
         a += buf;
     }
-    // the config file when training read one (a resumed run's config comes from its checkpoint)
-    const std::string& src = cfg.doc.source();
-    const bool file = src.size() > 5 && src.compare(src.size() - 5, 5, ".toml") == 0 && std::filesystem::exists(src);
-    const std::string config = file ? src : std::string("CONFIG");
-    a += " compare it with the Bayesian filters before you use it: hinf compare " + config + " --network " +
+    a += " compare it with the Bayesian filters before you use it: hinf compare " + advice_config(cfg) + " --network " +
          path + " --filters dnn,ekf,ukf (with the training's --set options; a FAIL says the level rho is not kept, not "
          "that the filter is worse than the EKF in the mean)";
     return a;
@@ -199,10 +211,9 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
 
 std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double behind) {
     const double bound = game_level_rho_star(cfg);
-    const double higher = std::max(kHigherRhoFactor * bound, 2.0 * cfg.rho);
-    if (!(bound > 0) || !(higher > cfg.rho)) return "";
-    const std::string& src = cfg.doc.source();
-    const bool file = src.size() > 5 && src.compare(src.size() - 5, 5, ".toml") == 0 && std::filesystem::exists(src);
+    const char* label = "";
+    const double higher = higher_level(cfg, bound, &label);
+    if (!(bound > 0)) return "";
     char buf[1200];
     std::snprintf(buf, sizeof buf,
                   "acceptance: note: the filter keeps rho = %.4g, but on these runs it settles at %.3g times the EKF's "
@@ -212,8 +223,7 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
                   "1.02-1.71 times the EKF where 1.25 rho* gave 1.08-3.90 times (training seeds 1-3), every check "
                   "still a PASS, but on three of them with worst ratios found above the EKF's (docs/method.md "
                   "section 16.12, \"Kept, and behind the EKF\")",
-                  cfg.rho, behind, higher, higher == kHigherRhoFactor * bound ? "4 rho*, hinf rho" : "twice rho",
-                  file ? src.c_str() : "CONFIG", path.c_str());
+                  cfg.rho, behind, higher, label, advice_config(cfg).c_str(), path.c_str());
     return buf;
 }
 

@@ -67,8 +67,8 @@ struct AcceptanceOutcome {
 /// The settled error, over the EKF's on the acceptance runs, above which a PASS gets AcceptanceOutcome::note
 inline constexpr double kBehindEkf = 1.25;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
-/// section 16.12, "Kept, and behind the EKF"); `behind` the settled error over the EKF's. Empty where no higher level
-/// is known (rho* not bracketed and rho not set above it).
+/// section 16.12, "Kept, and behind the EKF"); `behind` the settled error over the EKF's. Empty where rho* is not
+/// known (the linearised game's level not bracketed).
 std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double behind);
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {
