@@ -55,6 +55,37 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     return -1;
 }
 
+std::vector<int> constant_states(const ProblemConfig& c) {
+    const int n = c.n, nv = c.nv;
+    const System& sys = *c.system;
+    std::vector<char> constant(static_cast<std::size_t>(n), 1);
+    std::vector<double> F(static_cast<std::size_t>(n) * n), G(static_cast<std::size_t>(n) * nv), next(n);
+    const std::int64_t steps = std::min(c.steps_until(), kConstantStateSteps);
+    for (const std::vector<double>* start : {&c.x0, &c.xhat0}) {
+        std::vector<double> x = *start;
+        for (std::int64_t k = 0; k < steps; ++k) {
+            const double t = c.time_of(k);
+            system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, c.dt);
+            system_advance(sys, next.data(), x.data(), nullptr, t, c.dt);
+            bool finite = true;
+            for (int i = 0; i < n; ++i) finite = finite && std::isfinite(next[i]);
+            if (!finite) break;  // the rest of this trajectory says nothing
+            for (int i = 0; i < n; ++i) {
+                if (!constant[i]) continue;
+                bool held = next[i] == x[i];
+                for (int j = 0; j < n && held; ++j) held = F[i * n + j] == (i == j ? 1.0 : 0.0);
+                for (int j = 0; j < nv && held; ++j) held = G[i * nv + j] == 0.0;
+                constant[i] = held;
+            }
+            x.swap(next);
+        }
+    }
+    std::vector<int> out;
+    for (int i = 0; i < n; ++i)
+        if (constant[i]) out.push_back(i);
+    return out;
+}
+
 double game_level_rho_star(const ProblemConfig& c) {
     if (c.rho_auto) return c.rho_bound;
     const GameLevel g = game_level_bound(c);

@@ -2,6 +2,7 @@
 // is for a system of one's own, computed from the system, never another system's value.
 #pragma once
 #include <cstdint>
+#include <vector>
 
 #include "config/run_config.hpp"
 
@@ -34,6 +35,13 @@ GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01);
 /// rho* of a loaded config, 0 where no level is bracketed: the value loading computed for a config naming no rho
 /// (rho_auto), else game_level_bound's (one walk per level tried).
 double game_level_rho_star(const ProblemConfig& c);
+
+/// The states the model holds constant: one step of system_advance leaves state i unchanged (its row of the step's
+/// Jacobian F is e_i) and no disturbance reaches it (its row of G is 0), at every step of the noise-free trajectories
+/// from x0 and from x^0 (their first kConstantStateSteps steps) -- a parameter estimated as a state (f_i = 0 and
+/// g_i = 0 in continuous time, x_i+ = x_i in discrete time). Indices in increasing order.
+std::vector<int> constant_states(const ProblemConfig& c);
+constexpr std::int64_t kConstantStateSteps = 2000;
 
 /// The level a system of one's own trains at when its config names no [filter] rho: kAutoRhoFactor times rho*.
 constexpr double kAutoRhoFactor = 1.25;

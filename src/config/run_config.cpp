@@ -681,6 +681,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         doc.set(value);
     }
     if (expr && !q_given) {
+        c.q_auto = true;
         std::string ones = "filter.Q=[";
         for (int i = 0; i < n; ++i) ones += i ? ", 1.0" : "1.0";
         doc.set(ones + "]");

@@ -20,6 +20,7 @@ struct ProblemConfig {
     std::string type = "hinf";            // "hinf" (seed 000) or "h2hinf" (seed 001: two coupled HJIEs)
     std::string variant = "gain";  // "gain" (K(x^), docs/method.md §16; default where it applies), "dissipative" or "paper"
     double rho = 0.03;                     // seed 000's rho = seed 001's r^2
+    bool q_auto = false;                   // an expr system naming no Q: Q = I (written into the effective config)
     bool rho_auto = false;                 // an expr system naming no rho: rho = 1.25 rho_bound (config/game_level.hpp)
     double rho_bound = 0;                  // rho*, the linearised game's smallest level (set where rho_auto)
     std::string rho_unset;                 // rho_auto with no level bracketed (rho = 0): why; train and the GLF refuse

@@ -186,3 +186,45 @@ TEST_CASE("a checkpoint of a system naming no rho (or no Q), written before the 
         CHECK(cmp.status == 0);
     }
 }
+
+namespace {
+// an oscillator whose stiffness s is estimated as a state: x' = v, v' = -s x - 0.2 v + w, s' = `ds`, with `gs` the
+// disturbance's row for s
+std::string oscillator(const std::string& time, const std::string& ds, const std::string& gs, const std::string& q) {
+    const bool discrete = time == "discrete";
+    return "[system]\nkind = \"expr\"\ntime = \"" + time + "\"\nstates = [\"x\", \"v\", \"s\"]\ndisturbances = 1\n"
+           "measurements = 1\nf = [" + (discrete ? "\"x + 0.01*v\", \"v - 0.01*(s*x + 0.2*v)\", " : "\"v\", \"-s*x - 0.2*v\", ") +
+           "\"" + ds + "\"]\ng = [[\"0\"], [\"1\"], [\"" + gs + "\"]]\nh = [\"x\"]\n[filter]\n" + q +
+           "x0 = [1.0, 0.0, 2.0]\nxhat0 = [0.8, 0.2, 1.0]\ndt = 0.01\nt_final = 2\n[online]\ndisturbance_std = 0.2\n"
+           "noise_std = 0.05\n";
+}
+}  // namespace
+
+TEST_CASE("constant_states finds a parameter estimated as a state and nothing else", "[config][rho]") {
+    CHECK(constant_states(load(oscillator("continuous", "0", "0", ""))) == std::vector<int>{2});
+    CHECK(constant_states(load(oscillator("discrete", "s", "0", ""))) == std::vector<int>{2});
+    // a disturbance that reaches it, a drift however small, or a discrete map that moves it: not constant
+    CHECK(constant_states(load(oscillator("continuous", "0", "0.01", ""))).empty());
+    CHECK(constant_states(load(oscillator("continuous", "1e-6*x", "0", ""))).empty());
+    CHECK(constant_states(load(oscillator("discrete", "0.999*s", "0", ""))).empty());
+    // a state with no drift that the disturbance drives (the integrator above) is not a parameter
+    CHECK(constant_states(load(integrator("continuous", "0.01", "1", "rho = 1\n"))).empty());
+}
+
+TEST_CASE("train notes a constant state under the default Q and names the Q that leaves it out", "[config][rho][cli]") {
+    hinf::test::TempDir d("constant-state");
+    const std::string note = "state s is constant in the model";
+    for (const bool q_named : {false, true}) {
+        const std::string path = d / (q_named ? "named.toml" : "default.toml");
+        std::ofstream(path) << oscillator("continuous", "0", "0", q_named ? "Q = [1.0, 1.0, 1.0]\n" : "");
+        auto r = run_hinf("train " + path + " --until 0.03 --quiet --out " + (d / (q_named ? "named" : "default")));
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+        if (q_named) {
+            CHECK(r.output.find(note) == std::string::npos);  // the user's own Q is the user's choice
+        } else {
+            CHECK(r.output.find(note) != std::string::npos);
+            CHECK(r.output.find("--set 'filter.Q=[1, 1, 0]'") != std::string::npos);
+        }
+    }
+}
