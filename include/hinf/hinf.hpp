@@ -216,7 +216,10 @@ struct ExportReport {
 ExportReport export_c99(const std::vector<std::string>& checkpoints, const std::string& dir,
                         const std::string& prefix = "hinf_filter", bool ensemble = false);
 
-/// Trains a network for cfg (the offline phase, as `hinf train`).
+/// Trains a network for cfg (the offline phase, as `hinf train`). Where the game's Riccati equation gives the storage
+/// no start (held before its first knot) and cfg names neither network.storage_knots nor storage_init, it also trains
+/// a constant storage in out_dir/alternative and keeps the run that validates lower in out_dir (docs/method.md
+/// section 16.7, "Held at once"); the report describes the kept run.
 TrainReport train(const Config& cfg, const TrainSettings& settings);
 /// Continues the run of a checkpoint into its directory (as `hinf resume`); settings.out_dir is ignored.
 TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings);

@@ -402,14 +402,15 @@ void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, c
 }  // namespace
 
 TrainReport train(const Config& cfg, const TrainSettings& settings) {
-    const RunConfig& c = run_config(cfg);
+    RunConfig c = run_config(cfg);
     HINF_CHECK(!settings.out_dir.empty(), "train: out_dir is required (the directory for trajectory.h5 and checkpoint.h5)");
     HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
                settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +
                    settings.out_dir + "/checkpoint.h5\"), or start afresh with force or another out_dir");
     TrainOptions opt = train_options(settings);
-    const std::shared_ptr<Selection> best = selection_begin(c, settings.out_dir, /*fresh=*/true, opt);
-    const TrainSummary s = train_start(c, opt);
+    std::shared_ptr<Selection> best = selection_begin(c, settings.out_dir, /*fresh=*/true, opt);
+    TrainSummary s = train_start(c, opt);
+    choose_held_start(&c, &s, &best, settings.out_dir, settings.quiet);  // a Riccati start held at once: both storages
     TrainReport r = report_of(s, settings.out_dir);
     finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
     return r;

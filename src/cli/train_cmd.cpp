@@ -84,6 +84,7 @@ void add_train_commands(CLI::App& app) {
         install_stop_handlers();
         TrainSummary s = train_start(cfg, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
+        choose_held_start(&cfg, &s, &best, opt.out_dir, args->quiet);
         print_summary(s, opt.out_dir);
         if (best) std::printf("%s\n", selection_line(cfg, *best, opt.out_dir).c_str());
         if (cfg.select_every > 0 && par_world_size() > 1 && par_root())

@@ -47,6 +47,16 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
 /// The one summary line of a selection ("select: best validated checkpoint at step ...").
 std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir);
 
+/// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
+/// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and on some systems a
+/// constant storage does far better (on others far worse). So after a fresh run of such a config that reached t_final
+/// with a kept best checkpoint, on one process, and whose config names neither network.storage_knots nor
+/// network.storage_init, this trains the same config with network.storage_knots = 0 in DIR/alternative (with its own
+/// selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
+/// DIR/alternative. cfg, s and best then describe the kept run. Prints one note; does nothing (false) elsewhere.
+bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
+                       bool quiet);
+
 /// The acceptance check's outcome.
 struct AcceptanceOutcome {
     bool ran = false;   // it ran (the run reached t_final on one process, training.acceptance_runs > 0)

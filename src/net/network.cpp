@@ -401,7 +401,20 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
     return r;
 }
 
+// the rule of network_create below: held before the first knot, with the flat start not itself below the floor
+bool held_at_once(const RiccatiStart& r, const kern::GainSpec& g) {
+    return r.held >= 0 && r.held_knot <= 1 && 1.0 + g.eps > r.floor;
+}
+
 }  // namespace
+
+bool riccati_start_held_at_once(const RunConfig& cfg) {
+    if (!(cfg.variant == "gain" && cfg.storage_knots > 0 && cfg.storage_init == "riccati")) return false;
+    const kern::StepConfig step = network_step_config(cfg);
+    if (!step.gain.enabled || step.gain.knots <= 0) return false;
+    std::vector<double> knots(static_cast<std::size_t>(step.gain.storage_params(cfg.n)), 0.0);
+    return held_at_once(riccati_knots(knots.data(), cfg, step.gain), step.gain);
+}
 
 template <typename T>
 Network<T> network_create(const RunConfig& cfg) {
@@ -440,7 +453,7 @@ Network<T> network_create(const RunConfig& cfg) {
         // cap). Such a start was far worse than the flat one (a stiff spring chain, continuous Lorenz-63 with x
         // measured: docs/method.md section 16.7); start flat -- unless the flat start is itself below the floor (a
         // short run's large rate: its gain beyond the cap; the held knots are then the safer start)
-        if (r.held >= 0 && r.held_knot <= 1 && 1.0 + g.eps > r.floor) {
+        if (held_at_once(r, g)) {
             std::fill(knots, knots + g.storage_params(cfg.n), T(0));
             std::fprintf(stderr,
                          "hinf: note: network.storage_init = \"riccati\": the game's Riccati equation falls to the "

@@ -27,6 +27,11 @@ Network<T> network_create(const RunConfig& cfg);
 template <typename T>
 Network<T> network_shell(const RunConfig& cfg);
 
+/// Whether network_create starts the knots of this config's S(t) flat because the game's Riccati equation falls to
+/// the storage's floor before its first knot (docs/method.md section 16.7, "Initial knots"): a gain run with knots
+/// and network.storage_init = "riccati". One walk of the Riccati recursion; no network is drawn.
+bool riccati_start_held_at_once(const RunConfig& cfg);
+
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);
 

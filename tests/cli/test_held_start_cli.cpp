@@ -1,0 +1,92 @@
+// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
+// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and hinf train trains a
+// constant storage as well and keeps, in its --out directory, the run whose best checkpoint validated lower; the
+// other run is in DIR/alternative. A config that names network.storage_knots gets no second run.
+#include <catch2/catch.hpp>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "helpers.hpp"
+#include "io/checkpoint.hpp"
+
+using hinf::test::run_hinf;
+
+namespace {
+
+// three coupled masses, the outer two positions measured: the Riccati equation is held from the first step (measured
+// when this test was written: t = 0.01 s, before the first knot at t_final / 32)
+const char* kChain = R"toml([system]
+kind = "expr"
+states = ["p1", "v1", "p2", "v2", "p3", "v3"]
+disturbances = 3
+measurements = 2
+f = ["v1", "-2*p1 + p2 - 0.1*v1", "v2", "p1 - 2*p2 + p3 - 0.1*v2", "v3", "p2 - 2*p3 - 0.1*v3 - 0.2*p3^3"]
+g = [["0","0","0"], ["1","0","0"], ["0","0","0"], ["0","1","0"], ["0","0","0"], ["0","0","1"]]
+h = ["p1", "p3"]
+[filter]
+x0 = [1.0, 0.0, 0.0, 0.0, -1.0, 0.0]
+xhat0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+dt = 0.01
+t_final = 1
+[training]
+acceptance_runs = 0
+[online]
+disturbance_std = 0.2
+noise_std = 0.05
+)toml";
+
+// the number after `key` in `text`
+double number_after(const std::string& text, const std::string& key) {
+    const std::size_t at = text.find(key);
+    REQUIRE(at != std::string::npos);
+    return std::strtod(text.c_str() + at + key.size(), nullptr);
+}
+
+// `hinf train` of the chain into d/run, with `extra` options; fails the test case unless it succeeds
+hinf::test::CommandResult train_chain(const hinf::test::TempDir& d, const std::string& extra = "") {
+    std::ofstream(d / "chain.toml") << kChain;
+    auto r = run_hinf("train " + (d / "chain.toml") + " --quiet " + extra + " --out " + (d / "run"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    return r;
+}
+
+bool names_constant_storage(const std::string& checkpoint) {
+    return hinf::ckpt_read<float>(checkpoint).config_text.find("storage_knots = 0") != std::string::npos;
+}
+
+}  // namespace
+
+TEST_CASE("a Riccati start held at once trains both storages and keeps the one that validates lower", "[cli][train]") {
+    hinf::test::TempDir d("held-start");
+    const std::string out = d / "run";
+    const auto r = train_chain(d);
+    INFO(r.output);
+    REQUIRE(r.output.find("hinf trains it too (network.storage_knots = 0") != std::string::npos);
+    const double flat = number_after(r.output, "Q-weighted MSE "), constant = number_after(r.output, "with flat knots, ");
+    REQUIRE(std::filesystem::exists(out + "/checkpoint.h5"));
+    REQUIRE(std::filesystem::exists(out + "/alternative/checkpoint.h5"));
+    REQUIRE(std::filesystem::exists(out + "/best.h5"));
+    REQUIRE(std::filesystem::exists(out + "/alternative/best.h5"));
+    const bool kept_constant = constant < flat;
+    CHECK(r.output.find(kept_constant ? "keeps the constant storage" : "keeps the flat knots") != std::string::npos);
+    // each directory holds one whole run: its checkpoint and best checkpoint agree on the storage
+    CHECK(names_constant_storage(out + "/checkpoint.h5") == kept_constant);
+    CHECK(names_constant_storage(out + "/best.h5") == kept_constant);
+    CHECK(names_constant_storage(out + "/alternative/checkpoint.h5") == !kept_constant);
+    CHECK(names_constant_storage(out + "/alternative/best.h5") == !kept_constant);
+    CHECK(!std::filesystem::exists(out + "/alternative.swap"));
+    // the kept run resumes as a run of its own config (it is at t_final: nothing to add, no error)
+    auto again = run_hinf("resume " + out + "/checkpoint.h5 --quiet");
+    INFO(again.output);
+    CHECK(again.status == 0);
+}
+
+TEST_CASE("a config naming the storage's knots gets no second run", "[cli][train]") {
+    hinf::test::TempDir d("held-start-named");
+    const auto r = train_chain(d, "--set network.storage_knots=32");
+    CHECK(r.output.find("hinf trains it too") == std::string::npos);
+    CHECK(!std::filesystem::exists(d / "run/alternative"));
+}
