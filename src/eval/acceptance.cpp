@@ -474,9 +474,10 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 }
 
 std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt) {
-    if (fresh) {  // a fresh run: an old selection must not outlive it
+    if (fresh) {  // a fresh run: an old selection and an old run's second storage (choose_held_start) must go
         std::filesystem::remove(dir + "/best.h5");
         std::filesystem::remove(dir + "/select.csv");
+        std::filesystem::remove_all(dir + "/alternative");
     }
     if (!(cfg.select_every > 0 && par_size() == 1)) return nullptr;
     std::shared_ptr<Selection> best = fresh ? std::make_shared<Selection>() : select_state(dir);
@@ -514,16 +515,24 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
     std::fprintf(stderr,
                  "hinf: note: the game's Riccati equation fell to the storage's floor before its first knot, so the "
                  "knots started flat. On four such systems a constant storage settled 3-6 times closer to the EKF on "
-                 "one, alike on one and 3-8 times further on two, so hinf trains it too (network.storage_knots = 0, in %s) "
-                 "and keeps the run whose best checkpoint validates lower (docs/method.md section 16.7, \"Held at "
-                 "once: both storages trained\")\n",
+                 "one, alike on one and 3-8 times further on two, so hinf trains it too (network.storage_knots = 0, "
+                 "in %s) and keeps the run whose best checkpoint validates lower (docs/method.md section 16.7, \"Held "
+                 "at once: both storages trained\")\n",
                  alt.c_str());
     TrainOptions opt;
     opt.out_dir = alt;
     opt.quiet = quiet;
     std::shared_ptr<Selection> other_best = selection_begin(other, alt, /*fresh=*/true, opt);
     TrainSummary other_s = train_start(other, opt);
-    if (other_s.status != 0) return false;  // interrupted or diverged: the first run stays (the note above said where)
+    if (other_s.status != 0) {  // the first run stays in DIR
+        if (other_s.status >= 128) {
+            s->status = other_s.status;  // interrupted: the caller stops as after an interrupted first run
+        } else {
+            std::fprintf(stderr, "hinf: note: the run with a constant storage diverged (%s); %s keeps the flat knots\n",
+                         alt.c_str(), dir.c_str());
+        }
+        return false;
+    }
     const bool keep_other = other_best && other_best->step >= 0 && other_best->score < (*best)->score;
     std::fprintf(stderr,
                  "hinf: note: best validated settled Q-weighted MSE %.4g with flat knots, %.4g with a constant storage: "

@@ -40,9 +40,9 @@ bool select_keeps(const std::string& rule, double score, bool lowest, const Pair
 
 /// Starts the selection of a run in `dir` when cfg.select_every > 0 and the run is one process (the whole job, or
 /// its group of one in a sweep; null otherwise):
-/// a fresh run removes an earlier run's best.h5 and select.csv, a resumed one continues from its best.h5. Chains
-/// the validation after opt.on_step (the caller's progress callback, if any). A fresh run also gets
-/// opt.start_diverged: the check of a Riccati start on the same validation runs (DIR/start/).
+/// a fresh run removes an earlier run's best.h5, select.csv and alternative/ (choose_held_start), a resumed one
+/// continues from its best.h5. Chains the validation after opt.on_step (the caller's progress callback, if any). A
+/// fresh run also gets opt.start_diverged: the check of a Riccati start on the same validation runs (DIR/start/).
 std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt);
 /// The one summary line of a selection ("select: best validated checkpoint at step ...").
 std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir);
@@ -53,7 +53,8 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 /// with a kept best checkpoint, on one process, and whose config names neither network.storage_knots nor
 /// network.storage_init, this trains the same config with network.storage_knots = 0 in DIR/alternative (with its own
 /// selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
-/// DIR/alternative. cfg, s and best then describe the kept run. Prints one note; does nothing (false) elsewhere.
+/// DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does nothing (false)
+/// elsewhere. An interrupted second run keeps the first and sets s->status to its status (128 + signal).
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
                        bool quiet);
 
