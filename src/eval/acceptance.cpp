@@ -540,7 +540,8 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
                  (*best)->score, other_best && other_best->step >= 0 ? other_best->score : NAN, dir.c_str(),
                  keep_other ? "constant storage" : "flat knots", alt.c_str());
     if (!keep_other) return false;
-    // swap the two runs' files (checkpoints, trajectory, selection and their backups), entry by entry
+    // swap the two runs' files (checkpoints, trajectory, selection and their backups), entry by entry; DIR's
+    // acceptance/ (an earlier run's, before --force) stays, for the check of the kept run to replace
     namespace fs = std::filesystem;
     const std::string swap = dir + "/alternative.swap";
     fs::remove_all(swap);
@@ -548,7 +549,8 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
     const auto move_all = [](const fs::path& from, const fs::path& to, bool skip_ours) {
         std::vector<fs::path> entries;  // listed first: a directory is not changed while it is iterated
         for (const auto& e : fs::directory_iterator(from))
-            if (!skip_ours || (e.path().filename() != "alternative" && e.path().filename() != "alternative.swap"))
+            if (!skip_ours || (e.path().filename() != "alternative" && e.path().filename() != "alternative.swap" &&
+                               e.path().filename() != "acceptance"))
                 entries.push_back(e.path());
         for (const fs::path& e : entries) fs::rename(e, to / e.filename());
     };
