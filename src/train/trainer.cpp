@@ -273,7 +273,7 @@ public:
         auto t0 = std::chrono::steady_clock::now();
         std::vector<double> medians, medians2;
         sum.mixed = cfg_.type == "h2hinf";
-        std::int64_t rollbacks = 0;
+        std::int64_t rollbacks = 0, cosines = 0;
         StepRecord rec;
         while (ck_.state.step < last_step) {
             if (g_stop_signal != 0 && split_.ranks == 1) {
@@ -299,7 +299,10 @@ public:
             medians.push_back(rec.rel_median);
             sum.fraction_steps_rel_ok += rec.rel_median <= 0.01 ? 1 : 0;
             sum.fraction_steps_violation_ok += rec.violation <= 0.01 ? 1 : 0;
-            sum.mean_cosine += rec.cosine;
+            if (std::isfinite(rec.cosine)) {  // a lost diagnostic filter's row has none (gain_time_step)
+                sum.mean_cosine += rec.cosine;
+                ++cosines;
+            }
             medians2.push_back(rec.rel_median2);
             sum.fraction_steps_violation2_ok += rec.violation2 <= 0.01 ? 1 : 0;
             sum.max_consistency_gap = std::max(sum.max_consistency_gap, rec.gap);
@@ -330,7 +333,7 @@ public:
         const double cnt = double(std::max<std::size_t>(1, medians.size()));
         sum.fraction_steps_rel_ok /= cnt;
         sum.fraction_steps_violation_ok /= cnt;
-        sum.mean_cosine /= cnt;
+        sum.mean_cosine = cosines > 0 ? sum.mean_cosine / double(cosines) : NAN;
         sum.median_rel_residual = percentile(medians, 0.5);
         sum.median_rel_residual2 = percentile(medians2, 0.5);
         sum.fraction_steps_violation2_ok /= cnt;
@@ -482,13 +485,24 @@ private:
         std::vector<double> xhat_next(n);
         gain_filter_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt,
                             sys.discrete_time());
-        if (!all_finite(xhat_next) || !all_finite(K)) {
-            diagnose(step, !all_finite(K) ? "gain" : "diagnostic filter estimate", NAN);
-            return false;
-        }
-        xhat = xhat_next;
         // the state at the next step: the truth of pool run 0 (kept in the checkpoint for the record)
         if (step + 1 < pool_.steps) x.assign(run.x.begin() + (step + 1) * n, run.x.begin() + (step + 2) * n);
+        if (all_finite(xhat_next) && all_finite(K)) {
+            xhat = xhat_next;
+        } else {
+            // The samples do not depend on this filter (above), so a half-trained network that loses it is no
+            // reason to stop training: it starts again at the configured initial error, x^ = x - (x0 - x^0)
+            // (deterministic, so a resumed run gives the same bits; docs/method.md section 16.3)
+            for (int j = 0; j < n; ++j) xhat[j] = x[j] - (cfg_.x0[j] - cfg_.xhat0[j]);
+            if (writer_ && diagnostic_restarts_++ == 0)
+                std::fprintf(stderr,
+                             "\nhinf: note: at time step %lld (t = %.4g s) the diagnostic filter (the network being "
+                             "trained, filtering training run 0: the trajectory file's x^) lost its estimate (%s not "
+                             "finite); it starts again from the configured initial error. Training goes on: its "
+                             "samples do not depend on that filter, and the selection and the acceptance check judge "
+                             "the trained filter (docs/method.md section 16.3)\n",
+                             static_cast<long long>(step), t, all_finite(K) ? "x^" : "gain");
+        }
         rec_loss_finite_ = rec->loss_last;
         return true;
     }
@@ -750,6 +764,7 @@ private:
 public:
     std::function<void(const TrainStepInfo&)> on_step_;  // TrainOptions::on_step
     std::function<std::int64_t(const RunConfig&, const std::string&)> start_diverged_;  // TrainOptions::start_diverged
+    std::int64_t diagnostic_restarts_ = 0;  // restarts of the gain variant's diagnostic filter (a note at the first)
     bool restart_flat_ = false;  // a divergence starts the run again from flat knots (start_typed)
     const RunConfig& config() const { return cfg_; }
     void close_files() { traj_ = TrajectoryWriter(); }
@@ -808,9 +823,12 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     tr.start_fresh();
     if (cfg.rho_auto && par_root())  // after the refusals: a refused run stays one line
         std::fprintf(stderr, "hinf: note: [filter] rho is not set: training at rho = %.4g = %g rho*, where rho* = %.4g is "
-                             "the smallest level any filter can promise for the linearised system (hinf rho %s; "
+                             "the smallest level any filter can promise for the linearised system (hinf rho %s%s; "
                              "docs/method.md section 16.12)\n",
-                     cfg.rho, kAutoRhoFactor, cfg.rho_bound, cfg.doc.source().c_str());
+                     cfg.rho, kAutoRhoFactor, cfg.rho_bound, cfg.doc.source().c_str(),
+                     cfg.output_weight.empty() && cfg.disturbance_scale.empty()
+                         ? ""
+                         : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     if (par_root()) constant_state_note(cfg);
     tr.on_step_ = opt.on_step;
     // a run that diverges from a Riccati start hinf chose starts again from flat knots, once (docs/method.md
