@@ -79,6 +79,16 @@ void add_operate_command(CLI::App& app) {
             if (!ConfigSection(doc, "filter").has("variant")) sets.push_back("filter.variant=\"" + trained.variant + "\"");
         }
         RunConfig cfg = load_config_with_overrides(a->config, sets);
+        // operate runs the network's game on this config (its check, its retraining): both must weigh the channels
+        // alike (compare and filter convert the measurements instead; docs/method.md section 16.13)
+        HINF_CHECK(trained.output_weight == cfg.output_weight && trained.disturbance_scale == cfg.disturbance_scale,
+                   "network '" + a->networks[0] + "' was trained with [online] noise_std / disturbance_std " +
+                       (trained.output_weight.empty() && trained.disturbance_scale.empty()
+                            ? std::string("as plain numbers")
+                            : std::string("as lists or covariances (each channel in units of its own noise)")) +
+                       " and " + a->config + " weighs the channels otherwise: give operate the training's [online] "
+                       "noise_std and disturbance_std, in the same form (its checkpoint's config has them), or run it "
+                       "with hinf compare, which converts the measurements");
         OperateOptions opt;
         opt.mode = a->mode;
         opt.runs = a->runs;

@@ -9,6 +9,7 @@
 #include "filters/glf.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
+#include "models/weighted_system.hpp"
 #include "filters/ekf.hpp"
 #include "filters/open_loop.hpp"
 #include "filters/pf.hpp"
@@ -56,6 +57,43 @@ const SimpleFilter kSimpleFilters[] = {
          return make_open_loop_filter(exact);
      }},
 };
+
+// A gain network filters with its own model (its checkpoint's [system] and channel weights, method.md 16.13); the
+// measurements come weighted as the config weighs them. Where the two differ (a network trained with [online]
+// noise_std as a list, a config with a plain number, or other values), y is taken back to the user's units and
+// weighted as the network was trained: y_net = W_net W_cfg^-1 y.
+class OutputsReweighted : public OnlineFilter {
+public:
+    OutputsReweighted(std::unique_ptr<OnlineFilter> inner, std::vector<double> w_cfg, std::vector<double> w_net, int m)
+        : inner_(std::move(inner)), w_cfg_(std::move(w_cfg)), w_net_(std::move(w_net)), m_(m), y_(m) {}
+    std::string name() const override { return inner_->name(); }
+    void reset(const FilterStart& start) override { inner_->reset(start); }
+    FilterStatus step(const FilterInput& in) override {
+        FilterInput own = in;
+        if (in.y != nullptr) {
+            std::copy(in.y, in.y + m_, y_.begin());
+            if (!w_cfg_.empty()) lower_solve(w_cfg_, m_, y_.data());
+            if (!w_net_.empty()) lower_multiply(w_net_, m_, y_.data());
+            own.y = y_.data();
+        }
+        return inner_->step(own);
+    }
+    const double* estimate() const override { return inner_->estimate(); }
+    const double* filtered() const override { return inner_->filtered(); }
+    const double* covariance() const override { return inner_->covariance(); }
+    bool uses_true_state() const override { return inner_->uses_true_state(); }
+    std::vector<double> run_report() const override { return inner_->run_report(); }
+    std::unique_ptr<OnlineFilter> clone() const override {
+        return std::make_unique<OutputsReweighted>(inner_->clone(), w_cfg_, w_net_, m_);
+    }
+
+private:
+    std::unique_ptr<OnlineFilter> inner_;
+    std::vector<double> w_cfg_, w_net_;
+    int m_;
+    std::vector<double> y_;
+};
+
 
 // "missile (states x, y, z, vx, vy, vz; 1 disturbance, 6 outputs)": what a network is tied to
 std::string system_signature(const System& sys) {
@@ -106,10 +144,16 @@ std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSe
     // it filters with the model the networks were trained on, as one gain network does
     FilterModel trained = exact;
     trained.system = first.system.get();
-    return make_gain_ensemble_filter(trained, nets, "dnn_gain_ensemble");
+    return outputs_as_trained(make_gain_ensemble_filter(trained, nets, "dnn_gain_ensemble"), cfg, first);
 }
 
 }  // namespace
+
+std::unique_ptr<OnlineFilter> outputs_as_trained(std::unique_ptr<OnlineFilter> filter, const RunConfig& cfg,
+                                                 const RunConfig& trained) {
+    if (cfg.output_weight == trained.output_weight) return filter;
+    return std::make_unique<OutputsReweighted>(std::move(filter), cfg.output_weight, trained.output_weight, cfg.m);
+}
 
 std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
                                                                RunConfig* first) {
@@ -216,7 +260,7 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                     set.models.push_back(ncfg.system);
                     FilterModel trained = exact;
                     trained.system = ncfg.system.get();
-                    owned.push_back(make_gain_filter(trained, *net, label));
+                    owned.push_back(outputs_as_trained(make_gain_filter(trained, *net, label), cfg, ncfg));
                     set.networks.push_back(std::move(net));
                     continue;
                 }

@@ -43,6 +43,12 @@ bool filters_need_level(const std::string& filters);
 std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
                                                                RunConfig* first);
 
+/// A gain network's filter takes y weighted as the config weighs its outputs ([online] noise_std as a list or
+/// noise_cov: each output in units of its own noise; plain numbers: the user's units) and filters with its own model,
+/// weighted as it was trained (method.md 16.13): where the two differ, the returned filter converts y on the way in.
+std::unique_ptr<OnlineFilter> outputs_as_trained(std::unique_ptr<OnlineFilter> filter, const RunConfig& cfg,
+                                                 const RunConfig& trained);
+
 /// `told`: the statistics EKF/UKF/PF are given; `exact`: the model of open loop, GLF and the DNN filters but the
 /// `gain` variant's, which filters with the system in its checkpoint (the model it was trained on, docs/compare.md).
 /// Throws hinf::Error naming the option for an unknown filter or mode, a missing --network, or a network
