@@ -411,6 +411,7 @@ TrainReport train(const Config& cfg, const TrainSettings& settings) {
     std::shared_ptr<Selection> best = selection_begin(c, settings.out_dir, /*fresh=*/true, opt);
     TrainSummary s = train_start(c, opt);
     choose_held_start(&c, &s, &best, settings.out_dir, settings.quiet);  // a Riccati start held at once: both storages
+    choose_game_in_noise_units(&c, &s, &best, settings.out_dir, settings.quiet);  // none validated: the other game
     TrainReport r = report_of(s, settings.out_dir);
     finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
     return r;

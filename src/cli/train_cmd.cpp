@@ -86,6 +86,8 @@ void add_train_commands(CLI::App& app) {
         if (s.status != 0) throw CLI::RuntimeError(s.status);
         choose_held_start(&cfg, &s, &best, opt.out_dir, args->quiet);
         if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second storage's run
+        choose_game_in_noise_units(&cfg, &s, &best, opt.out_dir, args->quiet);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second game's run
         print_summary(s, opt.out_dir);
         if (best) std::printf("%s\n", selection_line(cfg, *best, opt.out_dir).c_str());
         if (cfg.select_every > 0 && par_world_size() > 1 && par_root())

@@ -335,6 +335,23 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
         lower_solve(c.disturbance_scale, nv, v + r * nv);
 }
 
+ConfigDoc game_in_noise_units(const RunConfig& c) {
+    HINF_CHECK(c.output_weight.empty() && c.disturbance_scale.empty() && c.noise_std > 0 && c.m >= 1,
+               "game_in_noise_units: the config's [online] noise_std and disturbance_std must be plain numbers, "
+               "noise_std > 0");
+    ConfigDoc doc = c.doc;
+    char value[64];
+    std::string list = "online.noise_std=[";
+    for (int j = 0; j < c.m; ++j) {
+        std::snprintf(value, sizeof value, "%s%.17g", j ? ", " : "", c.noise_std);
+        list += value;
+    }
+    doc.set(list + "]");
+    if (c.rho_auto)
+        if (toml::table* f = doc.root()["filter"].as_table()) f->erase("rho");
+    return doc;
+}
+
 bool same_trained_model(const RunConfig& a, const RunConfig& b) {
     return a.doc.section_text("system") == b.doc.section_text("system") && a.output_weight == b.output_weight &&
            a.disturbance_scale == b.disturbance_scale;

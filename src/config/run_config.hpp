@@ -140,6 +140,12 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
 /// noise weights. What an ensemble's members must share (compare --ensemble, export --ensemble; method.md 16.15).
 bool same_trained_model(const RunConfig& a, const RunConfig& b);
 
+/// The config of c with the game in units of each channel's noise (method.md 16.13): c's plain [online] noise_std given
+/// as a list of one entry per output (its plain disturbance_std then weighs the inputs alike), and, where c's level was
+/// the default 1.25 rho* (rho_auto), no [filter] rho, so that loading it finds rho* of that game. For a config whose
+/// noise_std and disturbance_std are plain numbers and noise_std > 0 (method.md 16.7, "No validated checkpoint").
+ConfigDoc game_in_noise_units(const RunConfig& c);
+
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
 /// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for
 /// a large system: docs/method.md section 16.12), for commands that design nothing at a level (compare and filter

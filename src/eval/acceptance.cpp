@@ -501,6 +501,31 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
     return best;
 }
 
+namespace {
+
+// The runs in dir and alt change places: checkpoints, trajectory, selection and their backups, entry by entry; DIR's
+// acceptance/ (an earlier run's, before --force) stays, for the check of the kept run to replace.
+void swap_runs(const std::string& dir, const std::string& alt) {
+    namespace fs = std::filesystem;
+    const std::string swap = dir + "/alternative.swap";
+    fs::remove_all(swap);
+    fs::create_directories(swap);
+    const auto move_all = [](const fs::path& from, const fs::path& to, bool skip_ours) {
+        std::vector<fs::path> entries;  // listed first: a directory is not changed while it is iterated
+        for (const auto& e : fs::directory_iterator(from))
+            if (!skip_ours || (e.path().filename() != "alternative" && e.path().filename() != "alternative.swap" &&
+                               e.path().filename() != "acceptance"))
+                entries.push_back(e.path());
+        for (const fs::path& e : entries) fs::rename(e, to / e.filename());
+    };
+    move_all(dir, swap, true);
+    move_all(alt, dir, false);
+    move_all(swap, alt, false);
+    fs::remove(swap);
+}
+
+}  // namespace
+
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
                        bool quiet) {
     const ConfigSection net(cfg->doc, "network");
@@ -540,24 +565,49 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
                  (*best)->score, other_best && other_best->step >= 0 ? other_best->score : NAN, dir.c_str(),
                  keep_other ? "constant storage" : "flat knots", alt.c_str());
     if (!keep_other) return false;
-    // swap the two runs' files (checkpoints, trajectory, selection and their backups), entry by entry; DIR's
-    // acceptance/ (an earlier run's, before --force) stays, for the check of the kept run to replace
-    namespace fs = std::filesystem;
-    const std::string swap = dir + "/alternative.swap";
-    fs::remove_all(swap);
-    fs::create_directories(swap);
-    const auto move_all = [](const fs::path& from, const fs::path& to, bool skip_ours) {
-        std::vector<fs::path> entries;  // listed first: a directory is not changed while it is iterated
-        for (const auto& e : fs::directory_iterator(from))
-            if (!skip_ours || (e.path().filename() != "alternative" && e.path().filename() != "alternative.swap" &&
-                               e.path().filename() != "acceptance"))
-                entries.push_back(e.path());
-        for (const fs::path& e : entries) fs::rename(e, to / e.filename());
-    };
-    move_all(dir, swap, true);
-    move_all(alt, dir, false);
-    move_all(swap, alt, false);
-    fs::remove(swap);
+    swap_runs(dir, alt);
+    *cfg = std::move(other);
+    *s = other_s;
+    *best = std::move(other_best);
+    return true;
+}
+
+bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
+                                const std::string& dir, bool quiet) {
+    if (!(s->status == 0 && s->first_step == 0 && s->last_step == cfg->steps_until() && *best && (*best)->step < 0 &&
+          par_size() == 1 && cfg->variant == "gain" && cfg->rho_auto &&
+          cfg->output_weight.empty() && cfg->disturbance_scale.empty() && cfg->noise_std > 0))
+        return false;
+    const std::string alt = dir + "/alternative";
+    std::filesystem::remove_all(alt);  // an earlier run's (train --force)
+    RunConfig other = load_run_config(game_in_noise_units(*cfg));
+    if (!(other.rho > 0)) return false;  // no level rho* for that game: nothing to train at its default
+    std::fprintf(stderr,
+                 "hinf: note: no checkpoint of this run validated without divergence. Its game weighs the disturbance "
+                 "and the noise in the config's units (plain [online] disturbance_std and noise_std); hinf trains the "
+                 "game in units of each channel's own noise too (online.noise_std as a list, rho = %.4g = 1.25 rho*, "
+                 "in %s) and keeps it if it validates (docs/method.md section 16.7, \"No validated checkpoint\")\n",
+                 other.rho, alt.c_str());
+    TrainOptions opt;
+    opt.out_dir = alt;
+    opt.quiet = quiet;
+    std::shared_ptr<Selection> other_best = selection_begin(other, alt, /*fresh=*/true, opt);
+    TrainSummary other_s = train_start(other, opt);
+    if (other_s.status >= 128) s->status = other_s.status;  // interrupted: the caller stops as after the first run
+    const bool keep_other = other_s.status == 0 && other_best && other_best->step >= 0;
+    if (keep_other)
+        std::fprintf(stderr,
+                     "hinf: note: the game in units of each channel's noise validated (settled Q-weighted MSE %.4g): %s "
+                     "keeps it, %s the first run. Its config gives [online] noise_std as a list; compare, filter and the "
+                     "library convert the measurements for it, operate needs that list in its config\n",
+                     other_best->score, dir.c_str(), alt.c_str());
+    else if (other_s.status < 128)
+        std::fprintf(stderr,
+                     "hinf: note: the game in units of each channel's noise did not validate either (%s): %s keeps the "
+                     "first run\n",
+                     alt.c_str(), dir.c_str());
+    if (!keep_other) return false;
+    swap_runs(dir, alt);
     *cfg = std::move(other);
     *s = other_s;
     *best = std::move(other_best);

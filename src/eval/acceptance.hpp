@@ -58,6 +58,15 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
                        bool quiet);
 
+/// No validated checkpoint (docs/method.md section 16.7): where a fresh run of a `gain` config at the default level
+/// (1.25 rho*) whose [online] noise_std and disturbance_std are plain numbers reached t_final on one process and its
+/// selection kept no checkpoint (every validation diverged), this trains the game in units of each channel's noise
+/// (game_in_noise_units, at that game's 1.25 rho*) in DIR/alternative and, if a checkpoint of it validates, keeps it
+/// in DIR and the first run in DIR/alternative; cfg, s and best then describe the kept run (true). Prints its notes;
+/// does nothing (false) elsewhere. An interrupted second run keeps the first and sets s->status (128 + signal).
+bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
+                                const std::string& dir, bool quiet);
+
 /// The acceptance check's outcome.
 struct AcceptanceOutcome {
     bool ran = false;   // it ran (the run reached t_final on one process, training.acceptance_runs > 0)
