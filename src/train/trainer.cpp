@@ -485,14 +485,21 @@ private:
         std::vector<double> xhat_next(n);
         gain_filter_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt,
                             sys.discrete_time());
+        const bool lost = !all_finite(xhat_next) || !all_finite(K);
+        // from Riccati knots (still: check_start may have switched cfg_ to flat) a lost diagnostic filter says the
+        // start is wrong for the runs, and stops the run as a divergence (method.md 16.7, "A start that diverges")
+        if (lost && riccati_knots_ && cfg_.storage_init == "riccati") {
+            diagnose(step, !all_finite(K) ? "gain" : "diagnostic filter estimate", NAN);
+            return false;
+        }
         // the state at the next step: the truth of pool run 0 (kept in the checkpoint for the record)
         if (step + 1 < pool_.steps) x.assign(run.x.begin() + (step + 1) * n, run.x.begin() + (step + 2) * n);
-        if (all_finite(xhat_next) && all_finite(K)) {
+        if (!lost) {
             xhat = xhat_next;
         } else {
-            // The samples do not depend on this filter (above), so a half-trained network that loses it is no
-            // reason to stop training: it starts again at the configured initial error, x^ = x - (x0 - x^0)
-            // (deterministic, so a resumed run gives the same bits; docs/method.md section 16.3)
+            // The samples do not depend on this filter (above), so from a flat or constant storage a half-trained
+            // network that loses it is no reason to stop training: it starts again at the configured initial error,
+            // x^ = x - (x0 - x^0) (deterministic, so a resumed run gives the same bits; docs/method.md section 16.3)
             for (int j = 0; j < n; ++j) xhat[j] = x[j] - (cfg_.x0[j] - cfg_.xhat0[j]);
             if (writer_ && diagnostic_restarts_++ == 0)
                 std::fprintf(stderr,
@@ -752,6 +759,9 @@ private:
     kern::StepWorkspace<T> ws_;
     TimeStepSamples smp_;  // this time step's samples and their constants
     bool gain_ = cfg_.variant == "gain";
+    // whether the knots start on the game's Riccati solution (not held before the first knot, where they start flat)
+    bool riccati_knots_ = gain_ && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati" &&
+                          !riccati_start_held_at_once(cfg_);
     GainPool pool_;        // variant gain: the truth runs the estimates are sampled along (from the config)
     GainSamples gsm_;      // variant gain: this time step's samples
     std::vector<double> K_all_;
