@@ -176,7 +176,16 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       cfg.rho, bound, kAutoRhoFactor * bound, kAutoRhoFactor);
         a += buf;
     }
-    if (search.ran && search.diverged) {
+    if (search.nominal_diverged > 0) {  // before any level or budget: it fails on the noise it was trained for
+        std::snprintf(buf, sizeof buf,
+                      " the filter diverged in %lld of the check's %lld runs on the [online] noise itself: do not use "
+                      "it as trained; the EKF or UKF is the filter for this system until a training validates (a "
+                      "state far from its estimate where the model is steep or undefined can cause this, and a "
+                      "smaller initial error or a model defined there can cure it: docs/method.md section 16.7, \"No "
+                      "validated checkpoint\");",
+                      static_cast<long long>(search.nominal_diverged), static_cast<long long>(search.nominal_runs));
+        a += buf;
+    } else if (search.ran && search.diverged) {
         std::snprintf(buf, sizeof buf,
                       " the filter diverged under the worst signals the search found (of the nominal noise's energy): "
                       "it is not robust at that budget, whatever its mean error (its gain is learned where training's "
@@ -308,6 +317,8 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
         found.ran = search && w.skipped.empty();
         found.ratio = w.ratio;
         found.diverged = w.diverged;
+        found.nominal_diverged = s.diverged_runs;
+        found.nominal_runs = s.runs;
         o.advice = acceptance_advice(cfg, path, found);
     }
     return o;

@@ -95,6 +95,7 @@ struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)
     double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found
     bool diverged = false;   // the filter diverged under the worst signals found
+    std::int64_t nominal_diverged = 0, nominal_runs = 0;  // the check's own runs ([online] noise) that diverged, of all
 };
 /// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's
 /// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.

@@ -85,6 +85,24 @@ TEST_CASE("acceptance advice says a divergence under the worst signals without o
     CHECK_FALSE(has(a, "gain_head"));  // continuous time: no head to offer
 }
 
+TEST_CASE("acceptance advice after a divergence on the nominal noise says not to use the filter", "[acceptance]") {
+    const RunConfig c = scalar("2");
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 1e70;
+    s.diverged = true;
+    s.nominal_diverged = 5;
+    s.nominal_runs = 5;
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "the filter diverged in 5 of the check's 5 runs on the [online] noise itself: do not use it"));
+    CHECK(has(a, "No validated checkpoint"));
+    CHECK_FALSE(has(a, "the filter diverged under the worst signals"));  // the nominal runs say more
+    CHECK_FALSE(has(a, "higher level"));
+    s.nominal_diverged = 0;
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "do not use it"));
+}
+
 TEST_CASE("acceptance advice offers the Kalman-form head after a divergence on a discrete-time system",
           "[acceptance][kalman]") {
     auto discrete = [](const std::string& head) {
