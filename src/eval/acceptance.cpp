@@ -591,7 +591,13 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
         return false;
     const std::string alt = dir + "/alternative";
     std::filesystem::remove_all(alt);  // an earlier run's (train --force)
-    RunConfig other = load_run_config(game_in_noise_units(*cfg));
+    RunConfig other;
+    try {
+        other = load_run_config(game_in_noise_units(*cfg));
+    } catch (const Error& e) {  // the first run is complete: it stays, with its check
+        std::fprintf(stderr, "hinf: note: the game in units of each channel's noise was not trained: %s\n", e.what());
+        return false;
+    }
     if (!(other.rho > 0)) return false;  // no level rho* for that game: nothing to train at its default
     std::fprintf(stderr,
                  "hinf: note: no checkpoint of this run validated without divergence. Its game weighs the disturbance "
@@ -602,8 +608,16 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
     TrainOptions opt;
     opt.out_dir = alt;
     opt.quiet = quiet;
-    std::shared_ptr<Selection> other_best = selection_begin(other, alt, /*fresh=*/true, opt);
-    TrainSummary other_s = train_start(other, opt);
+    std::shared_ptr<Selection> other_best;
+    TrainSummary other_s;
+    try {
+        other_best = selection_begin(other, alt, /*fresh=*/true, opt);
+        other_s = train_start(other, opt);
+    } catch (const Error& e) {
+        std::fprintf(stderr, "hinf: note: the game in units of each channel's noise was not trained: %s; %s keeps the "
+                             "first run\n", e.what(), dir.c_str());
+        return false;
+    }
     if (other_s.status >= 128) s->status = other_s.status;  // interrupted: the caller stops as after the first run
     const bool keep_other = other_s.status == 0 && other_best && other_best->step >= 0;
     if (keep_other)
