@@ -591,6 +591,34 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     c.error_floor = s.get_doubles("error_floor", error_floor_default(c), n);
     for (double v : c.error_floor)
         if (v < 0) s.reject("error_floor", "entries must be >= 0");
+    if (s.has("state_bounds")) {  // [[lo, hi], ...], one pair per state; -inf / inf leave a side open
+        if (c.variant != "gain")
+            s.reject("state_bounds", "holds the samples of [filter] variant = \"gain\" only (remove the key)");
+        const std::vector<std::vector<std::string>> rows = s.get_string_rows("state_bounds");
+        if (int(rows.size()) != n)
+            s.reject("state_bounds", "needs one [lo, hi] pair per state (" + std::to_string(n) + "), e.g. [[0.0, 1.0], "
+                                     "[-inf, inf]] (-inf / inf: no bound on that side)");
+        const std::vector<std::string> names = c.system->state_names();
+        for (int j = 0; j < n; ++j) {
+            double b[2] = {0, 0};
+            for (int k = 0; k < 2; ++k) {
+                char* end = nullptr;
+                const std::string& text = k < int(rows[j].size()) ? rows[j][k] : std::string();
+                b[k] = std::strtod(text.c_str(), &end);
+                if (rows[j].size() != 2 || text.empty() || *end != '\0' || std::isnan(b[k]))
+                    s.reject("state_bounds", "row " + std::to_string(j + 1) + " (" + names[j] +
+                                                 ") must be two numbers [lo, hi] (-inf / inf: no bound on that side)");
+            }
+            if (!(b[0] < b[1]))
+                s.reject("state_bounds", "row " + std::to_string(j + 1) + " (" + names[j] + "): lo must be below hi");
+            if (c.x0[j] < b[0] || c.x0[j] > b[1] || c.xhat0[j] < b[0] || c.xhat0[j] > b[1])
+                s.reject("state_bounds", "row " + std::to_string(j + 1) + " (" + names[j] + ") must hold [filter] x0 = " +
+                                             num(c.x0[j]) + " and xhat0 = " + num(c.xhat0[j]) +
+                                             " (the region where the model is meant to hold)");
+            c.state_lo.push_back(b[0]);
+            c.state_hi.push_back(b[1]);
+        }
+    }
     s.finish();
 
     ConfigSection o(doc, "objective");

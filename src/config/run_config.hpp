@@ -80,6 +80,9 @@ struct TrainingConfig {
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
     std::vector<double> error_floor;  // n
+    // [sampling] state_bounds: the region where the model is meant to hold, [lo, hi] per state (-inf/inf: open);
+    // variant gain holds its training samples' x and x^ inside it (method.md 16.3). Empty: none
+    std::vector<double> state_lo, state_hi;
     std::int64_t errors_per_estimate = 1;  // variant gain: errors x~ drawn around each estimate x^ (section 16.3)
     std::int64_t trajectories = 16;   // variant gain: simulated truth runs the estimates are sampled along
 

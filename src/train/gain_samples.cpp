@@ -86,6 +86,24 @@ void draw_errors(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, 
     }
 }
 
+// [sampling] state_bounds (method.md 16.3): x, and with estimates = true x^, held inside the region where the model is
+// meant to hold, x~ = x - x^ where either moved; nothing without bounds (the same bits as before the key)
+void hold_in_bounds(GainSamples* s, const RunConfig& cfg, std::int64_t N, bool estimates) {
+    if (cfg.state_lo.empty()) return;
+    const int n = cfg.n;
+    for (std::int64_t i = 0; i < N; ++i)
+        for (int j = 0; j < n; ++j) {
+            double& x = s->x[i * n + j];
+            double& xh = s->xhat[i * n + j];
+            const double hx = std::min(cfg.state_hi[j], std::max(cfg.state_lo[j], x));
+            const double hxh = estimates ? std::min(cfg.state_hi[j], std::max(cfg.state_lo[j], xh)) : xh;
+            if (hx == x && hxh == xh) continue;  // inside: the drawn error stays, bit for bit
+            x = hx;
+            xh = hxh;
+            s->xt[i * n + j] = x - xh;
+        }
+}
+
 }  // namespace
 
 void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g,
@@ -114,6 +132,7 @@ void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& po
         }
         s->t[i] = cfg.time_of(k);
     }
+    hold_in_bounds(s, cfg, N, true);
     constants(s, cfg, g, N, false);
 }
 
@@ -133,7 +152,11 @@ void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& poo
         const std::int64_t r = std::min(R - 1, std::int64_t(u[i * 3] * double(R)));
         const std::int64_t k = std::min(pool.steps - 1, std::int64_t(u[i * 3 + 1] * double(pool.steps)));
         const double* x = pool.runs[r].x.data() + k * n;
-        for (int j = 0; j < n; ++j) z[i * n + j] = (x[j] - s.xt[i * n + j] - g->shift[j]) / g->spread[j];
+        for (int j = 0; j < n; ++j) {
+            double xh = x[j] - s.xt[i * n + j];  // held in state_bounds as training holds it
+            if (!cfg.state_lo.empty()) xh = std::min(cfg.state_hi[j], std::max(cfg.state_lo[j], xh));
+            z[i * n + j] = (xh - g->shift[j]) / g->spread[j];
+        }
     }
     std::vector<double> col(static_cast<std::size_t>(N)), lo(n), hi(n);
     const double last = double(N - 1);
@@ -163,6 +186,7 @@ void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec&
         }
         s->t[i] = t;
     }
+    hold_in_bounds(s, cfg, N, false);  // the estimate is the filter's own: only the errors' states are held
     constants(s, cfg, g, N, true);
 }
 
