@@ -535,6 +535,39 @@ void swap_runs(const std::string& dir, const std::string& alt) {
     fs::remove(swap);
 }
 
+// The second run of a choice between two trainings of one job: `other` trained afresh in alt (an earlier run's
+// removed first) with a selection of its own. error: why it could not be loaded or started (the first run stays).
+struct AlternativeRun {
+    TrainSummary s;
+    std::shared_ptr<Selection> best;
+    std::string error;
+};
+
+AlternativeRun train_alternative(const RunConfig& other, const std::string& alt, bool quiet) {
+    AlternativeRun a;
+    std::filesystem::remove_all(alt);  // an earlier run's (train --force)
+    TrainOptions opt;
+    opt.out_dir = alt;
+    opt.quiet = quiet;
+    try {
+        a.best = selection_begin(other, alt, /*fresh=*/true, opt);
+        a.s = train_start(other, opt);
+    } catch (const Error& e) {
+        a.error = e.what();
+    }
+    return a;
+}
+
+// The alternative kept: the two directories' runs swapped, and cfg, s, best describe the kept one
+bool keep_alternative(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
+                      const std::string& alt, RunConfig other, AlternativeRun a) {
+    swap_runs(dir, alt);
+    *cfg = std::move(other);
+    *s = a.s;
+    *best = std::move(a.best);
+    return true;
+}
+
 }  // namespace
 
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
@@ -544,10 +577,9 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
           par_size() == 1 && !net.has("storage_knots") && !net.has("storage_init") && riccati_start_held_at_once(*cfg)))
         return false;
     const std::string alt = dir + "/alternative";
-    std::filesystem::remove_all(alt);  // an earlier run's (train --force)
     ConfigDoc doc = cfg->doc;
     doc.set("network.storage_knots=0");
-    RunConfig other = load_run_config(doc);
+    RunConfig other = load_run_config(doc);  // the config the first run trained, one key changed: it loads
     std::fprintf(stderr,
                  "hinf: note: the game's Riccati equation fell to the storage's floor before its first knot, so the "
                  "knots started flat. On four such systems a constant storage settled 3-6 times closer to the EKF on "
@@ -555,32 +587,24 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
                  "in %s) and keeps the run whose best checkpoint validates lower (docs/method.md section 16.7, \"Held "
                  "at once: both storages trained\")\n",
                  alt.c_str());
-    TrainOptions opt;
-    opt.out_dir = alt;
-    opt.quiet = quiet;
-    std::shared_ptr<Selection> other_best = selection_begin(other, alt, /*fresh=*/true, opt);
-    TrainSummary other_s = train_start(other, opt);
-    if (other_s.status != 0) {  // the first run stays in DIR
-        if (other_s.status >= 128) {
-            s->status = other_s.status;  // interrupted: the caller stops as after an interrupted first run
+    AlternativeRun a = train_alternative(other, alt, quiet);
+    if (!a.error.empty() || a.s.status != 0) {  // the first run stays in DIR
+        if (a.s.status >= 128) {
+            s->status = a.s.status;  // interrupted: the caller stops as after an interrupted first run
         } else {
-            std::fprintf(stderr, "hinf: note: the run with a constant storage diverged (%s); %s keeps the flat knots\n",
-                         alt.c_str(), dir.c_str());
+            std::fprintf(stderr, "hinf: note: the run with a constant storage %s (%s); %s keeps the flat knots\n",
+                         a.error.empty() ? "diverged" : ("was not trained: " + a.error).c_str(), alt.c_str(),
+                         dir.c_str());
         }
         return false;
     }
-    const bool keep_other = other_best && other_best->step >= 0 && other_best->score < (*best)->score;
+    const bool keep_other = a.best && a.best->step >= 0 && a.best->score < (*best)->score;
     std::fprintf(stderr,
                  "hinf: note: best validated settled Q-weighted MSE %.4g with flat knots, %.4g with a constant storage: "
                  "%s keeps the %s, %s the other run\n",
-                 (*best)->score, other_best && other_best->step >= 0 ? other_best->score : NAN, dir.c_str(),
+                 (*best)->score, a.best && a.best->step >= 0 ? a.best->score : NAN, dir.c_str(),
                  keep_other ? "constant storage" : "flat knots", alt.c_str());
-    if (!keep_other) return false;
-    swap_runs(dir, alt);
-    *cfg = std::move(other);
-    *s = other_s;
-    *best = std::move(other_best);
-    return true;
+    return keep_other && keep_alternative(cfg, s, best, dir, alt, std::move(other), std::move(a));
 }
 
 bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
@@ -590,7 +614,6 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
           cfg->output_weight.empty() && cfg->disturbance_scale.empty() && cfg->noise_std > 0))
         return false;
     const std::string alt = dir + "/alternative";
-    std::filesystem::remove_all(alt);  // an earlier run's (train --force)
     RunConfig other;
     try {
         other = load_run_config(game_in_noise_units(*cfg));
@@ -605,38 +628,26 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
                  "game in units of each channel's own noise too (online.noise_std as a list, rho = %.4g = 1.25 rho*, "
                  "in %s) and keeps it if it validates (docs/method.md section 16.7, \"No validated checkpoint\")\n",
                  other.rho, alt.c_str());
-    TrainOptions opt;
-    opt.out_dir = alt;
-    opt.quiet = quiet;
-    std::shared_ptr<Selection> other_best;
-    TrainSummary other_s;
-    try {
-        other_best = selection_begin(other, alt, /*fresh=*/true, opt);
-        other_s = train_start(other, opt);
-    } catch (const Error& e) {
+    AlternativeRun a = train_alternative(other, alt, quiet);
+    if (!a.error.empty()) {
         std::fprintf(stderr, "hinf: note: the game in units of each channel's noise was not trained: %s; %s keeps the "
-                             "first run\n", e.what(), dir.c_str());
+                             "first run\n", a.error.c_str(), dir.c_str());
         return false;
     }
-    if (other_s.status >= 128) s->status = other_s.status;  // interrupted: the caller stops as after the first run
-    const bool keep_other = other_s.status == 0 && other_best && other_best->step >= 0;
+    if (a.s.status >= 128) s->status = a.s.status;  // interrupted: the caller stops as after the first run
+    const bool keep_other = a.s.status == 0 && a.best && a.best->step >= 0;
     if (keep_other)
         std::fprintf(stderr,
                      "hinf: note: the game in units of each channel's noise validated (settled Q-weighted MSE %.4g): %s "
                      "keeps it, %s the first run. Its config gives [online] noise_std as a list; compare, filter and the "
                      "library convert the measurements for it, operate needs that list in its config\n",
-                     other_best->score, dir.c_str(), alt.c_str());
-    else if (other_s.status < 128)
+                     a.best->score, dir.c_str(), alt.c_str());
+    else if (a.s.status < 128)
         std::fprintf(stderr,
                      "hinf: note: the game in units of each channel's noise did not validate either (%s): %s keeps the "
                      "first run\n",
                      alt.c_str(), dir.c_str());
-    if (!keep_other) return false;
-    swap_runs(dir, alt);
-    *cfg = std::move(other);
-    *s = other_s;
-    *best = std::move(other_best);
-    return true;
+    return keep_other && keep_alternative(cfg, s, best, dir, alt, std::move(other), std::move(a));
 }
 
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,

@@ -94,7 +94,6 @@ private:
     std::vector<double> y_;
 };
 
-
 // "missile (states x, y, z, vx, vy, vz; 1 disturbance, 6 outputs)": what a network is tied to
 std::string system_signature(const System& sys) {
     std::string names;

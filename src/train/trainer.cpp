@@ -486,9 +486,10 @@ private:
         gain_filter_advance(xhat_next.data(), xhat.data(), ah.data(), K.data(), e.data(), n, m, cfg_.dt,
                             sys.discrete_time());
         const bool lost = !all_finite(xhat_next) || !all_finite(K);
-        // from Riccati knots (still: check_start may have switched cfg_ to flat) a lost diagnostic filter says the
-        // start is wrong for the runs, and stops the run as a divergence (method.md 16.7, "A start that diverges")
-        if (lost && riccati_knots_ && cfg_.storage_init == "riccati") {
+        // from Riccati knots (still: check_start may have switched cfg_ to flat; held at once, they started flat) a
+        // lost diagnostic filter says the start is wrong for the runs, and stops the run as a divergence (method.md
+        // 16.7, "A start that diverges"); the Riccati walk runs only then
+        if (lost && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati" && !riccati_start_held_at_once(cfg_)) {
             diagnose(step, !all_finite(K) ? "gain" : "diagnostic filter estimate", NAN);
             return false;
         }
@@ -759,9 +760,6 @@ private:
     kern::StepWorkspace<T> ws_;
     TimeStepSamples smp_;  // this time step's samples and their constants
     bool gain_ = cfg_.variant == "gain";
-    // whether the knots start on the game's Riccati solution (not held before the first knot, where they start flat)
-    bool riccati_knots_ = gain_ && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati" &&
-                          !riccati_start_held_at_once(cfg_);
     GainPool pool_;        // variant gain: the truth runs the estimates are sampled along (from the config)
     GainSamples gsm_;      // variant gain: this time step's samples
     std::vector<double> K_all_;
