@@ -5,6 +5,8 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "config/game_level.hpp"
+#include "train/gain_samples.hpp"
+#include "train/storage_check.hpp"
 
 namespace hinf::cli {
 
@@ -48,6 +50,16 @@ void add_rho_command(CLI::App& app) {
             std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)\n",
                         cfg.rho, kAutoRhoFactor);
         else std::printf("the config's rho = %g\n", cfg.rho);
+        if (cfg.variant == "gain" && cfg.system->discrete_time()) {  // docs/method.md section 16.8
+            const StorageCheck sc = constant_storage_check(cfg, gain_pool_build(cfg));
+            if (sc.infeasible()) std::fputs(constant_storage_note(cfg, sc).c_str(), stdout);
+            else if (sc.ran && sc.solved)
+                std::printf("a constant storage keeps the one-step inequality for the errors the outputs do not see within a "
+                            "step (%lld estimates along training's runs; best S: %.3g against the Q term's %.3g)\n",
+                            static_cast<long long>(sc.estimates), sc.mu, sc.q_scale);
+            else if (sc.ran)
+                std::printf("the constant-storage check did not converge (SDPA: %s): no verdict\n", sc.solver_phase.c_str());
+        }
         if (rho->count() > 0) {
             const double at = game_level_lost_at(cfg, a->rho);
             if (at < 0) std::printf("rho = %g: a filter of this level exists for the linearised game\n", a->rho);

@@ -28,6 +28,7 @@
 #include "gain.hpp"
 #include "train/gain_samples.hpp"
 #include "train/samples.hpp"
+#include "train/storage_check.hpp"
 
 namespace hinf {
 
@@ -242,6 +243,8 @@ public:
         }
         if (written_text != ck_.config_text) checkpoint();  // the change is recorded before the first step runs
     }
+
+    const GainPool& pool() const { return pool_; }  // the gain variant's truth runs (empty for the others)
 
     TrainSummary run(std::int64_t last_step, bool quiet) {
         TrainSummary sum;
@@ -838,6 +841,10 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          ? ""
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     if (par_root()) constant_state_note(cfg);
+    if (par_root()) {  // a discrete gain filter whose constant storage cannot exist (docs/method.md section 16.8)
+        const std::string note = constant_storage_note(cfg, constant_storage_check(cfg, tr.pool()));
+        if (!note.empty()) std::fputs(note.c_str(), stderr);
+    }
     tr.on_step_ = opt.on_step;
     // a run that diverges from a Riccati start hinf chose starts again from flat knots, once (docs/method.md
     // section 16.7, "A start that diverges"); the caller's on_restart forgets what the diverged run validated
