@@ -185,7 +185,15 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       "validated checkpoint\");",
                       static_cast<long long>(search.nominal_diverged), static_cast<long long>(search.nominal_runs));
         a += buf;
-    } else if (search.ran && search.diverged) {
+    } else if (search.behind_ekf > kFarBehindEkf) {  // the mean error first: a user picks a filter by it
+        std::snprintf(buf, sizeof buf,
+                      " on the check's runs it settles at %.3g times the EKF's error: until a training does better, "
+                      "the EKF or UKF is the filter for this system;",
+                      search.behind_ekf);
+        a += buf;
+    }
+    const bool lost = search.nominal_diverged > 0;  // said above; the search's findings add nothing to it
+    if (!lost && search.ran && search.diverged) {
         std::snprintf(buf, sizeof buf,
                       " the filter diverged under the worst signals the search found (of the nominal noise's energy): "
                       "it is not robust at that budget, whatever its mean error (its gain is learned where training's "
@@ -194,7 +202,7 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
         if (cfg.variant == "gain" && cfg.system != nullptr && cfg.system->discrete_time() && cfg.gain_head != "kalman")
             a += " a gain that divides by the sensor's slope cannot over-correct a steep sensor: train with "
                  "--set network.gain_head=kalman (the Kalman-form head, docs/method.md section 16.16) and compare both;";
-    } else if (search.ran && search.ratio > cfg.rho && !below) {
+    } else if (!lost && search.ran && search.ratio > cfg.rho && !below) {
         const char* label = "";
         const double higher = higher_level(cfg, bound, &label);
         std::snprintf(buf, sizeof buf,
@@ -319,6 +327,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
         found.diverged = w.diverged;
         found.nominal_diverged = s.diverged_runs;
         found.nominal_runs = s.runs;
+        found.behind_ekf = vs.dnn / vs.ekf;
         o.advice = acceptance_advice(cfg, path, found);
     }
     return o;

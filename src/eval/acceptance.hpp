@@ -86,6 +86,10 @@ struct AcceptanceOutcome {
 };
 /// The settled error, over the EKF's on the acceptance runs, above which a PASS gets AcceptanceOutcome::note
 inline constexpr double kBehindEkf = 1.25;
+/// The settled error, over the EKF's on the acceptance runs, above which the advice after a FAIL says to use the EKF
+/// or UKF until a training does better (a coordinated turn of one's own settled 9.7-59x behind it: docs/byos.md
+/// section 4)
+inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
 /// section 16.12, "Kept, and behind the EKF"); `behind` the settled error over the EKF's. Empty where rho* is not
 /// known (the linearised game's level not bracketed).
@@ -96,6 +100,8 @@ struct AcceptanceSearch {
     double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found
     bool diverged = false;   // the filter diverged under the worst signals found
     std::int64_t nominal_diverged = 0, nominal_runs = 0;  // the check's own runs ([online] noise) that diverged, of all
+    // the DNN filter's settled error over the EKF's on those runs (NaN: a run diverged, or no EKF figure)
+    double behind_ekf = std::numeric_limits<double>::quiet_NaN();
 };
 /// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's
 /// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.

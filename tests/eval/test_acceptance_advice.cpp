@@ -103,6 +103,29 @@ TEST_CASE("acceptance advice after a divergence on the nominal noise says not to
     CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "do not use it"));
 }
 
+TEST_CASE("acceptance advice far behind the EKF names the EKF before the level", "[acceptance]") {
+    const RunConfig c = scalar("2", "adam_steps = 200\n");
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 7.5;  // above rho: the level advice follows
+    s.behind_ekf = 9.68;
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "on the check's runs it settles at 9.68 times the EKF's error: until a training does better, the "
+                 "EKF or UKF is the filter for this system"));
+    CHECK(a.find("9.68 times") < a.find("higher level"));
+    s.behind_ekf = kFarBehindEkf;  // at the threshold, and NaN (a diverged run): not said
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "times the EKF's error"));
+    s.behind_ekf = std::nan("");
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "times the EKF's error"));
+    s.behind_ekf = 9.68;  // a divergence on the nominal noise says more: the settled figure is not repeated
+    s.nominal_diverged = 1;
+    s.nominal_runs = 5;
+    const std::string b = acceptance_advice(c, "run/best.h5", s);
+    CHECK(has(b, "do not use it"));
+    CHECK_FALSE(has(b, "times the EKF's error"));
+}
+
 TEST_CASE("acceptance advice offers the Kalman-form head after a divergence on a discrete-time system",
           "[acceptance][kalman]") {
     auto discrete = [](const std::string& head) {
