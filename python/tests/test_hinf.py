@@ -267,6 +267,17 @@ def test_rho_and_its_bound_match_hinf_rho():
     assert "rho = " in own.text  # written into the effective config
 
 
+def test_constant_storage_violation_matches_hinf_rho():
+    """A discrete system's constant-storage verdict, as `hinf rho` prints it (method 16.8)."""
+    turn_path = os.path.join(ROOT, "examples", "systems", "coordinated_turn.toml")
+    turn = hinf.Config(turn_path)
+    assert turn.constant_storage_violation > 0.05  # none exists: an error in the turn rate turns with the heading
+    out = subprocess.run([hinf_cli(), "rho", turn_path], capture_output=True, text=True, check=True).stdout
+    assert "no constant storage" in out
+    assert hinf.Config(os.path.join(ROOT, "examples", "systems", "radar.toml")).constant_storage_violation <= 0
+    assert math.isnan(hinf.Config(VANDERPOL).constant_storage_violation)  # continuous time: nothing to check
+
+
 def test_ensemble_of_copies_is_the_network(trained, record):
     """ensemble=True: one dnn filter with the mean gain; two copies of one network filter as that network, bit for bit,
     and one network alone is refused in hinf's one line."""

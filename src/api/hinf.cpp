@@ -5,6 +5,7 @@
 
 #include <omp.h>
 
+#include <cmath>
 #include <filesystem>
 #include <mutex>
 
@@ -20,6 +21,8 @@
 #include "models/system.hpp"
 #include "net/network.hpp"
 #include "sim/truth.hpp"
+#include "train/gain_samples.hpp"
+#include "train/storage_check.hpp"
 #include "train/trainer.hpp"
 
 namespace hinf {
@@ -68,6 +71,12 @@ double Config::dt() const { return run_config(*this).dt; }
 double Config::t_final() const { return run_config(*this).t_final; }
 double Config::rho() const { return run_config(*this).rho; }
 double Config::rho_bound() const { return game_level_rho_star(run_config(*this)); }
+double Config::constant_storage_violation() const {
+    const RunConfig& cfg = run_config(*this);
+    if (cfg.variant != "gain" || !cfg.system->discrete_time()) return NAN;
+    const StorageCheck c = constant_storage_check(cfg, gain_pool_build(cfg));
+    return c.ran && c.solved && c.q_scale > 0 ? c.mu_lower / c.q_scale : NAN;
+}
 std::string Config::system() const { return run_config(*this).system->name(); }
 std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }
 std::vector<std::string> Config::state_units() const { return run_config(*this).system->state_units(); }

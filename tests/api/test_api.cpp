@@ -198,3 +198,12 @@ TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with
     CHECK(hinf::h5::get_attr_string(g.get(), "acceptance_verdict") == r.acceptance);
     CHECK(cli.output.find(r.acceptance_line.substr(0, 60)) != std::string::npos);
 }
+
+TEST_CASE("library: constant_storage_violation says what hinf rho says about a discrete system's storage", "[api]") {
+    // the coordinated turn: no constant storage (docs/method.md section 16.8); the radar: one; continuous: nothing
+    const hinf::Config turn = hinf::Config::load(hinf::test::source_path("examples/systems/coordinated_turn.toml"));
+    CHECK(turn.constant_storage_violation() > 0.05);
+    const hinf::Config radar = hinf::Config::load(hinf::test::source_path("examples/systems/radar.toml"));
+    CHECK(radar.constant_storage_violation() <= 0);
+    CHECK(std::isnan(hinf::Config::from_text(kTinyMissile, "tiny.toml").constant_storage_violation()));
+}
