@@ -216,11 +216,13 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
         const double* y = ms.y.data() + k * m;
         sys.measurement(c.data(), xh, ms.t[k], 1);
         outputs_to_user(cfg, c.data(), 1);
-        for (int j = 0; j < m; ++j) p.innov.push_back(y[j] - c[j]);  // NaN where the measurement is missing
+        for (int j = 0; j < m; ++j) c[j] = y[j] - c[j];  // the innovation, in the user's units
+        for (int j : sys.angle_outputs()) c[j] = wrap_angle(c[j]);
+        for (int j = 0; j < m; ++j) p.innov.push_back(c[j]);  // NaN where the measurement is missing
         if (frozen || (missing != nullptr && missing[k])) return;  // frozen, or nothing to compare with
         for (int j = 0; j < m; ++j) {
-            r.innovation_mean[j] += y[j] - c[j];
-            r.innovation_rms[j] += (y[j] - c[j]) * (y[j] - c[j]);
+            r.innovation_mean[j] += c[j];
+            r.innovation_rms[j] += c[j] * c[j];
         }
         ++used;
         if (k % 1000 == 999) progress.update(k + 1, "");

@@ -160,7 +160,8 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
                 for (int i = 0; i < n; ++i) bp += B[i * nv + j] * p[i];
                 g.v[k * nv + j] = bp / (2.0 * game.rho);
             }
-            for (int j = 0; j < m; ++j) g.n[k * m + j] = -(cx[j] - ch[j]);
+            sys.output_difference(cx.data(), cx.data(), ch.data());  // an angle output's wrapped
+            for (int j = 0; j < m; ++j) g.n[k * m + j] = -cx[j];
         });
         bool finite = true;
         for (double v : g.v) finite = finite && std::isfinite(v);

@@ -729,6 +729,27 @@ NetworkC<T> network_c(const Network<T>& net, const std::string& P) {
 
 // ------------------------------------------------------------------------------------------- assembly
 
+// e = y - C(x^) of the filter step, in the units the network was trained in: y weighed as the outputs are (a list:
+// w_j y_j; a covariance: W y), an angle output's difference wrapped into [-pi, pi] in the user's units first
+// (models/system.hpp output_difference: W wrap(y - C_user(x^)))
+std::string innovation_c(const RunConfig& cfg, const std::string& P, bool correlated) {
+    const std::string M = P + "_M";
+    const std::vector<int>& angles = cfg.system->angle_outputs();
+    if (angles.empty())
+        return correlated ? "    for (j = 0; j < " + M + "; ++j) e[j] = y[j];\n    " + P + "_weigh(e);\n    for (j = 0; j < " +
+                                M + "; ++j) e[j] -= ch[j];\n"
+                          : "    for (j = 0; j < " + M + "; ++j) e[j] = " +
+                                (cfg.output_weight.empty() ? "" : P + "_output_weight[j] * ") + "y[j] - ch[j];\n";
+    std::string c = cfg.output_weight.empty() ? "    for (j = 0; j < " + M + "; ++j) e[j] = y[j] - ch[j];\n"
+                                              : "    " + P + "_measurement_unweighted(e, s->xhat, t);\n    for (j = 0; j < " +
+                                                    M + "; ++j) e[j] = y[j] - e[j];\n";
+    for (int j : angles)  // 2 pi to the last bit: remainder() is exact, as models/system.cpp wrap_angle
+        c += "    e[" + std::to_string(j) + "] = remainder(e[" + std::to_string(j) + "], 6.2831853071795862);\n";
+    if (correlated) c += "    " + P + "_weigh(e);\n";
+    else if (!cfg.output_weight.empty()) c += "    for (j = 0; j < " + M + "; ++j) e[j] *= " + P + "_output_weight[j];\n";
+    return c;
+}
+
 std::string filter_c(const RunConfig& cfg, const std::string& P) {
     std::ostringstream c;
     const std::string N = P + "_N", M = P + "_M", NV = P + "_NV";
@@ -755,10 +776,7 @@ std::string filter_c(const RunConfig& cfg, const std::string& P) {
       << "    if (s->diverged) return 1;\n"
       << "    " << P << "_drift(a, s->xhat, t);\n"
       << "    " << P << "_measurement(ch, s->xhat, t);\n"
-      << (correlated ? "    for (j = 0; j < " + M + "; ++j) e[j] = y[j];\n    " + P +
-                           "_weigh(e);\n    for (j = 0; j < " + M + "; ++j) e[j] -= ch[j];\n"
-                     : "    for (j = 0; j < " + M + "; ++j) e[j] = " +
-                           (cfg.output_weight.empty() ? "" : P + "_output_weight[j] * ") + "y[j] - ch[j];\n")
+      << innovation_c(cfg, P, correlated)
       << "    " << P << "_disturbance_gain(B, s->xhat, t);\n"
       << "    " << P << "_gain(k, s->xhat, t, e, B);\n"
       << "    /* filters/filter.hpp filter_estimate_ok: finite and |x^| < 1e12; the gain finite */\n"

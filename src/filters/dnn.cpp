@@ -41,7 +41,7 @@ public:
             k(static_cast<std::size_t>(n) * m);
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
-        for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - ch[j] : 0.0;  // missing: no correction
+        if (in.y != nullptr) sys.output_difference(e.data(), in.y, ch.data());  // missing: e = 0, no correction
         if (measured_) {
             sys.disturbance_gain(B.data(), xhat_.data(), in.t, 1);
             dnn_error_from_innovation(xt.data(), sys, xhat_.data(), in.t, e.data());
@@ -50,7 +50,7 @@ public:
             std::vector<double> cx(m);
             sys.disturbance_gain(B.data(), in.x_true, in.t, 1);
             sys.measurement(cx.data(), in.x_true, in.t, 1);
-            for (int j = 0; j < m; ++j) dc[j] = cx[j] - ch[j];
+            sys.output_difference(dc.data(), cx.data(), ch.data());
             for (int i = 0; i < n; ++i) xt[i] = in.x_true[i] - xhat_[i];
         }
         net_->gradient(p.data(), xt.data(), 1);
@@ -93,7 +93,7 @@ public:
         std::vector<double> a(n), ch(m), e(m), k(static_cast<std::size_t>(n) * m);
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
-        for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - ch[j] : 0.0;  // missing: no correction
+        if (in.y != nullptr) sys.output_difference(e.data(), in.y, ch.data());  // missing: e = 0, no correction
         nets_[0]->gain(k.data(), nullptr, nullptr, xhat_.data(), in.t, sys, 1);
         if (nets_.size() > 1) {
             std::vector<double> ki(k.size());

@@ -44,7 +44,9 @@ public:
         Vec xu = x_;
         Mat Pu = P_;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
-            xu += K * (Eigen::Map<const Vec>(in.y, m) - c);
+            Vec e(m);  // y - C(x^), an angle output's wrapped
+            sys.output_difference(e.data(), in.y, c.data());
+            xu += K * e;
             Mat IKH = Mat::Identity(n, n) - K * H;
             // Joseph form: stays symmetric PSD
             Pu = full                         ? Mat(IKH * P_ * IKH.transpose() + K * R * K.transpose())

@@ -37,7 +37,7 @@ PointTerms point_terms(const System& sys, const double* x, const double* xhat, d
     sys.measurement(c_x.data(), x, t, 1);
     sys.measurement(c_h.data(), xhat, t, 1);
     for (int i = 0; i < n; ++i) p.dA[i] = a_x[i] - a_h[i];
-    for (int j = 0; j < m; ++j) p.dc[j] = c_x[j] - c_h[j];
+    sys.output_difference(p.dc.data(), c_x.data(), c_h.data());
     p.q = quadratic_form(Q, p.xt.data(), n);
     return p;
 }

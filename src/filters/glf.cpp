@@ -73,7 +73,7 @@ public:
         std::vector<double> a(n), c(m), e(m), next(n);
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(c.data(), xhat_.data(), in.t, 1);
-        for (int j = 0; j < m; ++j) e[j] = in.y != nullptr ? in.y[j] - c[j] : 0.0;  // missing: no correction
+        if (in.y != nullptr) sys.output_difference(e.data(), in.y, c.data());  // missing: e = 0, no correction
         luenberger_advance(next.data(), xhat_.data(), a.data(), gain_.data(), e.data(), n, m, model_.dt);
         if (!filter_estimate_ok(next.data(), n)) return FILTER_DIVERGED;
         xf_.resize(n);

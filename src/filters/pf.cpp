@@ -64,15 +64,12 @@ public:
             std::vector<double> e(static_cast<std::size_t>(m));
             for (std::int64_t p = 0; p < np_; ++p) {
                 double q = 0;
+                sys.output_difference(e.data(), in.y, c.data() + p * m);  // an angle output's wrapped
                 if (!model_.noise_chol.empty()) {  // correlated: |L^-1 e|^2 (filters/filter.hpp)
-                    for (int j = 0; j < m; ++j) e[j] = in.y[j] - c[p * m + j];
                     lower_solve(model_.noise_chol, m, e.data());
                     for (int j = 0; j < m; ++j) q += e[j] * e[j];
                 } else
-                    for (int j = 0; j < m; ++j) {
-                        const double d = in.y[j] - c[p * m + j];
-                        q += d * d * wj[j];
-                    }
+                    for (int j = 0; j < m; ++j) q += e[j] * e[j] * wj[j];
                 logw[p] = std::log(w_[p]) - 0.5 * inv_r * q;
                 top = std::max(top, logw[p]);
             }

@@ -39,10 +39,19 @@ public:
         if (!sigma_points(&X, x_, P_)) return FILTER_DIVERGED;
         sys.measurement(Z.data(), X.data(), in.t, ns);
         Vec zbar = Vec::Zero(m);
-        for (int s = 0; s < ns; ++s) zbar += wm_[s] * Z.row(s).transpose();
+        if (sys.wraps_outputs()) {  // an angle output: the mean of the points' differences from the centre's
+            Vec d(m);
+            for (int s = 0; s < ns; ++s) {
+                sys.output_difference(d.data(), Z.row(s).data(), Z.row(0).data());
+                zbar += wm_[s] * d;
+            }
+            zbar += Z.row(0).transpose();
+        } else
+            for (int s = 0; s < ns; ++s) zbar += wm_[s] * Z.row(s).transpose();
         Mat S = Mat::Zero(m, m), Pxz = Mat::Zero(n, m);
         for (int s = 0; s < ns; ++s) {
-            Vec dz = Z.row(s).transpose() - zbar;
+            Vec dz(m);
+            sys.output_difference(dz.data(), Z.row(s).data(), zbar.data());
             S += wc_[s] * dz * dz.transpose();
             Pxz += wc_[s] * (X.row(s).transpose() - x_) * dz.transpose();
         }
@@ -55,7 +64,9 @@ public:
         Vec xu = x_;
         Mat Pu = P_;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
-            xu += K * (Eigen::Map<const Vec>(in.y, m) - zbar);
+            Vec e(m);  // y - zbar, an angle output's wrapped
+            sys.output_difference(e.data(), in.y, zbar.data());
+            xu += K * e;
             Pu = P_ - K * S * K.transpose();
             Pu = 0.5 * (Pu + Pu.transpose()).eval();
         }

@@ -396,6 +396,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
       period_(spec.period),
       states_(spec.states),
       units_(spec.units),
+      angles_(spec.angle_outputs),
       parameters_(spec.parameters) {
     // names: identifiers, distinct, not t / pi / a function
     HINF_CHECK(n_ >= 1, spec.where + " states: give at least one state name, e.g. states = [\"x1\", \"x2\"]");
@@ -705,6 +706,13 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s, double period) {
     spec.h = texts("h", s.get_strings("h", {}));
     spec.discrete = s.get_string("time", "continuous", {"continuous", "discrete"}) == "discrete";
     spec.period = period;
+    // outputs that are angles (a bearing, a phase): 1-based like the error messages' "h entry j"
+    std::vector<std::int64_t> angles = s.get_ints("angle_outputs", {}, 1, spec.output_dim);
+    std::sort(angles.begin(), angles.end());
+    if (std::adjacent_find(angles.begin(), angles.end()) != angles.end())
+        s.reject("angle_outputs", "names output " + std::to_string(*std::adjacent_find(angles.begin(), angles.end())) +
+                                      " twice (list each output that is an angle in radians once, 1-based as in h)");
+    for (std::int64_t j : angles) spec.angle_outputs.push_back(int(j - 1));
     return std::make_unique<ExprSystem>(spec);
 }
 

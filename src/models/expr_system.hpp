@@ -32,6 +32,7 @@ struct ExprSpec {
     std::string where;                                          // "file.toml: [system]" for shape errors
     bool discrete = false;  // [system] time = "discrete": f is the map x_{k+1} = f + g v, and k may be used
     double period = 0.0;    // discrete only: the sampling period dt ([filter] dt), k = round(t / period)
+    std::vector<int> angle_outputs;  // outputs that are angles in radians (0-based, ascending): differences wrap
 };
 
 /// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h; in discrete time
@@ -55,6 +56,7 @@ class ExprSystem : public System {
     std::vector<std::string> state_names() const override { return states_; }
     std::vector<std::string> state_units() const override { return units_; }
     bool discrete_time() const override { return discrete_; }
+    const std::vector<int>& angle_outputs() const override { return angles_; }
     /// Discrete time: the sampling period that stamps the steps (k = round(t / period)); 0 in continuous time.
     double period() const { return period_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
@@ -74,6 +76,7 @@ class ExprSystem : public System {
     bool discrete_ = false;
     double period_ = 0.0;
     std::vector<std::string> states_, units_;
+    std::vector<int> angles_;
     std::vector<std::pair<std::string, double>> parameters_;
     std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
     std::vector<std::string> programs_;          // the texts of the non-constant entries

@@ -1,11 +1,26 @@
 // The step every part of hinf advances a system with (truth, filters, training): one definition, and the one
 // place where continuous time (forward Euler) and discrete time (the map itself) differ. Not the systems themselves.
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "models/system.hpp"
 
 namespace hinf {
+
+double wrap_angle(double x) { return std::remainder(x, 2.0 * M_PI); }
+
+const std::vector<int>& System::angle_outputs() const {
+    static const std::vector<int> none;
+    return none;
+}
+
+void System::output_difference(double* r, const double* y, const double* c, std::int64_t count) const {
+    const int m = output_dim();
+    for (std::int64_t k = 0; k < count * m; ++k) r[k] = y[k] - c[k];
+    for (int j : angle_outputs())
+        for (std::int64_t p = 0; p < count; ++p) r[p * m + j] = wrap_angle(r[p * m + j]);
+}
 
 void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,
                     std::int64_t count) {

@@ -38,7 +38,20 @@ public:
     /// the steps); false: A is the vector field of x' = A + B v, stepped by forward Euler. system_advance is the
     /// one place that reads it.
     virtual bool discrete_time() const { return false; }
+    /// The outputs that are angles in radians (0-based, ascending; [system] angle_outputs), in the user's units (a
+    /// weighted system's are its inner system's): a difference of two of their values wraps into [-pi, pi]. Empty
+    /// for every built-in system.
+    virtual const std::vector<int>& angle_outputs() const;
+    /// Whether output_difference is more than a subtraction (some output is an angle, seen through any weighting).
+    virtual bool wraps_outputs() const { return !angle_outputs().empty(); }
+    /// r [count x m] = y - c for outputs y, c [count x m]: an innovation y - C(x^), or C(x) - C(x^). The plain
+    /// difference, with the angle outputs' wrapped into [-pi, pi] (docs/formats.md, [system] angle_outputs); every
+    /// filter, the training samples and the on-line check take their output differences here. r may alias y or c.
+    virtual void output_difference(double* r, const double* y, const double* c, std::int64_t count = 1) const;
 };
+
+/// x wrapped into [-pi, pi] (IEEE remainder by 2 pi: exact)
+double wrap_angle(double x);
 
 /// "discrete" or "continuous": for messages and result files.
 inline const char* system_time_name(const System& sys) { return sys.discrete_time() ? "discrete" : "continuous"; }

@@ -87,6 +87,25 @@ void WeightedSystem::measurement(double* c, const double* x, double t, std::int6
     for (std::int64_t p = 0; p < count; ++p) lower_multiply(W_, m, c + p * m);
 }
 
+void WeightedSystem::output_difference(double* r, const double* y, const double* c, std::int64_t count) const {
+    const int m = output_dim();
+    if (W_.empty() || !inner_->wraps_outputs()) {  // no weight, or no angle: the plain difference, bit for bit
+        if (W_.empty()) inner_->output_difference(r, y, c, count);
+        else
+            for (std::int64_t k = 0; k < count * m; ++k) r[k] = y[k] - c[k];
+        return;
+    }
+    std::vector<double> yo(static_cast<std::size_t>(m)), co(static_cast<std::size_t>(m));
+    for (std::int64_t p = 0; p < count; ++p) {  // back to the user's units, wrapped there, weighted again
+        std::copy(y + p * m, y + (p + 1) * m, yo.begin());
+        std::copy(c + p * m, c + (p + 1) * m, co.begin());
+        lower_solve(W_, m, yo.data());
+        lower_solve(W_, m, co.data());
+        inner_->output_difference(r + p * m, yo.data(), co.data(), 1);
+        lower_multiply(W_, m, r + p * m);
+    }
+}
+
 void WeightedSystem::measurement_jacobian(double* H, const double* x, double t) const {
     inner_->measurement_jacobian(H, x, t);
     if (W_.empty()) return;

@@ -43,6 +43,10 @@ public:
     std::vector<std::string> state_names() const override { return inner_->state_names(); }
     std::vector<std::string> state_units() const override { return inner_->state_units(); }
     bool discrete_time() const override { return inner_->discrete_time(); }
+    /// The angle outputs are the inner system's, in the user's units: a difference of weighted outputs wraps there,
+    /// r~ = W wrap(W^-1 y~ - W^-1 c~) (a plain subtraction, bit for bit, where no output is an angle).
+    const std::vector<int>& angle_outputs() const override { return inner_->angle_outputs(); }
+    void output_difference(double* r, const double* y, const double* c, std::int64_t count = 1) const override;
 
     const System& inner() const { return *inner_; }
     const std::vector<double>& output_weight() const { return W_; }

@@ -136,7 +136,11 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
         double s = 0;
         for (int a = 0; a < n; ++a) s += std::pow(H[j * n + a] * g.dx[a], 2);
         g.dy[j] = std::sqrt(s);
-        if (!(g.dy[j] > 0)) g.dy[j] = std::fabs(c0[j] - c1[j]);
+        if (!(g.dy[j] > 0)) {
+            std::vector<double> d(m);
+            sys.output_difference(d.data(), c0.data(), c1.data());
+            g.dy[j] = std::fabs(d[j]);
+        }
         if (!(g.dy[j] > 0) || !std::isfinite(g.dy[j])) g.dy[j] = 1.0;
     }
     // the noise-free trajectory: where the estimates will be

@@ -65,7 +65,7 @@ void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, st
         sys.measurement(s->dC.data() + i * m, x, s->t[i], 1);
         sys.measurement(ch, xh, s->t[i], 1);
         for (int j = 0; j < n; ++j) s->dA[i * n + j] -= ah[j];
-        for (int j = 0; j < m; ++j) s->dC[i * m + j] -= ch[j];
+        sys.output_difference(s->dC.data() + i * m, s->dC.data() + i * m, ch);  // an angle output's wrapped
         s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
         for (int j = 0; j < n; ++j) s->z[i * n + j] = held ? g.input(j, xh[j]) : (xh[j] - g.shift[j]) / g.spread[j];
         if (g.knots > 0 || g.kalman) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);

@@ -96,7 +96,8 @@ public:
         Sd_.resize(std::size_t(n) * n);
         sys.drift(a_.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch_.data(), xhat_.data(), in.t, 1);
-        for (int j = 0; j < m; ++j) e_[j] = in.y != nullptr ? in.y[j] - ch_[j] : 0.0;  // missing: no correction
+        std::fill(e_.begin(), e_.end(), 0.0);  // missing: no correction
+        if (in.y != nullptr) sys.output_difference(e_.data(), in.y, ch_.data());
         next_step_ = in.step + 1;
         if (!filter_estimate_ok(xhat_.data(), n)) return FILTER_DIVERGED;
         // 1. the on-line check (docs/method.md section 16.5): kOnlineCheckErrors errors around x^, current network

@@ -49,7 +49,7 @@ void samples_build(TimeStepSamples* s, const RunConfig& cfg, const std::vector<d
         sys.measurement(s->dC.data() + i0 * m, s->xs.data() + i0 * n, t, cnt);
         for (std::int64_t i = i0; i < i0 + cnt; ++i) {
             for (int j = 0; j < n; ++j) s->dA[i * n + j] -= s->a_hat[j];
-            for (int j = 0; j < m; ++j) s->dC[i * m + j] -= s->c_hat[j];
+            sys.output_difference(s->dC.data() + i * m, s->dC.data() + i * m, s->c_hat.data());
             s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
         }
     }

@@ -448,7 +448,7 @@ private:
         sys.drift(ah.data(), xhat.data(), t, 1);
         sys.measurement(ch.data(), xhat.data(), t, 1);
         sys.disturbance_gain(B.data(), x.data(), t, 1);
-        for (int j = 0; j < m; ++j) e[j] = y[j] - ch[j];
+        sys.output_difference(e.data(), y.data(), ch.data());
         for (int a = 0; a < n; ++a) {
             s[a] = 0;
             for (int c = 0; c < n; ++c) s[a] += S[a * n + c] * xt[c];
@@ -475,7 +475,7 @@ private:
             one.Bm = B;
             one.dC.resize(m);
             sys.measurement(one.dC.data(), x.data(), t, 1);
-            for (int j = 0; j < m; ++j) one.dC[j] -= ch[j];
+            sys.output_difference(one.dC.data(), one.dC.data(), ch.data());
             one.q = {quadratic_form(cfg_.Q.data(), xt.data(), n)};
             rec->residual = kern::gain_sample_forward(K.data(), S.data(), one.view(), 0, lp, Sd.data()).residual;
         }
@@ -619,13 +619,11 @@ private:
         std::vector<double> c_x(m), dc(m), B(n * nv);
         sys.measurement(c_x.data(), x.data(), t, 1);
         sys.disturbance_gain(B.data(), x.data(), t, 1);
-        for (int j = 0; j < m; ++j) dc[j] = c_x[j] - smp_.c_hat[j];
+        sys.output_difference(dc.data(), c_x.data(), smp_.c_hat.data());
         WorstCase wc = worst_case(p.data(), B.data(), dc.data(), n, nv, m, cfg_.rho);
         std::vector<double> y(m), e(m);
-        for (int j = 0; j < m; ++j) {
-            y[j] = c_x[j] + wc.n_star[j];
-            e[j] = y[j] - smp_.c_hat[j];
-        }
+        for (int j = 0; j < m; ++j) y[j] = c_x[j] + wc.n_star[j];
+        sys.output_difference(e.data(), y.data(), smp_.c_hat.data());
         double terms[4];  // the residual at x~(t)
         hjie_point_terms(terms, p.data(), sys, x.data(), xhat.data(), t, cfg_.Q.data(), cfg_.rho);
         rec->residual = terms[0] + terms[1] + terms[2] + terms[3];

@@ -292,6 +292,44 @@ TEST_CASE("exported C filter of a discrete-time system matches hinf filter to do
     }
 }
 
+TEST_CASE("exported C filter with an angle output matches hinf filter across the bearing's +-pi cut",
+          "[export][gain][angles]") {
+    // a target passing the negative x axis of a radar (bearing from +pi to -pi at step 15): the step wraps the
+    // bearing's innovation in the user's units, then weighs it as the outputs are (docs/formats.md angle_outputs)
+    const char* onlines[] = {"noise_std = 5.0\n", "noise_std = [5.0, 0.005]\n", "noise_cov = [[25.0, 0.01], [0.01, 2.5e-5]]\n"};
+    for (const char* online : onlines) {
+        SECTION(online) {
+            TempDir d("export-angles");
+            const std::string cfg = write_file(
+                d, "cut.toml",
+                "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [\"px\", \"py\", \"vx\", \"vy\"]\n"
+                "disturbances = 2\nmeasurements = 2\nf = [\"px + vx\", \"py + vy\", \"vx\", \"vy\"]\n"
+                "g = [[\"0.5\", \"0\"], [\"0\", \"0.5\"], [\"1\", \"0\"], [\"0\", \"1\"]]\n"
+                "h = [\"sqrt(px^2 + py^2)\", \"atan2(py, px)\"]\nangle_outputs = [2]\n[filter]\nrho = 2000\n"
+                "x0 = [-1000.0, 150.0, 0.0, -10.0]\nxhat0 = [-990.0, 140.0, 1.0, -9.0]\ndt = 1.0\nt_final = 40\n"
+                "[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\nbatch = 32\n"
+                "adam_steps = 3\ncheckpoint_every = 5\n[online]\ndisturbance_std = 0.2\n" + std::string(online));
+            Compared c = export_and_compare(d, cfg, "--until 10", "dnn_gain_measured");
+            INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+            CHECK(c.rows == 41);
+            CHECK(c.compared == 41);
+            CHECK(c.max_abs <= 1e-11 * c.scale);
+            std::ifstream src(d / "c/hinf_filter.c");
+            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            CHECK(code.find("e[1] = remainder(e[1], 6.2831853071795862);") != std::string::npos);
+            // the record crosses the cut: its bearings take both signs near pi
+            hinf::h5::Handle f = hinf::h5::open_file(d / "op/operate.h5", false);
+            const std::vector<double> y = hinf::h5::read_doubles(f.get(), "y");
+            bool above = false, below = false;
+            for (std::size_t k = 1; k < y.size(); k += 2) {
+                above = above || y[k] > 3.0;
+                below = below || y[k] < -3.0;
+            }
+            CHECK((above && below));
+        }
+    }
+}
+
 TEST_CASE("exported C ensemble of gain networks matches hinf filter --ensemble to double round-off",
           "[export][gain][ensemble]") {
     // two and three members of one model (training seeds 1, 2, 3): the C's mean gain is filters/dnn.cpp's
