@@ -110,8 +110,16 @@ StorageCheck constant_storage_check(const RunConfig& cfg, const GainPool& pool) 
     c.estimates = std::int64_t(est.size());
     if (est.empty()) return c;  // every output Jacobian sees every error: nothing to check
     c.ran = true;
+    if (!(c.q_scale > 0)) {  // Q vanishes on every unseen error: S = 0 keeps the inequality there
+        c.solved = true;
+        c.S = MatrixXd::Zero(n, n);
+        return c;
+    }
+    // the SDP in units of the Q term (the problem is homogeneous in (S, mu, Q)): a system whose Q term is 1e5 or
+    // 1e-5 in the error scales poses the same numbers to SDPA
+    const MatrixXd Qn = Qs / c.q_scale;
 
-    // minimise mu over (S, mu): mu I - Z'(F'SF - S + Q)Z >= 0 at every estimate, S >= 0, mu >= -1
+    // minimise mu over (S, mu): mu I - Z'(F'SF - S + Q)Z >= 0 at every estimate, S >= 0, mu >= -1 (Q = Qn)
     const int p = n * (n + 1) / 2, nvar = p + 1;
     std::vector<std::pair<int, int>> entry;
     for (int a = 0; a < n; ++a)
@@ -130,7 +138,7 @@ StorageCheck constant_storage_check(const RunConfig& cfg, const GainPool& pool) 
         lmi::SdpBlock b;
         b.name = "ker H";
         const int d = int(e.Z.cols());
-        b.constant = -e.Z.transpose() * Qs * e.Z;
+        b.constant = -e.Z.transpose() * Qn * e.Z;
         for (int v = 0; v < p; ++v) {
             const MatrixXd E = unit(v);
             MatrixXd T = -e.Z.transpose() * (e.F.transpose() * E * e.F - E) * e.Z;
@@ -160,7 +168,7 @@ StorageCheck constant_storage_check(const RunConfig& cfg, const GainPool& pool) 
     const bool psd_ok = ps.eigenvalues().minCoeff() >= -1e-7 * std::max(1.0, ps.eigenvalues().cwiseAbs().maxCoeff());
     double worst = -INFINITY;
     for (const Estimate& e : est) {
-        const double w = violation(e, S, Qs);
+        const double w = violation(e, S, Qn);
         if (w > worst) {
             worst = w;
             c.worst_run = e.run;
@@ -168,10 +176,10 @@ StorageCheck constant_storage_check(const RunConfig& cfg, const GainPool& pool) 
         }
     }
     c.solved = r.status == lmi::SDP_STATUS_OPTIMAL && psd_ok && std::isfinite(worst);
-    c.mu = std::max(worst, -1.0);
-    c.S = S;
+    c.mu = std::max(worst, -1.0) * c.q_scale;
+    c.S = S * c.q_scale;
     // the claim that no S does better rests on a lower bound (weak duality): the smaller of SDPA's two objectives
-    c.mu_lower = std::max(std::min(r.primal_objective, r.dual_objective), -1.0);
+    c.mu_lower = std::max(std::min(r.primal_objective, r.dual_objective), -1.0) * c.q_scale;
     return c;
 }
 

@@ -20,7 +20,7 @@ struct StorageCheck {
     std::int64_t estimates = 0;  // estimates (truth states of the pool's runs) where ker H(x^) was not empty
     int kernel_dim = 0;          // the largest dim ker H(x^) among them
     // max over those estimates of lambda_max(Z'(F'SF - S + Q)Z) at the S SDPA returned (verified by eigenvalues),
-    // in the error scales dx (x~ = D u, D = diag(dx); per unit u'u), clipped below at -1; and a lower bound on its
+    // in the error scales dx (x~ = D u, D = diag(dx); per unit u'u), clipped below at -q_scale; and a lower bound on its
     // minimum over every S >= 0 (SDPA's dual bound): > 0, no constant storage exists
     double mu = 0, mu_lower = 0;
     double q_scale = 0;  // max over the estimates of lambda_max(Z'DQDZ): the size of the Q term mu is measured against

@@ -125,7 +125,7 @@ TEST_CASE("a coordinated turn has no constant storage and no random S beats the 
     CHECK(c.mu >= c.mu_lower - 1e-6 * c.q_scale);
     CHECK(c.mu <= c.mu_lower + 1e-3 * c.q_scale);  // the solver's S achieves its bound
     // the S it returns is checked by eigenvalues, not taken from the solver
-    CHECK(constant_storage_violation(cfg, pool, c.S) == Approx(c.mu).epsilon(1e-9));
+    CHECK(std::fabs(constant_storage_violation(cfg, pool, c.S) - c.mu) <= 1e-7 * c.q_scale);
     std::mt19937 g(11);
     std::normal_distribution<double> N01(0.0, 1.0);
     std::uniform_real_distribution<double> U(-3.0, 3.0);
