@@ -29,8 +29,8 @@ double violation(const Estimate& e, const MatrixXd& S, const MatrixXd& Q) {
     return es.eigenvalues().maxCoeff();
 }
 
-// The estimates of the check: the pool's truth states, at most kStorageCheckEstimates spread evenly over its runs and
-// steps, where the model's Jacobians are finite and ker H(x) is not empty; Qs = DQD in the error scales
+// The estimates of the check: the pool's truth states, at most storage_check_estimates(n) spread evenly over its steps
+// and runs, where the model's Jacobians are finite and ker H(x) is not empty; Qs = DQD in the error scales
 std::vector<Estimate> storage_estimates(const RunConfig& cfg, const GainPool& pool, MatrixXd* Qs) {
     std::vector<Estimate> est;
     if (cfg.variant != "gain" || cfg.system == nullptr || !cfg.system->discrete_time() || pool.runs.empty() ||
@@ -53,7 +53,9 @@ std::vector<Estimate> storage_estimates(const RunConfig& cfg, const GainPool& po
     std::vector<double> J(std::size_t(n) * n), Hj(std::size_t(m) * n);
     std::unordered_set<std::size_t> seen;  // a linear system's estimates are one: pose it once
     for (std::int64_t i = 0; i < count; ++i) {
-        const std::int64_t g = i * total / count, r = g / pool.steps, k = g % pool.steps;
+        // step-major: consecutive picks take the runs in turn at one step, so a few picks still spread over time
+        const std::int64_t runs = std::int64_t(pool.runs.size());
+        const std::int64_t g = i * total / count, r = g % runs, k = g / runs;
         const double* x = pool.runs[std::size_t(r)].x.data() + k * n;
         const double t = cfg.time_of(k);
         cfg.system->drift_jacobian(J.data(), x, t);

@@ -3,7 +3,8 @@
 // residual is x~'(Q - S + F'SF)x~ plus a term >= 0 whatever the gain (checked on the kernel itself); a coordinated
 // turn, whose unmeasured turn rate moves the state along a direction that turns with the heading, has no S that
 // keeps it (and no random S beats the solver's lower bound); a constant-velocity target seen in position has one;
-// fully measured, continuous-time and other-variant configs have nothing to check.
+// fully measured, continuous-time and other-variant configs have nothing to check; a large system's few estimates
+// spread over the steps.
 #include <Eigen/Dense>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -173,4 +174,38 @@ TEST_CASE("the constant-storage check has nothing to check where every error is 
         "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n",
         "vdp.toml"));
     CHECK_FALSE(constant_storage_check(vdp, gain_pool_build(vdp)).ran);
+}
+
+TEST_CASE("the constant-storage check of a large system spreads its few estimates over the steps", "[storage_check]") {
+    // 22 states: storage_check_estimates gives 16, as many as training's 16 runs; taken run by run they would all
+    // be the runs' common start x0, one estimate after the repeats are dropped
+    const int half = 11;
+    std::string states, f, g, h;
+    for (int i = 1; i <= half; ++i) {
+        states += std::string(i > 1 ? ", " : "") + "\"a" + std::to_string(i) + "\"";
+        f += std::string(i > 1 ? ", " : "") + "\"a" + std::to_string(i) + " + 0.1*b" + std::to_string(i) + "\"";
+        g += std::string(i > 1 ? ", " : "") + "[\"0\"]";
+    }
+    for (int i = 1; i <= half; ++i) {
+        states += ", \"b" + std::to_string(i) + "\"";
+        f += ", \"0.95*b" + std::to_string(i) + " - 0.1*sin(a" + std::to_string(i) + ")\"";
+        g += ", [\"1\"]";
+    }
+    for (int i = 1; i <= half; i += 2) h += std::string(i > 1 ? ", " : "") + "\"a" + std::to_string(i) + "\"";
+    std::string x0 = "1.0", xhat0 = "0.0";
+    for (int i = 1; i < 2 * half; ++i) {
+        x0 += ", 0.0";
+        xhat0 += ", 0.0";
+    }
+    const RunConfig cfg = load_run_config(ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [" + states + "]\ndisturbances = 1\nmeasurements = 6\n"
+        "f = [" + f + "]\ng = [" + g + "]\nh = [" + h + "]\n[filter]\nrho = 100\nx0 = [" + x0 + "]\nxhat0 = [" + xhat0 +
+            "]\ndt = 0.1\nt_final = 2\n[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n",
+        "large.toml"));
+    REQUIRE(cfg.n == 22);
+    REQUIRE(storage_check_estimates(22) == 16);
+    const StorageCheck c = constant_storage_check(cfg, gain_pool_build(cfg));
+    CHECK(c.ran);
+    // 16 picks at 16 steps; step 1's Jacobians repeat step 0's (a moves only through b, 0 at the start): 15 distinct
+    CHECK(c.estimates >= 12);
 }
