@@ -46,9 +46,10 @@ public:
     double rho_bound() const;
     /// A discrete-time `gain` config: the least violation any constant storage S leaves of the one-step inequality
     /// along the errors the outputs do not see, over the Q term's size there (docs/method.md 16.8, "Errors the
-    /// outputs do not see"; computed on each call, as `hinf rho`). Above 1e-6: no constant storage exists, and the
-    /// DNN filter cannot keep its promise on the system; <= 0: one exists. NaN: nothing to check (continuous time,
-    /// another variant, every error seen within a step) or no verdict from the solver.
+    /// outputs do not see"; computed on each call, as `hinf rho`). Above 1e-6: no constant storage exists, training
+    /// cannot satisfy its inequality, and the DNN filter has no certificate of its level; <= 0: one exists. NaN:
+    /// nothing to check (continuous time, another variant, every error seen within a step) or no verdict from the
+    /// solver.
     double constant_storage_violation() const;
     std::string system() const;                    ///< "missile", "maneuvering_missile" or "expr"
     std::vector<std::string> state_names() const;  ///< n names

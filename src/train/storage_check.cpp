@@ -187,14 +187,15 @@ StorageCheck constant_storage_check(const RunConfig& cfg, const GainPool& pool) 
 
 std::string constant_storage_note(const RunConfig& cfg, const StorageCheck& c) {
     if (!c.infeasible()) return "";
-    char buf[900];
+    char buf[1400];
     std::snprintf(buf, sizeof buf,
                   "hinf: note: %s: no constant storage V = x~'Sx~ keeps the one-step inequality for the errors the "
                   "outputs do not see within a step (up to %d directions, at %lld estimates along training's runs): "
                   "every S leaves a violation of at least %.3g against the Q term's %.3g there, at any level rho and "
-                  "with any gain (the best S found: %.3g, worst at run %lld, step %lld). The DNN filter trained here "
-                  "cannot keep its promise on this system and may settle far behind the EKF: compare them before use "
-                  "(docs/method.md section 16.8, \"Errors the outputs do not see\")\n",
+                  "with any gain (the best S found: %.3g, worst at run %lld, step %lld). Training cannot satisfy its "
+                  "inequality here, so the DNN filter it gives has no certificate of its level and may settle far "
+                  "behind the EKF (on two such systems 4.8x and more): compare them before use (docs/method.md "
+                  "section 16.8, \"Errors the outputs do not see\")\n",
                   cfg.doc.source().c_str(), c.kernel_dim, static_cast<long long>(c.estimates), c.mu_lower, c.q_scale,
                   c.mu, static_cast<long long>(c.worst_run), static_cast<long long>(c.worst_step));
     return buf;
