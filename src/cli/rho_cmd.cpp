@@ -1,4 +1,5 @@
-// `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp).
+// `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp), and
+// for a discrete-time gain config the constant-storage check (src/train/storage_check.hpp).
 #include <algorithm>
 #include <cstdio>
 
@@ -19,7 +20,8 @@ void add_rho_command(CLI::App& app) {
     auto a = std::make_shared<Args>();
     CLI::App* c = app.add_subcommand(
         "rho", "The smallest attenuation level rho* any filter can promise for the system, linearised along its "
-               "noise-free trajectory (docs/method.md section 16.12)");
+               "noise-free trajectory (docs/method.md section 16.12); for a discrete-time gain config also whether a "
+               "constant storage can keep the one-step inequality for the errors the outputs do not see (section 16.8)");
     c->add_option("config", a->config, "Scenario config (TOML), e.g. runs/vanderpol.toml")->required();
     CLI::Option* rho = c->add_option("--rho", a->rho, "Also say whether, and where, the game of this level has no filter");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set filter.t_final=5 (repeatable)");
@@ -59,6 +61,9 @@ void add_rho_command(CLI::App& app) {
                             static_cast<long long>(sc.estimates), sc.mu, sc.q_scale);
             else if (sc.ran)
                 std::printf("the constant-storage check did not converge (SDPA: %s): no verdict\n", sc.solver_phase.c_str());
+            else
+                std::printf("every error is seen by the outputs within a step at the estimates along training's runs: "
+                            "no constant-storage check to make\n");
         }
         if (rho->count() > 0) {
             const double at = game_level_lost_at(cfg, a->rho);

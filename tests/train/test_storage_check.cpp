@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gain.hpp"
+#include "helpers.hpp"
 #include "train/gain_samples.hpp"
 #include "train/storage_check.hpp"
 
@@ -208,4 +209,26 @@ TEST_CASE("the constant-storage check of a large system spreads its few estimate
     CHECK(c.ran);
     // 16 picks at 16 steps; step 1's Jacobians repeat step 0's (a moves only through b, 0 at the start): 15 distinct
     CHECK(c.estimates >= 12);
+}
+
+TEST_CASE("hinf rho says the constant-storage verdict of a discrete gain config", "[storage_check][cli]") {
+    hinf::test::TempDir d("storage-rho");
+    const std::string cv =
+        "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [\"px\", \"py\", \"vx\", \"vy\"]\n"
+        "disturbances = 2\nf = [\"px + vx\", \"py + vy\", \"vx\", \"vy\"]\n"
+        "g = [[\"0.5\", \"0\"], [\"0\", \"0.5\"], [\"1\", \"0\"], [\"0\", \"1\"]]\n";
+    const std::string rest = "[filter]\nrho = 50\nx0 = [100.0, 100.0, -1.0, 0.5]\nxhat0 = [105.0, 95.0, -0.8, 0.4]\n"
+                             "dt = 1.0\nt_final = 30\n[online]\ndisturbance_std = 0.5\nnoise_std = 1.0\n";
+    const std::string seen = hinf::test::write_file(
+        d, "seen.toml", cv + "measurements = 4\nh = [\"px\", \"py\", \"vx\", \"vy\"]\n" + rest);
+    const std::string positions =
+        hinf::test::write_file(d, "positions.toml", cv + "measurements = 2\nh = [\"px\", \"py\"]\n" + rest);
+    auto a = hinf::test::run_hinf("rho " + seen);
+    INFO(a.output);
+    CHECK(a.status == 0);
+    CHECK(a.output.find("no constant-storage check to make") != std::string::npos);
+    auto b = hinf::test::run_hinf("rho " + positions);
+    INFO(b.output);
+    CHECK(b.status == 0);
+    CHECK(b.output.find("a constant storage keeps the one-step inequality") != std::string::npos);
 }
