@@ -98,6 +98,11 @@ void add_compare_command(CLI::App& app) {
             std::printf("  %10.4g %10.4g %10.4g %9.2f %9.2f %9.2f\n", fr.rmse_position, fr.rmse_position_settled,
                         fr.attenuation_ratio, fr.mse_db, fr.mse_filtered_db, fr.us_per_step);
         }
+        if (s.truth_escaped_runs > 0)
+            std::printf("the truth left the finite numbers in %lld of %lld run(s) (the first at t = %g s: the system "
+                        "escapes under its [online] noise); those runs count for no filter, in the table and in the "
+                        "files\n",
+                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape);
         std::printf("MSEp / MSEf: 10 log10 of the mean over runs of each run's MSE over all states and steps, of the "
                     "one-step prediction x^(k|k-1) / of the filtered estimate x^(k|k) (nan: none)\n");
         bool same = true;

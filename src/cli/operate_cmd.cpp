@@ -103,6 +103,10 @@ void add_operate_command(CLI::App& app) {
                     static_cast<long long>(s.runs), cfg.type.c_str(), cfg.variant.c_str());
         if (members.size() > 1) std::printf(", an ensemble of %zu networks (the mean of their gains)", members.size());
         std::printf("\n");
+        if (s.truth_escaped_runs > 0)
+            std::printf("the truth left the finite numbers in %lld of %lld run(s) (the first at t = %g s: the system "
+                        "escapes under its [online] noise); those runs count for no figure below\n",
+                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape);
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",
                         static_cast<long long>(s.diverged_runs), static_cast<long long>(s.runs), s.first_divergence);
@@ -140,8 +144,12 @@ void add_operate_command(CLI::App& app) {
                         s.retrain_triggers, s.retrain_adam_steps, static_cast<long long>(s.runs), s.retrain_rejected,
                         s.retrain_eps_before, s.retrain_eps_after,
                         s.online_checkpoint.empty() ? "not written (run 0 diverged)" : s.online_checkpoint.c_str());
-        std::printf("\nposition RMSE %.4g m (open loop %.4g m); file: %s/operate.h5\n", s.rmse_position,
-                    s.rmse_position_open_loop, opt.out_dir.c_str());
+        // "position": the states of the first state's unit (compare.md), in that unit
+        const std::string u = cfg.system->state_units().empty() || cfg.system->state_units()[0].empty()
+                                  ? std::string()
+                                  : " " + cfg.system->state_units()[0];
+        std::printf("\nposition RMSE %.4g%s (open loop %.4g%s); file: %s/operate.h5\n", s.rmse_position, u.c_str(),
+                    s.rmse_position_open_loop, u.c_str(), opt.out_dir.c_str());
     });
 }
 

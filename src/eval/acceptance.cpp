@@ -366,6 +366,7 @@ SelectScore select_score(const RunConfig& cfg, const std::string& path, const st
     for (std::int64_t r = 0; r < s.runs; ++r) {
         double q = 0;
         for (int j = 0; j < n; ++j) q += cfg.Q[std::size_t(j) * n + j] * s.run_mse_settled[std::size_t(r) * n + j];
+        if (std::isnan(q) && s.truth_escaped_runs > 0) continue;  // the same runs escape for every checkpoint
         v.runs.push_back(std::isfinite(q) ? q : INFINITY);
     }
     if (s.diverged_runs > 0) return v;

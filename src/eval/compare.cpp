@@ -108,6 +108,18 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     sum.rank_seconds = er.rank_seconds;
     sum.truth_stream_hash = hash_start;
     for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = hash_bytes(sum.truth_stream_hash, &er.truth_hash[r], 8);
+    // runs whose truth left the finite numbers count for no filter (docs/compare.md "Divergence")
+    for (std::int64_t r = 0; r < R; ++r) {
+        const double e = er.truth_escaped_at[r];
+        if (e < 0) continue;
+        ++sum.truth_escaped_runs;
+        if (sum.first_truth_escape < 0 || e < sum.first_truth_escape) sum.first_truth_escape = e;
+    }
+    HINF_CHECK(sum.truth_escaped_runs < R, "compare: the truth of every one of the " + std::to_string(R) +
+                                               " run(s) left the finite numbers (the first at t = " +
+                                               std::to_string(sum.first_truth_escape) +
+                                               " s): the system escapes from [filter] x0 under its [online] noise; "
+                                               "start it inside the region it stays in, lower the noise, or check the model");
 
     const RunDirLock lock(opt.out_dir, "hinf compare");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/compare.h5";
@@ -128,10 +140,12 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         fr.stream_hash = hash_start;
         std::vector<std::int64_t> kept;
         for (std::int64_t r = 0; r < R; ++r) {
-            diverged_at[r] = runs[r].diverged_at;
-            ratio_all[r] = runs[r].diverged_at >= 0 ? INFINITY : runs[r].ratio;
+            const bool escaped = er.truth_escaped_at[r] >= 0;  // not the filter's doing: no figure of this run counts
+            diverged_at[r] = escaped ? NAN : runs[r].diverged_at;
+            ratio_all[r] = escaped ? NAN : runs[r].diverged_at >= 0 ? INFINITY : runs[r].ratio;
             secs += er.runs[k][r].seconds;
             fr.stream_hash = hash_bytes(fr.stream_hash, &er.runs[k][r].stream_hash, 8);
+            if (escaped) continue;
             if (runs[r].diverged_at >= 0) ++fr.diverged_runs;
             else kept.push_back(r);
         }
@@ -164,8 +178,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         mean_ci(&fr.attenuation_ratio, &fr.attenuation_ratio_ci, over_kept([](const FilterRun& q) { return q.ratio; }));
         std::vector<double> mse_runs(R), msef_runs(R);
         for (std::int64_t r = 0; r < R; ++r) {
-            mse_runs[r] = runs[r].mse;
-            msef_runs[r] = runs[r].mse_filtered;
+            const bool escaped = er.truth_escaped_at[r] >= 0;
+            mse_runs[r] = escaped ? NAN : runs[r].mse;
+            msef_runs[r] = escaped ? NAN : runs[r].mse_filtered;
         }
         mean_ci(&fr.mse, &ci, over_kept([](const FilterRun& q) { return q.mse; }));
         fr.mse_db = 10.0 * std::log10(fr.mse);
@@ -223,8 +238,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         h5::write_doubles(gid, "error_std_settled", fr.std_settled.data(), {hn}, "state units", "as error_std, t >= settle_time");
         h5::write_doubles(gid, "error_std_settled_ci95", fr.std_settled_ci.data(), {hn}, "state units", "95% half-width");
         h5::write_doubles(gid, "attenuation_ratio_per_run", ratio_all.data(), {hsize_t(R)}, "1",
-                          "int x~'Qx~ dt / int (v'v + n'n) dt per run (inf: diverged)");
-        h5::write_doubles(gid, "diverged_at", diverged_at.data(), {hsize_t(R)}, "s", "divergence time per run (-1: never)");
+                          "int x~'Qx~ dt / int (v'v + n'n) dt per run (inf: diverged; NaN: the truth escaped)");
+        h5::write_doubles(gid, "diverged_at", diverged_at.data(), {hsize_t(R)}, "s",
+                          "divergence time per run (-1: never; NaN: the truth escaped, the run counts for no filter)");
         h5::write_doubles(gid, "error_mean_t", emt.data(), {hsize_t(nsub), hn}, "state units",
                           "mean over kept runs of x - x^ at t_sub");
         h5::write_doubles(gid, "error_std_t", est.data(), {hsize_t(nsub), hn}, "state units",
@@ -242,6 +258,10 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "system_time", std::string(system_time_name(*cfg.system)));
     h5::set_attr(root, "settle_time", cfg.settle_time);
     h5::set_attr(root, "truth_stream_hash", hex(sum.truth_stream_hash));
+    h5::set_attr(root, "truth_escaped_runs", sum.truth_escaped_runs);
+    h5::write_doubles(root, "truth_escaped_at", er.truth_escaped_at.data(), {hsize_t(R)}, "s",
+                      "per run: time of the first non-finite true state or measurement (-1: never); such a run "
+                      "counts for no filter");
     std::string sn;
     for (const auto& s : cfg.system->state_names()) sn += (sn.empty() ? "" : ",") + s;
     h5::set_attr(root, "state_names", sn);
@@ -251,7 +271,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "meaning",
                  "one group per filter; every filter saw the same truth and measurements (measurement_stream_hash "
                  "== truth_stream_hash); errors are x - x^ of the one-step prediction (mse_filtered*: of the filtered estimate x^_{k|k}); statistics over the runs that "
-                 "did not diverge (diverged_runs says how many did); mode: oracle = the filter read the true state");
+                 "did not diverge (diverged_runs says how many did) and whose truth stayed finite (truth_escaped_at); mode: oracle = the filter read the true state");
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
     h5::write_doubles(root, "t", tt.data(), {hsize_t(steps)}, "s", "time");
     h5::write_doubles(root, "t_sub", tsub.data(), {hsize_t(nsub)}, "s", "times of error_mean_t / error_std_t");
@@ -270,7 +290,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             << st[i] << "_mean_settled," << st[i] << "_mean_settled_ci95," << st[i] << "_std_settled," << st[i]
             << "_std_settled_ci95";
     csv << ",rmse_position,rmse_velocity,rmse_position_settled,rmse_velocity_settled,attenuation_ratio,"
-           "attenuation_ratio_ci95,us_per_step,mse,mse_db,mse_filtered,mse_filtered_db\n";
+           "attenuation_ratio_ci95,us_per_step,mse,mse_db,mse_filtered,mse_filtered_db,truth_escaped_runs\n";
     csv.precision(10);
     for (const auto& fr : sum.filters) {
         csv << sum.scenario << ',' << fr.name << ',' << fr.mode << ',' << R << ',' << fr.diverged_runs;
@@ -281,7 +301,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         csv << ',' << fr.rmse_position << ',' << fr.rmse_velocity << ',' << fr.rmse_position_settled << ','
             << fr.rmse_velocity_settled << ',' << fr.attenuation_ratio << ',' << fr.attenuation_ratio_ci << ','
             << fr.us_per_step << ',' << fr.mse << ',' << fr.mse_db << ',' << fr.mse_filtered << ','
-            << fr.mse_filtered_db << '\n';
+            << fr.mse_filtered_db << ',' << sum.truth_escaped_runs << '\n';
     }
     });
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

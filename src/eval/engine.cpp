@@ -156,6 +156,7 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
     EngineResult res;
     res.runs.assign(F, std::vector<FilterRunStats>(R));
     res.truth_hash.assign(R, 0);
+    res.truth_escaped_at.assign(R, -1.0);
     res.t.resize(K);
     for (std::int64_t k = 0; k < K; ++k) res.t[k] = cfg.time_of(k);
     // under mpirun: run r is computed by rank r mod size (runs cost alike, and a filter's divergence makes
@@ -182,6 +183,8 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
             TruthRun tr = truth_simulate(cfg, opt.scenario, std::uint64_t(r), K,
                                          opt.signals != nullptr ? &(*opt.signals)[r] : nullptr);
             res.truth_hash[r] = hash_bytes(hash_start, tr.y.data(), sizeof(double) * tr.y.size());
+            const std::int64_t esc = truth_escape_step(tr, cfg.n, cfg.m);
+            if (esc >= 0) res.truth_escaped_at[r] = cfg.time_of(esc);
             for (int k = 0; k < F; ++k)
                 res.runs[k][r] = run_one_filter(cfg, *local[k], tr, res.t, std::uint64_t(r), opt, obs.get(), k);
             if (r == 0) res.truth0 = std::move(tr);
@@ -201,6 +204,7 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
     ParBytesOut w;
     for (std::int64_t r : mine) {
         w.put(res.truth_hash[r]);
+        w.put(res.truth_escaped_at[r]);
         for (int k = 0; k < F; ++k) put_stats(w, res.runs[k][r]);
     }
     const std::vector<std::vector<char>> all = par_allgather(w.bytes);
@@ -209,6 +213,7 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
         for (std::int64_t r = 0; r < R; ++r) {
             if (engine_rank_of(r, ranks) != q) continue;
             res.truth_hash[r] = rd.get_u64();
+            res.truth_escaped_at[r] = rd.get_double();
             for (int k = 0; k < F; ++k) res.runs[k][r] = get_stats(rd);
         }
         HINF_CHECK(rd.at_end(), "engine: a rank sent more than its runs (bug)");

@@ -231,8 +231,23 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     // the energies are dt-weighted sums; a discrete system's inequality sums per step, so V(x~(0)) counts dt times
     const double v0_weight = cfg.system->discrete_time() ? cfg.dt : 1.0;
     std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
+    // a run whose truth left the finite numbers counts for no figure (docs/compare.md "Divergence")
+    std::int64_t counted = 0;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
-        diverged_at[r] = D[r].diverged_at;
+        const double e = er.truth_escaped_at[r];
+        if (e < 0) {
+            ++counted;
+            continue;
+        }
+        ++sum.truth_escaped_runs;
+        if (sum.first_truth_escape < 0 || e < sum.first_truth_escape) sum.first_truth_escape = e;
+    }
+    HINF_CHECK(counted > 0, "operate: the truth of every one of the " + std::to_string(sum.runs) +
+                                " run(s) left the finite numbers (the first at t = " + std::to_string(sum.first_truth_escape) +
+                                " s): the system escapes from [filter] x0 under its [online] noise; start it inside the "
+                                "region it stays in, lower the noise, or check the model");
+    for (std::int64_t r = 0; r < sum.runs; ++r) {
+        diverged_at[r] = er.truth_escaped_at[r] >= 0 ? NAN : D[r].diverged_at;
         if (diverged_at[r] >= 0) {
             ++sum.diverged_runs;
             if (sum.first_divergence < 0 || diverged_at[r] < sum.first_divergence) sum.first_divergence = diverged_at[r];
@@ -245,14 +260,19 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     std::vector<double> triggers(sum.runs, 0.0), adam_steps(sum.runs, 0.0);
     sum.retrain = cfg.retrain;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
+        if (er.truth_escaped_at[r] >= 0) {
+            ratio[r] = ratio_open[r] = ratio_v0[r] = NAN;
+            sum.run_mse_settled.insert(sum.run_mse_settled.end(), std::size_t(n), NAN);
+            continue;
+        }
         // a diverged filter's error energy counts as infinite (its estimate is frozen)
         const double num = D[r].diverged_at >= 0 ? INFINITY : D[r].error_energy, den = D[r].signal_energy;
         ratio[r] = num / den;
         ratio_open[r] = O[r].error_energy / den;
         ratio_v0[r] = (num - v0_weight * sum.v0) / den;
-        sum.attenuation_ratio += ratio[r] / double(sum.runs);
-        sum.attenuation_ratio_open_loop += ratio_open[r] / double(sum.runs);
-        sum.attenuation_ratio_minus_v0 += ratio_v0[r] / double(sum.runs);
+        sum.attenuation_ratio += ratio[r] / double(counted);
+        sum.attenuation_ratio_open_loop += ratio_open[r] / double(counted);
+        sum.attenuation_ratio_minus_v0 += ratio_v0[r] / double(counted);
         for (int i = 0; i < n; ++i) {
             es[i] += D[r].err_sum[i];
             eq[i] += D[r].err_sq[i];
@@ -291,7 +311,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
         sum.retrain_eps_after = eps_after / sum.retrain_triggers;
     }
     if (!v_defined) sum.attenuation_ratio_minus_v0 = NAN;
-    const double count = double(steps) * double(sum.runs);
+    const double count = double(steps) * double(counted);
     mean_std(&sum.error_mean, &sum.error_std, es, eq, count);
     mean_std(&sum.error_mean_open_loop, &sum.error_std_open_loop, eso, eqo, count);
     for (std::size_t e = 0; e < E; ++e) {
@@ -344,6 +364,8 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     h5::set_attr(root, "v0", sum.v0);
     h5::set_attr(root, "diverged_runs", sum.diverged_runs);
     h5::set_attr(root, "first_divergence_time", sum.first_divergence);
+    h5::set_attr(root, "truth_escaped_runs", sum.truth_escaped_runs);
+    h5::set_attr(root, "first_truth_escape_time", sum.first_truth_escape);
     h5::set_attr(root, "v0_defined", std::int64_t(v_defined ? 1 : 0));
     h5::set_attr(root, "error_mean", sum.error_mean);
     h5::set_attr(root, "error_std", sum.error_std);
@@ -397,7 +419,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     h5::write_doubles(root, "attenuation_ratio_per_run", ratio.data(), {hsize_t(sum.runs)}, "1", "per Monte Carlo run");
     h5::write_doubles(root, "diverged_at", diverged_at.data(), {hsize_t(sum.runs)}, "s",
                       "time the estimate became non-finite or left |x^| < 1e12 or the plausible range (-1: never); from then "
-                      "on it is frozen");
+                      "on it is frozen. NaN: the truth left the finite numbers, and the run counts for no figure");
     h5::write_doubles(root, "attenuation_ratio_open_loop_per_run", ratio_open.data(), {hsize_t(sum.runs)}, "1",
                       "per Monte Carlo run, gain set to zero");
     h5::write_doubles(root, "t", er.t.data(), {hsize_t(steps)}, "s", "time");

@@ -30,7 +30,8 @@ struct OperateSummary {
     std::vector<double> error_mean_settled, error_std_settled;  // over t >= settle_time
     std::vector<double> error_mean_open_loop, error_std_open_loop;
     // [runs x n] each run's mean square error per state over t >= settle_time (over [0, T] when no step is settled);
-    // +inf in every state of a diverged run. The checkpoint selection pairs validations run by run with it.
+    // +inf in every state of a diverged run, NaN in a run whose truth escaped. The checkpoint selection pairs
+    // validations run by run with it.
     std::vector<double> run_mse_settled;
     double rmse_position = 0, rmse_position_open_loop = 0;
     double online_check_violation_fraction = NAN;  // variant gain: share of sampled errors at x^ violating (14.1)
@@ -41,6 +42,10 @@ struct OperateSummary {
     int online_check_network = 0;
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none
+    // runs whose true state or measurement left the finite numbers (the model escaped under its noise): they count
+    // for no figure (their run_mse_settled and per-run ratios are NaN); the earliest time one did (-1: none)
+    std::int64_t truth_escaped_runs = 0;
+    double first_truth_escape = -1;
     double wall_seconds = 0;
     // on-line retraining ([online] retrain, docs/method.md section 16.6)
     bool retrain = false;

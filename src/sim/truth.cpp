@@ -108,4 +108,15 @@ TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t 
     return tr;
 }
 
+std::int64_t truth_escape_step(const TruthRun& run, int n, int m) {
+    const std::int64_t K = n > 0 ? std::int64_t(run.x.size()) / n : 0;
+    for (std::int64_t k = 0; k < K; ++k) {
+        for (int i = 0; i < n; ++i)
+            if (!std::isfinite(run.x[k * n + i])) return k;
+        for (int j = 0; j < m && std::size_t(k * m + j) < run.y.size(); ++j)
+            if (!std::isfinite(run.y[k * m + j])) return k;
+    }
+    return -1;
+}
+
 }  // namespace hinf

@@ -48,6 +48,10 @@ struct TruthRun {
 TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
                         const Signals* given = nullptr);
 
+/// The first step k whose state x(t_k) or measurement y(t_k) is not finite (a model that escapes under its noise,
+/// e.g. the Henon map from the edge of its basin); -1 when the run stays finite.
+std::int64_t truth_escape_step(const TruthRun& run, int n, int m);
+
 /// What EKF/UKF/PF are told under a scenario: the [baseline] model and statistics (default: the truth's) with
 /// variances scaled by the scenario's told factors.
 FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc);

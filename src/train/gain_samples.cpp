@@ -3,11 +3,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "filters/gain_law.hpp"
+#include "hinf/error.hpp"
 #include "random.hpp"
 
 namespace hinf {
+
+namespace {
+std::string fmt_g(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+}  // namespace
 
 kern::HjieSystemView GainSamples::view() const {
     return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(),
@@ -23,10 +33,36 @@ GainPool gain_pool_build(const RunConfig& cfg) {
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     c.online_seed = (z ^ (z >> 31)) >> 1;
-    pool.runs.resize(static_cast<std::size_t>(cfg.trajectories));
-    for (std::int64_t r = 0; r < cfg.trajectories; ++r)
-        pool.runs[r] = truth_simulate(c, Scenario{}, std::uint64_t(r), pool.steps);
+    std::vector<TruthRun> runs(static_cast<std::size_t>(cfg.trajectories));
+    std::vector<std::int64_t> escaped_at(runs.size(), -1);
+#pragma omp parallel for schedule(dynamic)
+    for (std::int64_t r = 0; r < cfg.trajectories; ++r) {
+        runs[r] = truth_simulate(c, Scenario{}, std::uint64_t(r), pool.steps);
+        escaped_at[r] = truth_escape_step(runs[r], cfg.n, cfg.m);
+    }
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+        if (escaped_at[r] < 0) {
+            pool.runs.push_back(std::move(runs[r]));
+            continue;
+        }
+        ++pool.escaped;
+        const double t = cfg.time_of(escaped_at[r]);
+        if (pool.first_escape < 0 || t < pool.first_escape) pool.first_escape = t;
+    }
+    HINF_CHECK(!pool.runs.empty(),
+               "every one of the " + std::to_string(cfg.trajectories) + " training truth runs of " +
+                   cfg.doc.source() + " left the finite numbers (the first at t = " + fmt_g(pool.first_escape) +
+                   " s): the system escapes from [filter] x0 under its [online] disturbance_std; start it inside the "
+                   "region it stays in, lower the noise, or check the model");
     return pool;
+}
+
+std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool) {
+    if (pool.escaped == 0) return "";
+    return "hinf: note: " + std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories) +
+           " training truth runs left the finite numbers (the first at t = " + fmt_g(pool.first_escape) +
+           " s: the system escapes under its [online] noise); training draws its estimates from the other " +
+           std::to_string(pool.runs.size()) + " (docs/method.md section 16.3)\n";
 }
 
 namespace {

@@ -3,6 +3,7 @@
 // constants. Not the loss (kernels/gain.hpp) and not the time-step loop (trainer.cpp).
 #pragma once
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "config/run_config.hpp"
@@ -13,12 +14,20 @@
 namespace hinf {
 
 /// cfg.trajectories truth runs over [0, t_final] with the [online] noise, keyed by the training seed (never the
-/// on-line seed: the filter is not trained on the runs it is measured on).
+/// on-line seed: the filter is not trained on the runs it is measured on). A run whose state or measurement leaves
+/// the finite numbers (a model that escapes under its noise, e.g. the Henon map) is left out: training draws from
+/// the runs that stay finite; `escaped` counts those left out and `first_escape` is the earliest time one did (-1:
+/// none). Throws when every run escapes.
 struct GainPool {
     std::vector<TruthRun> runs;
     std::int64_t steps = 0;
+    std::int64_t escaped = 0;
+    double first_escape = -1;
 };
 GainPool gain_pool_build(const RunConfig& cfg);
+
+/// One line for the user when some of the pool's runs were left out ("" when none was).
+std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool);
 
 struct GainSamples {
     int n = 0, nv = 0, m = 0;

@@ -171,7 +171,7 @@ public:
     void start_fresh() {
         ck_.net = network_create<T>(cfg_);
         if (gain_ && cfg_.input_box > 0) {  // where the filter holds its network's input (method.md 16.10)
-            pool_ = gain_pool_build(cfg_);
+            build_pool();
             gain_input_box(&ck_.net.step.gain, cfg_, pool_);
             if (ck_.net.step.gain.zlo.empty())
                 std::fprintf(stderr, "hinf: note: network.input_box: a training truth run is not finite, so the "
@@ -246,6 +246,13 @@ public:
 
     const GainPool& pool() const { return pool_; }  // the gain variant's truth runs (empty for the others)
 
+    // the gain variant's truth runs, and a note (rank 0, once) when some left the finite numbers
+    void build_pool() {
+        pool_ = gain_pool_build(cfg_);
+        const std::string note = gain_pool_note(cfg_, pool_);
+        if (!note.empty() && par_root()) std::fputs(note.c_str(), stderr);
+    }
+
     TrainSummary run(std::int64_t last_step, bool quiet) {
         TrainSummary sum;
         sum.first_step = ck_.state.step;
@@ -263,7 +270,7 @@ public:
         ws_.reserve(ck_.net.step, int(std::max<std::int64_t>(N, cfg_.batch)));
 
         if (gain_) {  // every process simulates the same pool and draws the same samples (deterministic)
-            if (pool_.runs.empty()) pool_ = gain_pool_build(cfg_);
+            if (pool_.runs.empty()) build_pool();
             K_all_.resize(N * n * cfg_.m);
         }
         const int chunks = gain_ ? kern::gain_step_chunks(int(cfg_.batch), ck_.net.step)

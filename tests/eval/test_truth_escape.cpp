@@ -1,0 +1,91 @@
+// A model that escapes under its own noise (the Henon map near the edge of its basin): its truth runs leave the
+// finite numbers. Training draws from the runs that stay finite; compare and operate leave such runs out of every
+// filter's figures and count them apart, instead of calling them every filter's divergence; a model every run of
+// which escapes is refused in one line. (docs/compare.md "Divergence", docs/method.md section 16.3.)
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <string>
+
+#include "eval/compare.hpp"
+#include "filters/ekf.hpp"
+#include "filters/ukf.hpp"
+#include "helpers.hpp"
+#include "hinf/h5.hpp"
+#include "sim/truth.hpp"
+#include "train/gain_samples.hpp"
+
+using namespace hinf;
+using hinf::test::TempDir;
+
+namespace {
+
+// x_{k+1} = 1 - a x^2 + y + w1, y_{k+1} = b x + w2: with w of std 0.01 some runs of 200 steps leave the basin
+RunConfig henon(const std::string& f0 = "1 - a*x^2 + y") {
+    return load_run_config(ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\ntime = \"discrete\"\nstates = [\"x\", \"y\"]\ndisturbances = 2\n"
+        "measurements = 1\nf = [\"" + f0 + "\", \"b*x\"]\ng = [[\"1\", \"0\"], [\"0\", \"1\"]]\nh = [\"x\"]\n"
+        "[system.parameters]\na = 1.4\nb = 0.3\n"
+        "[filter]\nrho = 20\nx0 = [0.1, 0.1]\nxhat0 = [0.0, 0.0]\ndt = 1.0\nt_final = 200\n"
+        "[online]\ndisturbance_std = 0.01\nnoise_std = 0.05\n",
+        "henon.toml"));
+}
+
+}  // namespace
+
+TEST_CASE("truth_escape_step finds the first step that leaves the finite numbers", "[sim][escape]") {
+    TruthRun run;
+    run.x = {1, 2, 3, 4, INFINITY, 6, 7, 8};  // 4 steps x 2 states: step 2 holds the inf
+    run.y = {1, 2, 3, 4};
+    CHECK(truth_escape_step(run, 2, 1) == 2);
+    run.x[4] = 5;
+    CHECK(truth_escape_step(run, 2, 1) == -1);
+    run.y[1] = NAN;  // a measurement alone
+    CHECK(truth_escape_step(run, 2, 1) == 1);
+}
+
+TEST_CASE("training's truth pool leaves out the runs that escape and keeps the others", "[train][escape]") {
+    const RunConfig cfg = henon();
+    const GainPool pool = gain_pool_build(cfg);
+    REQUIRE(pool.escaped > 0);  // the property the test stands on: some runs of this noise escape ...
+    REQUIRE(pool.runs.size() > 0);  // ... and some stay
+    CHECK(std::int64_t(pool.runs.size()) + pool.escaped == cfg.trajectories);
+    CHECK(pool.first_escape >= 0);
+    for (const TruthRun& r : pool.runs) CHECK(truth_escape_step(r, cfg.n, cfg.m) == -1);
+    const std::string note = gain_pool_note(cfg, pool);
+    CHECK(note.find(std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories)) != std::string::npos);
+    // every run escapes: refused in one line that says what to change
+    CHECK_THROWS_WITH(gain_pool_build(henon("2*x^2 + 1 + y")), Catch::Contains("left the finite numbers") &&
+                                                                   Catch::Contains("disturbance_std"));
+}
+
+TEST_CASE("compare counts a truth that escapes for no filter and says how many did", "[eval][compare][escape]") {
+    const RunConfig cfg = henon();
+    const FilterModel model = filter_model(cfg);
+    auto ekf = make_ekf(model), ukf = make_ukf(model);
+    TempDir d("compare-escape");
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 24;
+    opt.quiet = true;
+    const CompareSummary s = compare_run(cfg, {ekf.get(), ukf.get()}, opt);
+    REQUIRE(s.truth_escaped_runs > 0);
+    REQUIRE(s.truth_escaped_runs < opt.runs);
+    h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+    const std::vector<double> esc = h5::read_doubles(f.get(), "truth_escaped_at");
+    REQUIRE(esc.size() == std::size_t(opt.runs));
+    std::int64_t counted = 0;
+    for (double e : esc) counted += e >= 0 ? 1 : 0;
+    CHECK(counted == s.truth_escaped_runs);
+    for (const char* name : {"ekf", "ukf"}) {
+        h5::Handle g = h5::open_group(f.get(), name);
+        const std::vector<double> at = h5::read_doubles(g.get(), "diverged_at");
+        std::int64_t div = 0;
+        for (std::size_t r = 0; r < at.size(); ++r) {
+            if (esc[r] >= 0) CHECK(std::isnan(at[r]));  // not the filter's divergence
+            else div += at[r] >= 0 ? 1 : 0;
+        }
+        CHECK(h5::get_attr_int(g.get(), "diverged_runs") == div);
+        CHECK(h5::get_attr_int(g.get(), "kept_runs") == opt.runs - s.truth_escaped_runs - div);
+    }
+    for (const auto& fr : s.filters) CHECK(std::isfinite(fr.rmse_position));  // figures of the runs that stayed
+}
