@@ -42,6 +42,11 @@ void add_rho_command(CLI::App& app) {
                         "only for rho > rho*; no filter's worst-case attenuation ratio is below it for small "
                         "signals\n",
                         g.bound, span, horizon);
+        else if (g.bound > 0 && noise_free_escape_time(cfg) >= 0)
+            std::printf("rho* > %.4g: the linearised game has no filter of any level up to there, because the noise-free "
+                        "trajectory from [filter] x0 leaves the finite numbers at t = %g s%s\n",
+                        g.bound, noise_free_escape_time(cfg),
+                        cfg.system->discrete_time() ? "" : " (a shorter [filter] dt? the truth is stepped by forward Euler)");
         else if (g.bound > 0)
             std::printf("rho* > %.4g: the linearised game has no filter of any level up to there\n", g.bound);
         else

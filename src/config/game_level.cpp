@@ -55,6 +55,17 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     return -1;
 }
 
+double noise_free_escape_time(const ProblemConfig& c) {
+    std::vector<double> x = c.x0;
+    const std::int64_t steps = std::min(c.steps_until(), kGameLevelMaxSteps);
+    for (std::int64_t k = 0; k < steps; ++k) {
+        system_advance(*c.system, x.data(), x.data(), nullptr, c.time_of(k), c.dt);
+        for (double v : x)
+            if (!std::isfinite(v)) return c.time_of(k + 1);
+    }
+    return -1;
+}
+
 std::vector<int> constant_states(const ProblemConfig& c) {
     const int n = c.n, nv = c.nv;
     const System& sys = *c.system;

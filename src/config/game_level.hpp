@@ -18,6 +18,10 @@ namespace hinf {
 /// trajectory, Jacobian or P ends the walk there (counted as holding).
 double game_level_lost_at(const ProblemConfig& c, double rho);
 
+/// The first time the noise-free trajectory from x0 leaves the finite numbers over the walk's horizon (-1: never):
+/// where it does, the walk's Jacobians run away with it and no level brackets.
+double noise_free_escape_time(const ProblemConfig& c);
+
 /// The walk covers at most the horizon's first kGameLevelMaxSteps steps, so that reading a config stays quick whatever
 /// its horizon (each level tried walks them once); over a longer horizon rho* is that of its first part (a lower value:
 /// the level needed can only grow with the horizon).

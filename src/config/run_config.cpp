@@ -455,7 +455,14 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         c.rho = g.bracketed ? kAutoRhoFactor * g.bound : 0.0;
         // no level brackets: no default follows from the system. Only what designs at a level (train, the GLF) needs
         // one, so those refuse; compare, filter, worst with the other filters run
-        if (!g.bracketed)
+        const double escape = g.bracketed ? -1.0 : noise_free_escape_time(c);
+        if (!g.bracketed && escape >= 0)  // the model runs away by itself: no level is the question
+            c.rho_unset = doc.source() + ": [filter] rho is not set, and no default follows from the system: its "
+                          "noise-free trajectory from [filter] x0 leaves the finite numbers at t = " + num(escape) +
+                          " s" + (c.system->discrete_time() ? std::string(": start it where it stays, or check the model")
+                                  : std::string(": take a shorter [filter] dt (the truth is stepped by forward Euler, "
+                                                "and a step too long for the dynamics runs away) or check the model"));
+        else if (!g.bracketed)
             c.rho_unset = doc.source() + ": [filter] rho is not set, and the linearised game of this system has " +
                           (g.bound > 0 ? "no filter of any level up to " + num(g.bound)
                                        : std::string("a filter of every level down to 1e-12")) +

@@ -115,11 +115,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         ++sum.truth_escaped_runs;
         if (sum.first_truth_escape < 0 || e < sum.first_truth_escape) sum.first_truth_escape = e;
     }
-    HINF_CHECK(sum.truth_escaped_runs < R, "compare: the truth of every one of the " + std::to_string(R) +
-                                               " run(s) left the finite numbers (the first at t = " +
-                                               std::to_string(sum.first_truth_escape) +
-                                               " s): the system escapes from [filter] x0 under its [online] noise; "
-                                               "start it inside the region it stays in, lower the noise, or check the model");
+    HINF_CHECK(sum.truth_escaped_runs < R, "compare: " + truth_escape_refusal(cfg, R, "run(s)", sum.first_truth_escape));
 
     const RunDirLock lock(opt.out_dir, "hinf compare");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/compare.h5";

@@ -242,10 +242,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
         ++sum.truth_escaped_runs;
         if (sum.first_truth_escape < 0 || e < sum.first_truth_escape) sum.first_truth_escape = e;
     }
-    HINF_CHECK(counted > 0, "operate: the truth of every one of the " + std::to_string(sum.runs) +
-                                " run(s) left the finite numbers (the first at t = " + std::to_string(sum.first_truth_escape) +
-                                " s): the system escapes from [filter] x0 under its [online] noise; start it inside the "
-                                "region it stays in, lower the noise, or check the model");
+    HINF_CHECK(counted > 0, "operate: " + truth_escape_refusal(cfg, sum.runs, "run(s)", sum.first_truth_escape));
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         diverged_at[r] = er.truth_escaped_at[r] >= 0 ? NAN : D[r].diverged_at;
         if (diverged_at[r] >= 0) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "hinf/error.hpp"
 #include "random.hpp"
@@ -117,6 +118,19 @@ std::int64_t truth_escape_step(const TruthRun& run, int n, int m) {
             if (!std::isfinite(run.y[k * m + j])) return k;
     }
     return -1;
+}
+
+std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first) {
+    char t[32];
+    std::snprintf(t, sizeof t, "%g", first);
+    std::string msg = "the truth of every one of the " + std::to_string(runs) + " " + what + " of " + cfg.doc.source() +
+                      " left the finite numbers (the first at t = " + t +
+                      " s): the system escapes from [filter] x0 under its [online] noise; start it inside the region "
+                      "it stays in, lower the noise";
+    if (cfg.system != nullptr && !cfg.system->discrete_time())
+        msg += ", take a shorter [filter] dt (the truth is stepped by forward Euler, and a step too long for the "
+               "dynamics runs away)";
+    return msg + " or check the model";
 }
 
 }  // namespace hinf

@@ -52,6 +52,10 @@ TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t 
 /// e.g. the Henon map from the edge of its basin); -1 when the run stays finite.
 std::int64_t truth_escape_step(const TruthRun& run, int n, int m);
 
+/// What a user reads when every run escapes: "the truth of every one of the R <what> left the finite numbers (the
+/// first at t = T s): ..." with what to change (for a continuous-time system also a shorter dt: forward Euler).
+std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first);
+
 /// What EKF/UKF/PF are told under a scenario: the [baseline] model and statistics (default: the truth's) with
 /// variances scaled by the scenario's told factors.
 FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc);

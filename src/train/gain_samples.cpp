@@ -49,11 +49,7 @@ GainPool gain_pool_build(const RunConfig& cfg) {
         const double t = cfg.time_of(escaped_at[r]);
         if (pool.first_escape < 0 || t < pool.first_escape) pool.first_escape = t;
     }
-    HINF_CHECK(!pool.runs.empty(),
-               "every one of the " + std::to_string(cfg.trajectories) + " training truth runs of " +
-                   cfg.doc.source() + " left the finite numbers (the first at t = " + fmt_g(pool.first_escape) +
-                   " s): the system escapes from [filter] x0 under its [online] disturbance_std; start it inside the "
-                   "region it stays in, lower the noise, or check the model");
+    HINF_CHECK(!pool.runs.empty(), truth_escape_refusal(cfg, cfg.trajectories, "training truth runs", pool.first_escape));
     return pool;
 }
 

@@ -55,7 +55,7 @@ TEST_CASE("training's truth pool leaves out the runs that escape and keeps the o
     CHECK(note.find(std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories)) != std::string::npos);
     // every run escapes: refused in one line that says what to change
     CHECK_THROWS_WITH(gain_pool_build(henon("2*x^2 + 1 + y")), Catch::Contains("left the finite numbers") &&
-                                                                   Catch::Contains("disturbance_std"));
+                                                                   Catch::Contains("lower the noise"));
 }
 
 TEST_CASE("compare counts a truth that escapes for no filter and says how many did", "[eval][compare][escape]") {
@@ -88,4 +88,31 @@ TEST_CASE("compare counts a truth that escapes for no filter and says how many d
         CHECK(h5::get_attr_int(g.get(), "kept_runs") == opt.runs - s.truth_escaped_runs - div);
     }
     for (const auto& fr : s.filters) CHECK(std::isfinite(fr.rmse_position));  // figures of the runs that stayed
+}
+
+TEST_CASE("a continuous model whose Euler step runs away is told to take a shorter dt", "[config][escape]") {
+    // the Duffing oscillator x'' = -0.2 x' - x - 0.5 x^3 stepped by forward Euler with dt = 0.9 s: unstable
+    const std::string text =
+        "[system]\nkind = \"expr\"\nstates = [\"x\", \"v\"]\ndisturbances = 1\nmeasurements = 1\n"
+        "f = [\"v\", \"-0.2*v - x - 0.5*x^3\"]\ng = [[\"0\"], [\"1\"]]\nh = [\"x\"]\n"
+        "[filter]\nx0 = [1.5, 0.0]\nxhat0 = [1.0, 0.5]\ndt = DT\nt_final = 20\n"
+        "[online]\ndisturbance_std = 0.3\nnoise_std = 0.05\n";
+    auto with_dt = [&](const std::string& dt) {
+        std::string t = text;
+        t.replace(t.find("DT"), 2, dt);
+        return load_run_config(ConfigDoc::from_text(t, "duffing.toml"));
+    };
+    const RunConfig bad = with_dt("0.9");
+    CHECK(bad.rho <= 0);  // no default level ...
+    CHECK_THAT(bad.rho_unset, Catch::Contains("leaves the finite numbers") && Catch::Contains("shorter [filter] dt"));
+    const FilterModel model = filter_model(bad);
+    auto ekf = make_ekf(model);
+    TempDir d("compare-euler");
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 3;
+    opt.quiet = true;
+    CHECK_THROWS_WITH(compare_run(bad, {ekf.get()}, opt), Catch::Contains("shorter [filter] dt"));
+    const RunConfig good = with_dt("0.01");  // ... and with a step the dynamics allow, one
+    CHECK(good.rho > 0);
 }
