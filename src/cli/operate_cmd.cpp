@@ -104,8 +104,8 @@ void add_operate_command(CLI::App& app) {
         if (members.size() > 1) std::printf(", an ensemble of %zu networks (the mean of their gains)", members.size());
         std::printf("\n");
         if (s.truth_escaped_runs > 0)
-            std::printf("the truth left the finite numbers in %lld of %lld run(s) (the first at t = %g s: the system "
-                        "escapes under its [online] noise); those runs count for no figure below\n",
+            std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
+                        "beyond every scale its config gives it; the system escapes under its [online] noise); those runs count for no figure below\n",
                         static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape);
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",

@@ -108,7 +108,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     sum.rank_seconds = er.rank_seconds;
     sum.truth_stream_hash = hash_start;
     for (std::int64_t r = 0; r < R; ++r) sum.truth_stream_hash = hash_bytes(sum.truth_stream_hash, &er.truth_hash[r], 8);
-    // runs whose truth left the finite numbers count for no filter (docs/compare.md "Divergence")
+    // runs whose truth ran away (sim/truth.hpp) count for no filter (docs/compare.md "Divergence")
     for (std::int64_t r = 0; r < R; ++r) {
         const double e = er.truth_escaped_at[r];
         if (e < 0) continue;
@@ -256,7 +256,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "truth_stream_hash", hex(sum.truth_stream_hash));
     h5::set_attr(root, "truth_escaped_runs", sum.truth_escaped_runs);
     h5::write_doubles(root, "truth_escaped_at", er.truth_escaped_at.data(), {hsize_t(R)}, "s",
-                      "per run: time of the first non-finite true state or measurement (-1: never); such a run "
+                      "per run: time the true state ran away (not finite, or 1e12 times beyond every scale the config "
+                      "gives it; sim/truth.hpp) or a measurement became non-finite (-1: never); such a run "
                       "counts for no filter");
     std::string sn;
     for (const auto& s : cfg.system->state_names()) sn += (sn.empty() ? "" : ",") + s;
@@ -267,7 +268,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     h5::set_attr(root, "meaning",
                  "one group per filter; every filter saw the same truth and measurements (measurement_stream_hash "
                  "== truth_stream_hash); errors are x - x^ of the one-step prediction (mse_filtered*: of the filtered estimate x^_{k|k}); statistics over the runs that "
-                 "did not diverge (diverged_runs says how many did) and whose truth stayed finite (truth_escaped_at); mode: oracle = the filter read the true state");
+                 "did not diverge (diverged_runs says how many did) and whose truth did not run away (truth_escaped_at); mode: oracle = the filter read the true state");
     h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
     h5::write_doubles(root, "t", tt.data(), {hsize_t(steps)}, "s", "time");
     h5::write_doubles(root, "t_sub", tsub.data(), {hsize_t(nsub)}, "s", "times of error_mean_t / error_std_t");

@@ -42,7 +42,7 @@ struct CompareSummary {
     std::string scenario;
     std::int64_t runs = 0, steps = 0;
     std::uint64_t truth_stream_hash = 0;  // FNV-1a of the simulated measurements, in run and step order
-    std::int64_t truth_escaped_runs = 0;  // runs whose true state or measurement left the finite numbers (counted
+    std::int64_t truth_escaped_runs = 0;  // runs whose true state or measurement ran away (counted
     double first_truth_escape = -1;       // for no filter), and the earliest time one did (-1: none)
     std::vector<CompareFilterResult> filters;
     double wall_seconds = 0;

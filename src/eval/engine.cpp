@@ -157,6 +157,7 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
     res.runs.assign(F, std::vector<FilterRunStats>(R));
     res.truth_hash.assign(R, 0);
     res.truth_escaped_at.assign(R, -1.0);
+    const std::vector<double> escape_bound = truth_escape_bound(cfg, K);
     res.t.resize(K);
     for (std::int64_t k = 0; k < K; ++k) res.t[k] = cfg.time_of(k);
     // under mpirun: run r is computed by rank r mod size (runs cost alike, and a filter's divergence makes
@@ -180,10 +181,11 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
 #pragma omp for schedule(dynamic)
         for (std::int64_t j = 0; j < L; ++j) {
             const std::int64_t r = mine[j];
-            TruthRun tr = truth_simulate(cfg, opt.scenario, std::uint64_t(r), K,
-                                         opt.signals != nullptr ? &(*opt.signals)[r] : nullptr);
+            // a look past the horizon catches an escape still finite at its end
+            std::int64_t esc = -1;
+            TruthRun tr = truth_simulate_checked(cfg, opt.scenario, std::uint64_t(r), K, escape_bound.data(), &esc,
+                                                 opt.signals != nullptr ? &(*opt.signals)[r] : nullptr);
             res.truth_hash[r] = hash_bytes(hash_start, tr.y.data(), sizeof(double) * tr.y.size());
-            const std::int64_t esc = truth_escape_step(tr, cfg.n, cfg.m);
             if (esc >= 0) res.truth_escaped_at[r] = cfg.time_of(esc);
             for (int k = 0; k < F; ++k)
                 res.runs[k][r] = run_one_filter(cfg, *local[k], tr, res.t, std::uint64_t(r), opt, obs.get(), k);

@@ -121,7 +121,7 @@ struct EngineOptions {
 struct EngineResult {
     std::vector<std::vector<FilterRunStats>> runs;  // [F][R]
     std::vector<std::uint64_t> truth_hash;          // [R] FNV-1a of each run's measurements
-    // [R] t of the first step whose true state or measurement is not finite (the model escaped under its noise;
+    // [R] t of the first step whose true state ran away (truth_escape_step: the model escaped under its noise;
     // -1: never). Every filter still runs on such a run; the reductions leave it out and say so (compare.md).
     std::vector<double> truth_escaped_at;
     TruthRun truth0;                                // run 0's truth (for plots and files)

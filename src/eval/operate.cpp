@@ -231,7 +231,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     // the energies are dt-weighted sums; a discrete system's inequality sums per step, so V(x~(0)) counts dt times
     const double v0_weight = cfg.system->discrete_time() ? cfg.dt : 1.0;
     std::vector<double> ratio(sum.runs), ratio_open(sum.runs), ratio_v0(sum.runs), diverged_at(sum.runs);
-    // a run whose truth left the finite numbers counts for no figure (docs/compare.md "Divergence")
+    // a run whose truth ran away (sim/truth.hpp) counts for no figure (docs/compare.md "Divergence")
     std::int64_t counted = 0;
     for (std::int64_t r = 0; r < sum.runs; ++r) {
         const double e = er.truth_escaped_at[r];
@@ -416,7 +416,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     h5::write_doubles(root, "attenuation_ratio_per_run", ratio.data(), {hsize_t(sum.runs)}, "1", "per Monte Carlo run");
     h5::write_doubles(root, "diverged_at", diverged_at.data(), {hsize_t(sum.runs)}, "s",
                       "time the estimate became non-finite or left |x^| < 1e12 or the plausible range (-1: never); from then "
-                      "on it is frozen. NaN: the truth left the finite numbers, and the run counts for no figure");
+                      "on it is frozen. NaN: the truth ran away, and the run counts for no figure");
     h5::write_doubles(root, "attenuation_ratio_open_loop_per_run", ratio_open.data(), {hsize_t(sum.runs)}, "1",
                       "per Monte Carlo run, gain set to zero");
     h5::write_doubles(root, "t", er.t.data(), {hsize_t(steps)}, "s", "time");

@@ -42,7 +42,7 @@ struct OperateSummary {
     int online_check_network = 0;
     std::int64_t diverged_runs = 0;        // runs whose estimate became non-finite (ratio = inf)
     double first_divergence = -1;          // earliest divergence time [s], -1 if none
-    // runs whose true state or measurement left the finite numbers (the model escaped under its noise): they count
+    // runs whose true state or measurement ran away (sim/truth.hpp: the model escaped under its noise): they count
     // for no figure (their run_mse_settled and per-run ratios are NaN); the earliest time one did (-1: none)
     std::int64_t truth_escaped_runs = 0;
     double first_truth_escape = -1;

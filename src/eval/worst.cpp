@@ -110,9 +110,13 @@ struct Parametrisation {
 
 // The ratio of an already-cloned filter (reset here) under s: the sums of eval/engine.cpp run_one_filter, in its
 // order, so that a replay through the engine gives the same bits.
-double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t) {
-    TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K, &s);
+// NaN where the truth runs away (escape: truth_escape_bound; docs/compare.md "A truth that escapes")
+double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
+                const std::vector<double>& escape) {
+    std::int64_t escaped_at = -1;
+    TruthRun tr = truth_simulate_checked(cfg, Scenario{}, 0, K, escape.data(), &escaped_at, &s);
     const int n = cfg.n;
+    if (escaped_at >= 0) return NAN;
     std::vector<double> e(n);
     double error_energy = 0, energy = 0;
     f.reset(engine_filter_start(cfg, 0));
@@ -190,17 +194,18 @@ struct Objective {
     const Parametrisation* par = nullptr;
     const std::vector<double>* t = nullptr;
     Signals s;
+    std::vector<double> escape;  // truth_escape_bound over the horizon
     double best = -1;
     Signals best_signals;
     int evals = 0;
 };
 
-// NLopt's callback: the ratio under theta (0 for a signal with no energy or a truth that left the finite numbers)
+// NLopt's callback: the ratio under theta (0 for a signal with no energy or a truth that runs away)
 double objective(unsigned, const double* theta, double*, void* data) {
     Objective& o = *static_cast<Objective*>(data);
     ++o.evals;
     if (!o.par->signals(o.s, theta)) return 0.0;
-    double r = ratio_of(*o.cfg, *o.filter, o.s, o.par->K, *o.t);
+    double r = ratio_of(*o.cfg, *o.filter, o.s, o.par->K, *o.t, o.escape);
     if (!std::isfinite(r)) return 0.0;
     if (r > o.best) {
         o.best = r;
@@ -233,6 +238,7 @@ TaskResult run_task(const RunConfig& cfg, const OnlineFilter& proto, Parametrisa
     obj.filter = f.get();
     obj.par = &par;
     obj.t = &t;
+    obj.escape = truth_escape_bound(cfg, par.K);
     obj.s = Signals{std::vector<double>(par.K * par.nv), std::vector<double>(par.K * par.m)};
     TaskResult res;
     res.restart.start = task.start;
@@ -283,7 +289,7 @@ double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t 
 
 double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s, std::int64_t steps) {
     std::unique_ptr<OnlineFilter> c = f.clone();
-    return ratio_of(cfg, *c, s, steps, times(cfg, steps));
+    return ratio_of(cfg, *c, s, steps, times(cfg, steps), truth_escape_bound(cfg, steps));
 }
 
 WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const OnlineFilter*>& filters,
@@ -451,9 +457,10 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
         eo.quiet = quiet;
         eo.split = false;
         EngineResult er = engine_run(cfg, filters, eo);
+        const bool escaped = er.truth_escaped_at[0] >= 0;  // a set found before the search looked for escapes
         for (int f = 0; f < F; ++f) {
             FilterRunStats& st = er.runs[f][0];
-            r.ratio[d * F + f] = st.error_energy / st.signal_energy;
+            r.ratio[d * F + f] = escaped ? NAN : st.error_energy / st.signal_energy;
             r.diverged_at[d * F + f] = st.diverged_at;
             r.signal_energy[d] = st.signal_energy;
             r.err[d * F + f] = std::move(st.err_sub);

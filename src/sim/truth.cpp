@@ -109,23 +109,62 @@ TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t 
     return tr;
 }
 
-std::int64_t truth_escape_step(const TruthRun& run, int n, int m) {
+std::vector<double> truth_escape_bound(const RunConfig& cfg, std::int64_t steps) {
+    const int n = cfg.n;
+    Signals quiet;  // the noise-free run: no disturbance, no noise
+    quiet.v.assign(std::size_t(steps) * cfg.nv, 0.0);
+    quiet.n.assign(std::size_t(steps) * cfg.m, 0.0);
+    const TruthRun nf = truth_simulate(cfg, Scenario{}, 0, steps, &quiet);
+    std::vector<double> bound(n);
+    for (int i = 0; i < n; ++i) {
+        double s = std::max(std::fabs(cfg.x0[i]), std::fabs(cfg.xhat0[i]));
+        if (!cfg.initial_std.empty()) s = std::max(s, cfg.initial_std[i]);
+        for (std::int64_t k = 0; k < steps; ++k)
+            if (std::isfinite(nf.x[k * n + i])) s = std::max(s, std::fabs(nf.x[k * n + i]));
+        bound[i] = s > 0 ? kTruthEscapeFactor * s : INFINITY;
+    }
+    return bound;
+}
+
+std::int64_t truth_escape_step(const TruthRun& run, int n, int m, const double* bound) {
     const std::int64_t K = n > 0 ? std::int64_t(run.x.size()) / n : 0;
     for (std::int64_t k = 0; k < K; ++k) {
-        for (int i = 0; i < n; ++i)
-            if (!std::isfinite(run.x[k * n + i])) return k;
+        for (int i = 0; i < n; ++i) {
+            const double x = run.x[k * n + i];
+            if (!std::isfinite(x) || (bound != nullptr && std::fabs(x) > bound[i])) return k;
+        }
         for (int j = 0; j < m && std::size_t(k * m + j) < run.y.size(); ++j)
             if (!std::isfinite(run.y[k * m + j])) return k;
     }
     return -1;
 }
 
+TruthRun truth_simulate_checked(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
+                                const double* bound, std::int64_t* escaped_at, const Signals* given) {
+    const std::int64_t L = steps + kTruthEscapeLookahead;
+    Signals padded;
+    if (given != nullptr) {  // the signals end at the horizon; the look continues without any
+        padded = *given;
+        padded.v.resize(std::size_t(L) * cfg.nv, 0.0);
+        padded.n.resize(std::size_t(L) * cfg.m, 0.0);
+    }
+    TruthRun tr = truth_simulate(cfg, sc, run, L, given != nullptr ? &padded : nullptr);
+    *escaped_at = truth_escape_step(tr, cfg.n, cfg.m, bound);
+    tr.x.resize(std::size_t(steps) * cfg.n);
+    tr.y.resize(std::size_t(steps) * cfg.m);
+    tr.v.resize(std::size_t(steps) * cfg.nv);
+    tr.n.resize(std::size_t(steps) * cfg.m);
+    tr.energy.resize(std::size_t(steps));
+    return tr;
+}
+
 std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first) {
     char t[32];
     std::snprintf(t, sizeof t, "%g", first);
     std::string msg = "the truth of every one of the " + std::to_string(runs) + " " + what + " of " + cfg.doc.source() +
-                      " left the finite numbers (the first at t = " + t +
-                      " s): the system escapes from [filter] x0 under its [online] noise; start it inside the region "
+                      " ran away (the first at t = " + t +
+                      " s: not finite, or 1e12 times beyond every scale its config gives it): the system escapes from "
+                      "[filter] x0 under its [online] noise; start it inside the region "
                       "it stays in, lower the noise";
     if (cfg.system != nullptr && !cfg.system->discrete_time())
         msg += ", take a shorter [filter] dt (the truth is stepped by forward Euler, and a step too long for the "

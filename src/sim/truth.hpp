@@ -48,11 +48,31 @@ struct TruthRun {
 TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
                         const Signals* given = nullptr);
 
-/// The first step k whose state x(t_k) or measurement y(t_k) is not finite (a model that escapes under its noise,
-/// e.g. the Henon map from the edge of its basin); -1 when the run stays finite.
-std::int64_t truth_escape_step(const TruthRun& run, int n, int m);
+/// Where a truth has run away (docs/compare.md, "A truth that escapes"): per state kTruthEscapeFactor times the
+/// largest of |x0_i|, |x^0_i|, [baseline] initial_std_i and |x_i| along the noise-free run from x0 over `steps` steps;
+/// +inf for a state where all of them are 0 (only a non-finite value counts there). A truth 10^12 times beyond every
+/// scale its config gives it is no state a filter can be blamed for losing, and an escape that has begun but not yet
+/// overflowed at the horizon (the Henon map's last few steps) is caught by it.
+inline constexpr double kTruthEscapeFactor = 1e12;
+std::vector<double> truth_escape_bound(const RunConfig& cfg, std::int64_t steps);
 
-/// What a user reads when every run escapes: "the truth of every one of the R <what> left the finite numbers (the
+/// Steps a truth is simulated past its horizon to see whether it is running away (an escape begun in the horizon's
+/// last steps, still finite there: the Henon map overflows within about ten steps of leaving its basin). The runs
+/// are cut back to the horizon after the look; the steps inside it do not change (counter-based draws).
+inline constexpr std::int64_t kTruthEscapeLookahead = 16;
+
+/// truth_simulate over steps + kTruthEscapeLookahead steps, then cut back to `steps`; given signals (which end at
+/// the horizon) are continued by zeros for the look. *escaped_at: the first step (within the look-ahead too) at
+/// which it ran away by truth_escape_step, or -1.
+TruthRun truth_simulate_checked(const RunConfig& cfg, const Scenario& sc, std::uint64_t run, std::int64_t steps,
+                                const double* bound, std::int64_t* escaped_at, const Signals* given = nullptr);
+
+/// The first step k whose state x(t_k) is not finite or beyond bound [n] (nullptr: no bound), or whose measurement
+/// y(t_k) is not finite (a model that escapes under its noise, e.g. the Henon map from the edge of its basin); -1
+/// when the run stays.
+std::int64_t truth_escape_step(const TruthRun& run, int n, int m, const double* bound);
+
+/// What a user reads when every run escapes: "the truth of every one of the R <what> ran away (the
 /// first at t = T s): ..." with what to change (for a continuous-time system also a shorter dt: forward Euler).
 std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first);
 

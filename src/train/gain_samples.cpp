@@ -35,10 +35,10 @@ GainPool gain_pool_build(const RunConfig& cfg) {
     c.online_seed = (z ^ (z >> 31)) >> 1;
     std::vector<TruthRun> runs(static_cast<std::size_t>(cfg.trajectories));
     std::vector<std::int64_t> escaped_at(runs.size(), -1);
+    const std::vector<double> bound = truth_escape_bound(cfg, pool.steps);
 #pragma omp parallel for schedule(dynamic)
     for (std::int64_t r = 0; r < cfg.trajectories; ++r) {
-        runs[r] = truth_simulate(c, Scenario{}, std::uint64_t(r), pool.steps);
-        escaped_at[r] = truth_escape_step(runs[r], cfg.n, cfg.m);
+        runs[r] = truth_simulate_checked(c, Scenario{}, std::uint64_t(r), pool.steps, bound.data(), &escaped_at[r]);
     }
     for (std::size_t r = 0; r < runs.size(); ++r) {
         if (escaped_at[r] < 0) {
@@ -56,7 +56,7 @@ GainPool gain_pool_build(const RunConfig& cfg) {
 std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool) {
     if (pool.escaped == 0) return "";
     return "hinf: note: " + std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories) +
-           " training truth runs left the finite numbers (the first at t = " + fmt_g(pool.first_escape) +
+           " training truth runs ran away (the first at t = " + fmt_g(pool.first_escape) +
            " s: the system escapes under its [online] noise); training draws its estimates from the other " +
            std::to_string(pool.runs.size()) + " (docs/method.md section 16.3)\n";
 }

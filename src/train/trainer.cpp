@@ -246,7 +246,7 @@ public:
 
     const GainPool& pool() const { return pool_; }  // the gain variant's truth runs (empty for the others)
 
-    // the gain variant's truth runs, and a note (rank 0, once) when some left the finite numbers
+    // the gain variant's truth runs, and a note (rank 0, once) when some ran away
     void build_pool() {
         pool_ = gain_pool_build(cfg_);
         const std::string note = gain_pool_note(cfg_, pool_);

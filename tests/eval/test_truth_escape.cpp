@@ -1,5 +1,5 @@
-// A model that escapes under its own noise (the Henon map near the edge of its basin): its truth runs leave the
-// finite numbers. Training draws from the runs that stay finite; compare and operate leave such runs out of every
+// A model that escapes under its own noise (the Henon map near the edge of its basin): its truth runs run away (out
+// of the finite numbers, or 1e12 times beyond every scale the config gives them). Training draws from the runs that stay finite; compare and operate leave such runs out of every
 // filter's figures and count them apart, instead of calling them every filter's divergence; a model every run of
 // which escapes is refused in one line. (docs/compare.md "Divergence", docs/method.md section 16.3.)
 #include <catch2/catch.hpp>
@@ -7,6 +7,7 @@
 #include <string>
 
 #include "eval/compare.hpp"
+#include "eval/worst.hpp"
 #include "filters/ekf.hpp"
 #include "filters/ukf.hpp"
 #include "helpers.hpp"
@@ -32,15 +33,22 @@ RunConfig henon(const std::string& f0 = "1 - a*x^2 + y") {
 
 }  // namespace
 
-TEST_CASE("truth_escape_step finds the first step that leaves the finite numbers", "[sim][escape]") {
+TEST_CASE("truth_escape_step finds the first step that runs away", "[sim][escape]") {
     TruthRun run;
     run.x = {1, 2, 3, 4, INFINITY, 6, 7, 8};  // 4 steps x 2 states: step 2 holds the inf
     run.y = {1, 2, 3, 4};
-    CHECK(truth_escape_step(run, 2, 1) == 2);
+    CHECK(truth_escape_step(run, 2, 1, nullptr) == 2);
     run.x[4] = 5;
-    CHECK(truth_escape_step(run, 2, 1) == -1);
+    CHECK(truth_escape_step(run, 2, 1, nullptr) == -1);
+    const double bound[2] = {4.5, 100};  // beyond a bound: state 0 at step 2 (5 > 4.5)
+    CHECK(truth_escape_step(run, 2, 1, bound) == 2);
     run.y[1] = NAN;  // a measurement alone
-    CHECK(truth_escape_step(run, 2, 1) == 1);
+    CHECK(truth_escape_step(run, 2, 1, nullptr) == 1);
+    // the bound: 1e12 times the config's scales, the noise-free run's included (the Henon attractor's |x| <= 1.3)
+    const RunConfig cfg = henon();
+    const std::vector<double> b = truth_escape_bound(cfg, cfg.steps_until());
+    CHECK(b[0] > kTruthEscapeFactor * 1.0);
+    CHECK(b[0] < kTruthEscapeFactor * 2.0);
 }
 
 TEST_CASE("training's truth pool leaves out the runs that escape and keeps the others", "[train][escape]") {
@@ -50,11 +58,12 @@ TEST_CASE("training's truth pool leaves out the runs that escape and keeps the o
     REQUIRE(pool.runs.size() > 0);  // ... and some stay
     CHECK(std::int64_t(pool.runs.size()) + pool.escaped == cfg.trajectories);
     CHECK(pool.first_escape >= 0);
-    for (const TruthRun& r : pool.runs) CHECK(truth_escape_step(r, cfg.n, cfg.m) == -1);
+    const std::vector<double> bound = truth_escape_bound(cfg, pool.steps);
+    for (const TruthRun& r : pool.runs) CHECK(truth_escape_step(r, cfg.n, cfg.m, bound.data()) == -1);
     const std::string note = gain_pool_note(cfg, pool);
     CHECK(note.find(std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories)) != std::string::npos);
     // every run escapes: refused in one line that says what to change
-    CHECK_THROWS_WITH(gain_pool_build(henon("2*x^2 + 1 + y")), Catch::Contains("left the finite numbers") &&
+    CHECK_THROWS_WITH(gain_pool_build(henon("2*x^2 + 1 + y")), Catch::Contains("ran away") &&
                                                                    Catch::Contains("lower the noise"));
 }
 
@@ -115,4 +124,26 @@ TEST_CASE("a continuous model whose Euler step runs away is told to take a short
     CHECK_THROWS_WITH(compare_run(bad, {ekf.get()}, opt), Catch::Contains("shorter [filter] dt"));
     const RunConfig good = with_dt("0.01");  // ... and with a step the dynamics allow, one
     CHECK(good.rho > 0);
+}
+
+TEST_CASE("an escape begun at the horizon is seen by the look past it and scores nothing in the worst-case search",
+          "[sim][worst][escape]") {
+    const RunConfig cfg = henon();
+    const std::int64_t K = cfg.steps_until();
+    const std::vector<double> bound = truth_escape_bound(cfg, K);
+    Signals s{std::vector<double>(std::size_t(K) * cfg.nv, 0.0), std::vector<double>(std::size_t(K) * cfg.m, 0.0)};
+    std::int64_t at = -2;
+    TruthRun quiet = truth_simulate_checked(cfg, Scenario{}, 0, K, bound.data(), &at, &s);
+    CHECK(at == -1);  // the noise-free map stays on its attractor
+    CHECK(quiet.x.size() == std::size_t(K) * cfg.n);  // cut back to the horizon
+    s.v[std::size_t(K - 2) * cfg.nv] = 3.0;  // a kick in the last steps: x leaves the basin
+    TruthRun kicked = truth_simulate_checked(cfg, Scenario{}, 0, K, bound.data(), &at, &s);
+    for (double x : kicked.x) REQUIRE(std::isfinite(x));  // still finite within the horizon ...
+    CHECK(truth_escape_step(kicked, cfg.n, cfg.m, bound.data()) == -1);
+    CHECK(at >= K);  // ... and running away just past it
+    const FilterModel model = filter_model(cfg);
+    auto ekf = make_ekf(model);
+    CHECK(std::isnan(worst_ratio(cfg, *ekf, s, K)));  // no filter's failure: the search's objective reads it as 0
+    s.v[std::size_t(K - 2) * cfg.nv] = 0.01;
+    CHECK(std::isfinite(worst_ratio(cfg, *ekf, s, K)));
 }
