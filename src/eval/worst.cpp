@@ -461,7 +461,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
         for (int f = 0; f < F; ++f) {
             FilterRunStats& st = er.runs[f][0];
             r.ratio[d * F + f] = escaped ? NAN : st.error_energy / st.signal_energy;
-            r.diverged_at[d * F + f] = st.diverged_at;
+            r.diverged_at[d * F + f] = escaped ? NAN : st.diverged_at;
             r.signal_energy[d] = st.signal_energy;
             r.err[d * F + f] = std::move(st.err_sub);
         }
@@ -569,7 +569,7 @@ void write_sets_and_cross(hid_t root, const RunConfig& cfg, const std::vector<Wo
     h5::set_attr(cg.get(), "meaning", "ratio[d][f]: filter f's attenuation ratio under set d (the worst found for "
                                       "sets[d]); err_<d>_<f>: its error x - x^ at t_sub");
     h5::write_doubles(cg.get(), "ratio", r.ratio.data(), {D, F}, "", "int x~'Qx~ dt / int (v'v + n'n) dt");
-    h5::write_doubles(cg.get(), "diverged_at", r.diverged_at.data(), {D, F}, "s", "-1: never");
+    h5::write_doubles(cg.get(), "diverged_at", r.diverged_at.data(), {D, F}, "s", "-1: never; NaN: the truth ran away");
     h5::write_doubles(cg.get(), "signal_energy", r.signal_energy.data(), {D}, "", "int (v'v + n'n) dt per set");
     std::vector<double> tsub;
     for (std::int64_t k = 0; k < steps; k += r.stride) tsub.push_back(cfg.time_of(k));
