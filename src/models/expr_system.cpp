@@ -174,16 +174,64 @@ std::string ginac_reason(const std::exception& err) {
     return msg;
 }
 
+// min(a, b) and max(a, b) (more arguments: folded from the left) written with step(), which GiNaC reads and whose
+// derivative is 0 wherever it exists, so each has the derivative of the argument it takes:
+//   min(a, b) = a + step(a - b)*(b - a),   max(a, b) = a + step(b - a)*(b - a)   (a tie takes b, equal to a)
+// muParser has both itself and checks the user's text first; text it would refuse is left for it to report.
+std::string rewrite_min_max(const std::string& s) {
+    auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+    std::string out;
+    std::size_t i = 0;
+    while (i < s.size()) {
+        if (!word(s[i])) {
+            out += s[i++];
+            continue;
+        }
+        std::size_t j = i;
+        while (j < s.size() && word(s[j])) ++j;
+        const std::string name = s.substr(i, j - i);
+        std::size_t open = j;
+        while (open < s.size() && s[open] == ' ') ++open;
+        if ((name != "min" && name != "max") || open >= s.size() || s[open] != '(') {
+            out += name;
+            i = j;
+            continue;
+        }
+        std::vector<std::string> args;
+        std::size_t start = open + 1, p = open + 1;
+        for (int depth = 0; p < s.size(); ++p) {
+            const char c = s[p];
+            if (c == '(') ++depth;
+            else if (c == ')' && depth-- == 0) break;
+            else if (c == ',' && depth == 0) {
+                args.push_back(s.substr(start, p - start));
+                start = p + 1;
+            }
+        }
+        if (p >= s.size()) return out + s.substr(i);  // unbalanced: GiNaC says so
+        args.push_back(s.substr(start, p - start));
+        std::string acc = "(" + rewrite_min_max(args[0]) + ")";
+        for (std::size_t a = 1; a < args.size(); ++a) {
+            const std::string b = "(" + rewrite_min_max(args[a]) + ")";
+            const std::string d = name == "min" ? acc + " - " + b : b + " - " + acc;
+            acc = "(" + acc + " + step(" + d + ")*(" + b + " - " + acc + "))";
+        }
+        out += acc;
+        i = p + 1;
+    }
+    return out;
+}
+
 // GiNaC reads it again for the symbolic work; its grammar is a subset of muParser's (no comparisons, no ?:).
 GiNaC::ex read_symbolic(const ExprText& e, const GiNaC::symtab& table) {
     GiNaC::parser reader(table, true);
     GiNaC::ex out;
     try {
-        out = reader(e.text);
+        out = reader(rewrite_min_max(e.text));
     } catch (const std::exception& err) {
         HINF_FAIL(quoted(e) + ": GiNaC, which differentiates it, cannot read it (" + ginac_reason(err) +
                   "); use + - * / ^ (with parentheses: (a^b)^c), numbers and sin cos tan asin acos atan atan2 sinh "
-                  "cosh tanh asinh acosh atanh exp log sqrt abs pow step; write a switch as step(s) (1 for s >= 0, "
+                  "cosh tanh asinh acosh atanh exp log sqrt abs pow step min max; write a switch as step(s) (1 for s >= 0, "
                   "else 0)");
     }
     GiNaC::ex numeric_form;  // sqrt(-2) stays a power until evaluated in floating point

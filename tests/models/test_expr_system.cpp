@@ -207,6 +207,48 @@ TEST_CASE("expression Jacobians are exact: central differences agree to truncati
     }
 }
 
+TEST_CASE("min and max evaluate as muParser's and differentiate as the argument they take", "[model][expr]") {
+    // a saturated sensor and a clipped drift: min(x, 1.2), max of three (folded from the left), nested
+    ConfigDoc doc = ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"a\", \"b\"]\ndisturbances = 1\nmeasurements = 2\n"
+        "f = [\"max(-a, b^2, -0.5) \", \"min(a*b, max(b, 0.2))\"]\ng = [[\"0\"], [\"1\"]]\n"
+        "h = [\"min(a, 1.2)\", \"max(2*b, sin(a))\"]\n",
+        "clip.toml");
+    std::unique_ptr<System> sys = make_system(doc);
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> u(-2.0, 2.0);
+    int kinks_seen = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+        const double a = u(rng), b = u(rng), x[2] = {a, b};
+        double f[2], h[2], J[4], H[4];
+        sys->drift(f, x, 0.0, 1);
+        sys->measurement(h, x, 0.0, 1);
+        CHECK(f[0] == Approx(std::max({-a, b * b, -0.5})).margin(1e-14));
+        CHECK(f[1] == Approx(std::min(a * b, std::max(b, 0.2))).margin(1e-14));
+        CHECK(h[0] == Approx(std::min(a, 1.2)).margin(1e-14));
+        CHECK(h[1] == Approx(std::max(2 * b, std::sin(a))).margin(1e-14));
+        sys->drift_jacobian(J, x, 0.0);
+        sys->measurement_jacobian(H, x, 0.0);
+        // the derivative of the argument taken (away from the ties)
+        const double m0 = std::max({-a, b * b, -0.5});
+        if (std::fabs(-a - b * b) < 1e-6 || std::fabs(-a + 0.5) < 1e-6 || std::fabs(b * b + 0.5) < 1e-6 ||
+            std::fabs(a * b - std::max(b, 0.2)) < 1e-6 || std::fabs(b - 0.2) < 1e-6 || std::fabs(a - 1.2) < 1e-6 ||
+            std::fabs(2 * b - std::sin(a)) < 1e-6)
+            continue;
+        ++kinks_seen;
+        CHECK(J[0] == (m0 == -a ? -1.0 : 0.0));
+        CHECK(J[1] == Approx(m0 == b * b ? 2 * b : 0.0).margin(1e-14));
+        const bool prod = a * b < std::max(b, 0.2);
+        CHECK(J[2] == Approx(prod ? b : 0.0).margin(1e-14));
+        CHECK(J[3] == Approx(prod ? a : b > 0.2 ? 1.0 : 0.0).margin(1e-14));
+        CHECK(H[0] == (a < 1.2 ? 1.0 : 0.0));
+        CHECK(H[1] == 0.0);
+        CHECK(H[2] == Approx(2 * b > std::sin(a) ? 0.0 : std::cos(a)).margin(1e-14));
+        CHECK(H[3] == (2 * b > std::sin(a) ? 2.0 : 0.0));
+    }
+    CHECK(kinks_seen > 150);
+}
+
 TEST_CASE("expression systems evaluate alike from several threads at once", "[model][expr]") {
     std::unique_ptr<System> ex = expr_missile();
     const std::int64_t chunks = 32, per = 100;
