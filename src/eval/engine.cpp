@@ -80,7 +80,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
                                     [&](std::int64_t k, const double* xh, bool) {
         const double* x = tr.x.data() + k * n;
         if (obs != nullptr) obs->observe(k, t[k], x, xh);
-        for (int i = 0; i < n; ++i) e[i] = x[i] - xh[i];
+        cfg.system->state_difference(e.data(), x, xh);  // an angle state's wrapped
         if (run == 0) r.xhat.insert(r.xhat.end(), xh, xh + n);
         if (k % opt.stride == 0) r.err_sub.insert(r.err_sub.end(), e.begin(), e.end());
         r.error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
@@ -107,7 +107,8 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     }, [&](std::int64_t k, const double* xf) {
         const double* x = tr.x.data() + k * n;
         if (r.err_sq_filtered.empty()) r.err_sq_filtered.assign(n, 0.0);
-        for (int i = 0; i < n; ++i) r.err_sq_filtered[i] += (x[i] - xf[i]) * (x[i] - xf[i]);
+        cfg.system->state_difference(e.data(), x, xf);
+        for (int i = 0; i < n; ++i) r.err_sq_filtered[i] += e[i] * e[i];
     });
     r.diverged_at = sr.diverged_at;
     r.seconds = sr.seconds;

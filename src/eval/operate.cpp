@@ -92,7 +92,7 @@ public:
             return;
         }
         std::vector<double> xt(n), pt(n);
-        for (int i = 0; i < n; ++i) xt[i] = x[i] - xhat[i];
+        cfg_.system->state_difference(xt.data(), x, xhat);  // an angle state's wrapped
         nets_[0]->gradient(pt.data(), xt.data(), 1);
         double terms[4];
         hjie_point_terms(terms, pt.data(), *cfg_.system, x, xhat, t, cfg_.Q.data(), cfg_.rho);

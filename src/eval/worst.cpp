@@ -122,7 +122,7 @@ double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::in
     f.reset(engine_filter_start(cfg, 0));
     filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
         const double* x = tr.x.data() + k * n;
-        for (int i = 0; i < n; ++i) e[i] = x[i] - xh[i];
+        cfg.system->state_difference(e.data(), x, xh);  // an angle state's wrapped
         error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
         energy += cfg.dt * tr.energy[k];
     });
@@ -154,7 +154,7 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
         f->reset(engine_filter_start(cfg, 0));
         filter_stream(*f, tr.y.data(), m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
             const double* x = tr.x.data() + k * n;
-            for (int i = 0; i < n; ++i) xt[i] = x[i] - xh[i];
+            sys.state_difference(xt.data(), x, xh);
             net->gradient(p.data(), xt.data(), 1);
             sys.disturbance_gain(B.data(), x, t[k], 1);
             sys.measurement(cx.data(), x, t[k], 1);

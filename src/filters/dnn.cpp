@@ -51,7 +51,7 @@ public:
             sys.disturbance_gain(B.data(), in.x_true, in.t, 1);
             sys.measurement(cx.data(), in.x_true, in.t, 1);
             sys.output_difference(dc.data(), cx.data(), ch.data());
-            for (int i = 0; i < n; ++i) xt[i] = in.x_true[i] - xhat_[i];
+            sys.state_difference(xt.data(), in.x_true, xhat_.data());  // an angle state's wrapped
         }
         net_->gradient(p.data(), xt.data(), 1);
         law_->gain(k.data(), DnnGainInput{p.data(), B.data(), dc.data(), n, nv, m});

@@ -30,7 +30,7 @@ PointTerms point_terms(const System& sys, const double* x, const double* xhat, d
     p.dA.resize(n);
     p.B.resize(static_cast<std::size_t>(n) * nv);
     p.dc.resize(m);
-    for (int i = 0; i < n; ++i) p.xt[i] = x[i] - xhat[i];
+    sys.state_difference(p.xt.data(), x, xhat);  // an angle state's wrapped
     sys.drift(a_x.data(), x, t, 1);
     sys.drift(a_h.data(), xhat, t, 1);
     sys.disturbance_gain(p.B.data(), x, t, 1);

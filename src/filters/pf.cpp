@@ -102,12 +102,20 @@ public:
                 ++resamples_;
                 if (roughening_ > 0) {
                     // roughening: sigma_i = K E_i N^(-1/n), E_i = max - min of the resampled cloud in state i
-                    std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size());
+                    std::vector<double> lo(X_.begin(), X_.begin() + n), hi(lo), z(X_.size()), d(n);
                     for (std::int64_t p = 1; p < np_; ++p)
                         for (int i = 0; i < n; ++i) {
                             lo[i] = std::min(lo[i], X_[p * n + i]);
                             hi[i] = std::max(hi[i], X_[p * n + i]);
                         }
+                    for (int i : sys.angle_states()) lo[i] = hi[i] = 0.0;  // an angle: the spread of the offsets
+                    for (std::int64_t p = 1; p < np_ && !sys.angle_states().empty(); ++p) {
+                        sys.state_difference(d.data(), &X_[p * n], &X_[0]);
+                        for (int i : sys.angle_states()) {
+                            lo[i] = std::min(lo[i], d[i]);
+                            hi[i] = std::max(hi[i], d[i]);
+                        }
+                    }
                     kern::rng_normal(z.data(), np_ * n, seed_, kern::RNG_STREAM_ROUGHEN, run_, std::uint64_t(in.step));
                     const double shrink = roughening_ * std::pow(double(np_), -1.0 / n);
                     for (std::int64_t p = 0; p < np_; ++p)
@@ -141,10 +149,22 @@ public:
 
 private:
     void mean(std::vector<double>& out) const {
-        const int n = model_.system->state_dim();
+        const System& sys = *model_.system;
+        const int n = sys.state_dim();
         out.assign(n, 0.0);
         for (std::int64_t p = 0; p < np_; ++p)
             for (int i = 0; i < n; ++i) out[i] += w_[p] * X_[p * n + i];
+        if (sys.angle_states().empty()) return;
+        // an angle state: the weighted mean of the particles' offsets from the heaviest one (the cloud may straddle
+        // +-pi, where the plain mean of 3.1 and -3.1 is 0)
+        const std::int64_t ref = std::max_element(w_.begin(), w_.end()) - w_.begin();
+        std::vector<double> d(n);
+        for (int i : sys.angle_states()) out[i] = 0.0;
+        for (std::int64_t p = 0; p < np_; ++p) {
+            sys.state_difference(d.data(), &X_[p * n], &X_[ref * n]);
+            for (int i : sys.angle_states()) out[i] += w_[p] * d[i];
+        }
+        for (int i : sys.angle_states()) out[i] += X_[ref * n + i];
     }
 
     FilterModel model_;

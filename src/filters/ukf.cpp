@@ -38,22 +38,18 @@ public:
         RowMat X(ns, n), Z(ns, m);
         if (!sigma_points(&X, x_, P_)) return FILTER_DIVERGED;
         sys.measurement(Z.data(), X.data(), in.t, ns);
-        Vec zbar = Vec::Zero(m);
-        if (sys.wraps_outputs()) {  // an angle output: the mean of the points' differences from the centre's
-            Vec d(m);
-            for (int s = 0; s < ns; ++s) {
-                sys.output_difference(d.data(), Z.row(s).data(), Z.row(0).data());
-                zbar += wm_[s] * d;
-            }
-            zbar += Z.row(0).transpose();
-        } else
-            for (int s = 0; s < ns; ++s) zbar += wm_[s] * Z.row(s).transpose();
+        // an angle output: the mean of the points' differences from the centre's
+        const Vec zbar = sys.wraps_outputs() ? centred_mean(Z, [&](double* d, const double* a, const double* b) {
+            sys.output_difference(d, a, b);
+        }) : plain_mean(Z);
         Mat S = Mat::Zero(m, m), Pxz = Mat::Zero(n, m);
         for (int s = 0; s < ns; ++s) {
             Vec dz(m);
             sys.output_difference(dz.data(), Z.row(s).data(), zbar.data());
             S += wc_[s] * dz * dz.transpose();
-            Pxz += wc_[s] * (X.row(s).transpose() - x_) * dz.transpose();
+            Vec dx(n);  // an angle state's offset wrapped
+            sys.state_difference(dx.data(), X.row(s).data(), x_.data());
+            Pxz += wc_[s] * dx * dz.transpose();
         }
         if (!model_.noise_chol.empty()) S += noise_covariance(model_, m);  // correlated
         else
@@ -74,11 +70,14 @@ public:
         if (!sigma_points(&X, xu, Pu)) return FILTER_DIVERGED;
         RowMat Xn(ns, n), G(n, nv);
         system_advance(sys, Xn.data(), X.data(), nullptr, in.t, model_.dt, ns);
-        Vec xn = Vec::Zero(n);
-        for (int s = 0; s < ns; ++s) xn += wm_[s] * Xn.row(s).transpose();
+        // an angle state: the mean of the points' offsets from the centre's
+        const Vec xn = !sys.angle_states().empty() ? centred_mean(Xn, [&](double* d, const double* a, const double* b) {
+            sys.state_difference(d, a, b);
+        }) : plain_mean(Xn);
         Mat Pn = Mat::Zero(n, n);
         for (int s = 0; s < ns; ++s) {
-            Vec dx = Xn.row(s).transpose() - xn;
+            Vec dx(n);
+            sys.state_difference(dx.data(), Xn.row(s).data(), xn.data());
             Pn += wc_[s] * dx * dx.transpose();
         }
         system_advance_jacobian(sys, nullptr, G.data(), xu.data(), in.t, model_.dt);
@@ -96,6 +95,24 @@ public:
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<UnscentedKalmanFilter>(*this); }
 
 private:
+    // the weighted mean of the rows of P (the points through a function)
+    Vec plain_mean(const RowMat& P) const {
+        Vec mean = Vec::Zero(P.cols());
+        for (Eigen::Index s = 0; s < P.rows(); ++s) mean += wm_[s] * P.row(s).transpose();
+        return mean;
+    }
+    // the centre row plus the weighted mean of each row's difference from it (diff(d, a, b): d = a - b wrapped where
+    // a component is an angle), so points that straddle +-pi average where they are
+    template <class Diff>
+    Vec centred_mean(const RowMat& P, Diff diff) const {
+        Vec mean = Vec::Zero(P.cols()), d(P.cols());
+        for (Eigen::Index s = 0; s < P.rows(); ++s) {
+            diff(d.data(), P.row(s).data(), P.row(0).data());
+            mean += wm_[s] * d;
+        }
+        return mean + P.row(0).transpose();
+    }
+
     // rows of X: x, x + sqrt(n + lambda) L_j, x - sqrt(n + lambda) L_j with L L^T = P
     bool sigma_points(RowMat* X, const Vec& x, const Mat& P) const {
         const int n = static_cast<int>(x.size());

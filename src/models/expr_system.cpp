@@ -445,6 +445,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
       states_(spec.states),
       units_(spec.units),
       angles_(spec.angle_outputs),
+      angle_states_(spec.angle_states),
       parameters_(spec.parameters) {
     // names: identifiers, distinct, not t / pi / a function
     HINF_CHECK(n_ >= 1, spec.where + " states: give at least one state name, e.g. states = [\"x1\", \"x2\"]");
@@ -761,6 +762,14 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s, double period) {
         s.reject("angle_outputs", "names output " + std::to_string(*std::adjacent_find(angles.begin(), angles.end())) +
                                       " twice (list each output that is an angle in radians once, 1-based as in h)");
     for (std::int64_t j : angles) spec.angle_outputs.push_back(int(j - 1));
+    // states that are angles (a heading, a pendulum that spins): 1-based like the states list
+    std::vector<std::int64_t> angle_states = s.get_ints("angle_states", {}, 1, std::int64_t(spec.states.size()));
+    std::sort(angle_states.begin(), angle_states.end());
+    if (std::adjacent_find(angle_states.begin(), angle_states.end()) != angle_states.end())
+        s.reject("angle_states", "names state " +
+                                     std::to_string(*std::adjacent_find(angle_states.begin(), angle_states.end())) +
+                                     " twice (list each state that is an angle in radians once, 1-based as in states)");
+    for (std::int64_t j : angle_states) spec.angle_states.push_back(int(j - 1));
     return std::make_unique<ExprSystem>(spec);
 }
 

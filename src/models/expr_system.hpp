@@ -33,6 +33,7 @@ struct ExprSpec {
     bool discrete = false;  // [system] time = "discrete": f is the map x_{k+1} = f + g v, and k may be used
     double period = 0.0;    // discrete only: the sampling period dt ([filter] dt), k = round(t / period)
     std::vector<int> angle_outputs;  // outputs that are angles in radians (0-based, ascending): differences wrap
+    std::vector<int> angle_states;   // states that are angles in radians (0-based, ascending): differences wrap
 };
 
 /// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h; in discrete time
@@ -57,6 +58,7 @@ class ExprSystem : public System {
     std::vector<std::string> state_units() const override { return units_; }
     bool discrete_time() const override { return discrete_; }
     const std::vector<int>& angle_outputs() const override { return angles_; }
+    const std::vector<int>& angle_states() const override { return angle_states_; }
     /// Discrete time: the sampling period that stamps the steps (k = round(t / period)); 0 in continuous time.
     double period() const { return period_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
@@ -77,6 +79,7 @@ class ExprSystem : public System {
     double period_ = 0.0;
     std::vector<std::string> states_, units_;
     std::vector<int> angles_;
+    std::vector<int> angle_states_;
     std::vector<std::pair<std::string, double>> parameters_;
     std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
     std::vector<std::string> programs_;          // the texts of the non-constant entries

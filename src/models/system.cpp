@@ -22,6 +22,18 @@ void System::output_difference(double* r, const double* y, const double* c, std:
         for (std::int64_t p = 0; p < count; ++p) r[p * m + j] = wrap_angle(r[p * m + j]);
 }
 
+const std::vector<int>& System::angle_states() const {
+    static const std::vector<int> none;
+    return none;
+}
+
+void System::state_difference(double* d, const double* a, const double* b, std::int64_t count) const {
+    const int n = state_dim();
+    for (std::int64_t k = 0; k < count * n; ++k) d[k] = a[k] - b[k];
+    for (int i : angle_states())
+        for (std::int64_t p = 0; p < count; ++p) d[p * n + i] = wrap_angle(d[p * n + i]);
+}
+
 void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,
                     std::int64_t count) {
     const int n = sys.state_dim(), nv = sys.disturbance_dim();

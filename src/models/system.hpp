@@ -48,6 +48,14 @@ public:
     /// difference, with the angle outputs' wrapped into [-pi, pi] (docs/formats.md, [system] angle_outputs); every
     /// filter, the training samples and the on-line check take their output differences here. r may alias y or c.
     virtual void output_difference(double* r, const double* y, const double* c, std::int64_t count = 1) const;
+    /// The states that are angles in radians (0-based, ascending; [system] angle_states): a heading, a pendulum that
+    /// spins. Empty for every built-in system.
+    virtual const std::vector<int>& angle_states() const;
+    /// d [count x n] = a - b for states a, b [count x n]: an estimation error x - x^, a sigma point's or particle's
+    /// offset. The plain difference, with the angle states' wrapped into [-pi, pi] (bit for bit a - b where no state
+    /// is an angle); every error statistic, the UKF's and PF's means, and the oracle networks' x~ take it here. d may
+    /// alias a or b.
+    void state_difference(double* d, const double* a, const double* b, std::int64_t count = 1) const;
 };
 
 /// x wrapped into [-pi, pi] (IEEE remainder by 2 pi: exact)

@@ -46,6 +46,7 @@ public:
     /// The angle outputs are the inner system's, in the user's units: a difference of weighted outputs wraps there,
     /// r~ = W wrap(W^-1 y~ - W^-1 c~) (a plain subtraction, bit for bit, where no output is an angle).
     const std::vector<int>& angle_outputs() const override { return inner_->angle_outputs(); }
+    const std::vector<int>& angle_states() const override { return inner_->angle_states(); }  // states: unweighted
     void output_difference(double* r, const double* y, const double* c, std::int64_t count = 1) const override;
 
     const System& inner() const { return *inner_; }

@@ -30,7 +30,7 @@ void samples_build(TimeStepSamples* s, const RunConfig& cfg, const std::vector<d
     s->a_hat.resize(n);
     s->c_hat.resize(m);
     std::vector<double> xtilde(n);
-    for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
+    sys.state_difference(xtilde.data(), x.data(), xhat.data());  // an angle state's wrapped
     kern::SamplingParams sp{cfg.local_fraction, cfg.local_spread, cfg.radius_decades};
     kern::sample_errors(s->xt.data(), xtilde.data(), cfg.error_floor.data(), n, N, sp, cfg.seed, step);
     sys.drift(s->a_hat.data(), xhat.data(), t, 1);

@@ -444,8 +444,8 @@ private:
         std::vector<double> z(n), B(n * nv);
         for (int j = 0; j < n; ++j) {
             z[j] = g.input(j, xhat[j]);  // the filter's input, held in the box (method.md 16.10)
-            xt[j] = x[j] - xhat[j];
         }
+        sys.state_difference(xt.data(), x.data(), xhat.data());  // an angle state's wrapped
         std::vector<double> Hx(static_cast<std::size_t>(m) * n), Fx(static_cast<std::size_t>(n) * n);
         if (g.knots > 0 || g.kalman) sys.measurement_jacobian(Hx.data(), xhat.data(), t);
         if (g.kalman) sys.drift_jacobian(Fx.data(), xhat.data(), t);
@@ -620,7 +620,7 @@ private:
         std::vector<double>& x = ck_.state.x;
         std::vector<double>& xhat = ck_.state.xhat;
         std::vector<double> xtilde(n);
-        for (int i = 0; i < n; ++i) xtilde[i] = x[i] - xhat[i];
+        sys.state_difference(xtilde.data(), x.data(), xhat.data());  // an angle state's wrapped
         std::vector<double> p(n), Pm(n * n);
         kern::network_eval(p.data(), Pm.data(), ck_.net.theta.data(), xtilde.data(), 1, ck_.net.step, ws_);
         std::vector<double> c_x(m), dc(m), B(n * nv);
