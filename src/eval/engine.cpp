@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <omp.h>
 
@@ -37,6 +38,35 @@ FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run) {
     start.seed = cfg.online_seed;
     start.run = run;
     return start;
+}
+
+std::string baseline_p0_note(const RunConfig& cfg, const std::string& filters) {
+    if (!cfg.initial_std.empty()) return "";
+    bool bayes = false;
+    std::string word;
+    for (std::size_t i = 0; i <= filters.size(); ++i) {
+        if (i < filters.size() && filters[i] != ',') {
+            word += filters[i];
+            continue;
+        }
+        bayes = bayes || word == "ekf" || word == "ukf" || word == "pf";
+        word.clear();
+    }
+    if (!bayes) return "";
+    const auto names = cfg.system->state_names();
+    std::string which, told;
+    char v[32];
+    for (int i = 0; i < cfg.n; ++i) {
+        const double d = std::fabs(cfg.x0[i] - cfg.xhat0[i]);
+        if (d < 1) which += (which.empty() ? "" : ", ") + names[i];
+        std::snprintf(v, sizeof v, "%g", d > 0 ? d : 1.0);
+        told += (told.empty() ? "" : ",") + std::string(v);
+    }
+    if (which.empty()) return "";
+    return "note: ekf, ukf and pf start from P0 = diag(max(d^2, 1)), d = x0 - x^0, so for " + which +
+           " (|d| < 1) the floor 1 sets their initial variance, not d^2; where a state's scale is far from 1 that can "
+           "make them look much worse or better than they are. To tell them the initial error itself: --set "
+           "\"baseline.initial_std=[" + told + "]\" (a state with d = 0 keeps 1 there: choose its spread; docs/compare.md)";
 }
 
 std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& start, const double* x_true,

@@ -143,6 +143,12 @@ std::int64_t engine_rank_of(std::int64_t run, int ranks);
 /// initial_std^2), else diag(max(e0^2, 1)).
 FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);
 
+/// One line for the user where that default P0 is set by its floor: `filters` (a --filters list) names ekf, ukf or
+/// pf, [baseline] initial_std is not given, and some state's |x0 - x^0| is below 1, so the Bayesian filters start
+/// with variance 1 there and not the initial error's square; it names those states and the --set that tells them
+/// |x0 - x^0| instead (docs/compare.md). "" otherwise.
+std::string baseline_p0_note(const RunConfig& cfg, const std::string& filters);
+
 /// FNV-1a 64 over bytes, continuing from h (start with hash_start).
 constexpr std::uint64_t hash_start = 1469598103934665603ull;
 std::uint64_t hash_bytes(std::uint64_t h, const void* data, std::size_t bytes);

@@ -263,3 +263,20 @@ TEST_CASE("compare scenarios: Student-t and biased measurement noise have the st
     }
     CHECK_THROWS_WITH(scenario_named("windy"), Catch::Contains("is not one of"));
 }
+
+TEST_CASE("compare names the states whose default P0 is set by its floor and the --set that tells |d|", "[eval][compare]") {
+    CHECK(baseline_p0_note(missile_config(), "dnn,ekf,ukf,pf").empty());  // initial errors of tens of metres
+    const std::string text =
+        "[system]\nkind = \"expr\"\nstates = [\"w1\", \"w2\"]\ndisturbances = 1\nmeasurements = 1\n"
+        "f = [\"-w1*w2\", \"w1\"]\ng = [[\"1\"], [\"0\"]]\nh = [\"w1\"]\n"
+        "[filter]\nrho = 2\nx0 = [1.0, 0.5]\nxhat0 = [0.8, 0.5]\ndt = 0.01\nt_final = 1\n"
+        "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
+    const RunConfig small = load_run_config(ConfigDoc::from_text(text, "small.toml"));
+    const std::string note = baseline_p0_note(small, "dnn,ekf,ukf");
+    CHECK_THAT(note, Catch::Contains("w1, w2") && Catch::Contains("baseline.initial_std=[0.2,1]"));
+    CHECK(baseline_p0_note(small, "dnn,open_loop").empty());  // no Bayesian filter: nothing starts from P0
+    CHECK(baseline_p0_note(load_run_config(ConfigDoc::from_text(text + "[baseline]\ninitial_std = [0.2, 0.1]\n",
+                                                                "told.toml")),
+                           "ekf")
+              .empty());
+}
