@@ -1,7 +1,9 @@
 // A model that escapes under its own noise (the Henon map near the edge of its basin): its truth runs run away (out
-// of the finite numbers, or 1e12 times beyond every scale the config gives them). Training draws from the runs that stay finite; compare and operate leave such runs out of every
-// filter's figures and count them apart, instead of calling them every filter's divergence; a model every run of
-// which escapes is refused in one line. (docs/compare.md "Divergence", docs/method.md section 16.3.)
+// of the finite numbers, or 1e12 times beyond every scale the config gives them). Training draws from the runs that
+// stay; compare and operate leave such runs out of every filter's figures and count them apart, instead of calling
+// them every filter's divergence; the worst-case search scores them 0; a model every run of which escapes is refused
+// in one line, and a continuous one whose Euler step runs away is told to take a shorter dt. (docs/compare.md "A
+// truth that escapes", docs/method.md section 16.3.)
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <string>
