@@ -17,20 +17,18 @@
 
 namespace hinf {
 
-namespace {
-std::string num(double v) {
+std::string format_g(double v) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%g", v);
     return buf;
 }
-}  // namespace
 
 std::int64_t ProblemConfig::steps_until(double until) const {
     HINF_CHECK(!std::isnan(until), "--until is not a number (pass a time in seconds, e.g. --until 5)");
     const std::int64_t steps = static_cast<std::int64_t>(std::llround(final_time(until) / dt));
     // an explicit --until shorter than one step would run nothing and report made-up numbers (a NaN ratio)
-    HINF_CHECK(until < 0 || steps >= 1, "--until " + num(until) + " s is less than one time step (dt = " +
-                                            num(dt) + " s): nothing would run (pass a later time)");
+    HINF_CHECK(until < 0 || steps >= 1, "--until " + format_g(until) + " s is less than one time step (dt = " +
+                                            format_g(dt) + " s): nothing would run (pass a later time)");
     return steps;
 }
 
@@ -126,7 +124,7 @@ void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
         look(J, n, "the Jacobian of f", true);
         look(H, n, "the Jacobian of h", true);
         if (!bad.empty())
-            f.reject(key, "the system's " + bad + " is " + num(value) + " at this initial state (t = 0): an "
+            f.reject(key, "the system's " + bad + " is " + format_g(value) + " at this initial state (t = 0): an "
                           "expression is singular there (e.g. 1/p at p = 0, log of a negative number, 1/t at t = 0); "
                           "move the initial state or guard the expression");
     }
@@ -412,7 +410,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Q, Eigen::EigenvaluesOnly);
         const double lo = eig.eigenvalues().minCoeff(), hi = eig.eigenvalues().cwiseAbs().maxCoeff();
         if (eig.info() != Eigen::Success || lo < -1e-12 * std::max(hi, 1e-300))
-            f.reject("Q", "must be positive semidefinite (its smallest eigenvalue is " + num(lo) +
+            f.reject("Q", "must be positive semidefinite (its smallest eigenvalue is " + format_g(lo) +
                               "; x~'Q x~ is the error's weight, e.g. Q = [1, 1] for the identity)");
     }
     // the defaults are seed 000's missile; a system of one's own must say where it starts, how often it is sampled
@@ -438,8 +436,8 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     if (c.t_final / c.dt > 1e9) f.reject("t_final", "gives more than 1e9 time steps (raise dt or lower t_final)");
     check_system_finite_at_start(c, f);
     if (std::llround(c.t_final / c.dt) < 1)
-        f.reject("t_final", "= " + num(c.t_final) + " s is less than one time step dt = " +
-                                num(c.dt) + " s: nothing would run (raise t_final or lower dt)");
+        f.reject("t_final", "= " + format_g(c.t_final) + " s is less than one time step dt = " +
+                                format_g(c.dt) + " s: nothing would run (raise t_final or lower dt)");
     f.finish();
     // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
     // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained
@@ -458,13 +456,13 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         const double escape = g.bracketed ? -1.0 : noise_free_escape_time(c);
         if (!g.bracketed && escape >= 0)  // the model runs away by itself: no level is the question
             c.rho_unset = doc.source() + ": [filter] rho is not set, and no default follows from the system: its "
-                          "noise-free trajectory from [filter] x0 leaves the finite numbers at t = " + num(escape) +
+                          "noise-free trajectory from [filter] x0 leaves the finite numbers at t = " + format_g(escape) +
                           " s" + (c.system->discrete_time() ? std::string(": start it where it stays, or check the model")
                                   : std::string(": take a shorter [filter] dt (the truth is stepped by forward Euler, "
                                                 "and a step too long for the dynamics runs away) or check the model"));
         else if (!g.bracketed)
             c.rho_unset = doc.source() + ": [filter] rho is not set, and the linearised game of this system has " +
-                          (g.bound > 0 ? "no filter of any level up to " + num(g.bound)
+                          (g.bound > 0 ? "no filter of any level up to " + format_g(g.bound)
                                        : std::string("a filter of every level down to 1e-12")) +
                           " (hinf rho), so no default follows from it: set it (e.g. rho = 1 with Q = I: an error "
                           "energy at most the noise energy)";
@@ -620,7 +618,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
                 s.reject("state_bounds", "row " + std::to_string(j + 1) + " (" + names[j] + "): lo must be below hi");
             if (c.x0[j] < b[0] || c.x0[j] > b[1] || c.xhat0[j] < b[0] || c.xhat0[j] > b[1])
                 s.reject("state_bounds", "row " + std::to_string(j + 1) + " (" + names[j] + ") must hold [filter] x0 = " +
-                                             num(c.x0[j]) + " and xhat0 = " + num(c.xhat0[j]) +
+                                             format_g(c.x0[j]) + " and xhat0 = " + format_g(c.xhat0[j]) +
                                              " (the region where the model is meant to hold)");
             c.state_lo.push_back(b[0]);
             c.state_hi.push_back(b[1]);

@@ -154,6 +154,9 @@ ConfigDoc game_in_noise_units(const RunConfig& c);
 /// a large system: docs/method.md section 16.12), for commands that design nothing at a level (compare and filter
 /// without glf).
 RunConfig load_run_config(ConfigDoc doc, bool need_level = true);
+
+/// v as printf's %g, for messages ("0.9", "1e+12").
+std::string format_g(double v);
 /// [filter] variant when the config names none: "gain" for an H-infinity filter of at most kern::kGainMaxDim states,
 /// outputs and disturbances, else "dissipative" (checkpoints written before this default read as they were trained)
 std::string default_variant(const std::string& type, int n, int m, int nv);

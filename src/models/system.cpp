@@ -15,11 +15,18 @@ const std::vector<int>& System::angle_outputs() const {
     return none;
 }
 
+namespace {
+// d [count x dim] = a - b, the listed components wrapped into [-pi, pi] (d may alias a or b)
+void wrapped_difference(double* d, const double* a, const double* b, std::int64_t count, int dim,
+                        const std::vector<int>& angles) {
+    for (std::int64_t k = 0; k < count * dim; ++k) d[k] = a[k] - b[k];
+    for (int j : angles)
+        for (std::int64_t p = 0; p < count; ++p) d[p * dim + j] = wrap_angle(d[p * dim + j]);
+}
+}  // namespace
+
 void System::output_difference(double* r, const double* y, const double* c, std::int64_t count) const {
-    const int m = output_dim();
-    for (std::int64_t k = 0; k < count * m; ++k) r[k] = y[k] - c[k];
-    for (int j : angle_outputs())
-        for (std::int64_t p = 0; p < count; ++p) r[p * m + j] = wrap_angle(r[p * m + j]);
+    wrapped_difference(r, y, c, count, output_dim(), angle_outputs());
 }
 
 const std::vector<int>& System::angle_states() const {
@@ -28,10 +35,7 @@ const std::vector<int>& System::angle_states() const {
 }
 
 void System::state_difference(double* d, const double* a, const double* b, std::int64_t count) const {
-    const int n = state_dim();
-    for (std::int64_t k = 0; k < count * n; ++k) d[k] = a[k] - b[k];
-    for (int i : angle_states())
-        for (std::int64_t p = 0; p < count; ++p) d[p * n + i] = wrap_angle(d[p * n + i]);
+    wrapped_difference(d, a, b, count, state_dim(), angle_states());
 }
 
 void system_advance(const System& sys, double* x_next, const double* x, const double* v, double t, double dt,

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 #include "hinf/error.hpp"
 #include "random.hpp"
@@ -159,8 +158,7 @@ TruthRun truth_simulate_checked(const RunConfig& cfg, const Scenario& sc, std::u
 }
 
 std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first) {
-    char t[32];
-    std::snprintf(t, sizeof t, "%g", first);
+    const std::string t = format_g(first);
     std::string msg = "the truth of every one of the " + std::to_string(runs) + " " + what + " of " + cfg.doc.source() +
                       " ran away (the first at t = " + t +
                       " s: not finite, or 1e12 times beyond every scale its config gives it): the system escapes from "

@@ -3,21 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 #include "filters/gain_law.hpp"
 #include "hinf/error.hpp"
 #include "random.hpp"
 
 namespace hinf {
-
-namespace {
-std::string fmt_g(double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%g", v);
-    return b;
-}
-}  // namespace
 
 kern::HjieSystemView GainSamples::view() const {
     return {n, nv, m, xt.data(), dA.data(), Bm.data(), dC.data(), q.data(), t.data(),
@@ -56,7 +47,7 @@ GainPool gain_pool_build(const RunConfig& cfg) {
 std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool) {
     if (pool.escaped == 0) return "";
     return "hinf: note: " + std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories) +
-           " training truth runs ran away (the first at t = " + fmt_g(pool.first_escape) +
+           " training truth runs ran away (the first at t = " + format_g(pool.first_escape) +
            " s: the system escapes under its [online] noise); training draws its estimates from the other " +
            std::to_string(pool.runs.size()) + " (docs/method.md section 16.3)\n";
 }
