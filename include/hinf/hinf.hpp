@@ -92,7 +92,8 @@ struct FilterOptions {
     std::vector<TrainedNetwork> networks;  ///< for "dnn": one filter per network (measured mode); required for dnn
     double dt = 0;                  ///< step interval [s] for step(); 0: the config's dt (run() uses the record's)
     std::vector<double> initial_estimate;  ///< x^(t_0) [n]; empty: the config's [filter] xhat0
-    /// EKF/UKF/PF: standard deviation of x^(t_0)'s error [n]; empty: |x0 - xhat0| of the config, at least 1
+    /// EKF/UKF/PF: standard deviation of x^(t_0)'s error [n]; empty: the config's [baseline] initial_std, else
+    /// |x0 - xhat0| of the config (0 where they agree: a known start)
     std::vector<double> initial_std;
     std::int64_t particles = 2000;  ///< pf: particle count
     double roughening = 0;          ///< pf: roughening constant K

@@ -12,6 +12,7 @@
 #include "config/game_level.hpp"
 #include "config/run_config.hpp"
 #include "eval/acceptance.hpp"
+#include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
 #include "export/export_c.hpp"
 #include "filters/factory.hpp"
@@ -243,7 +244,7 @@ Filter Filter::create(const Config& cfg, const std::string& name, const FilterOp
     im->xhat0 = options.initial_estimate.empty() ? c.xhat0 : options.initial_estimate;
     HINF_CHECK(int(im->xhat0.size()) == c.n, "initial_estimate has " + std::to_string(im->xhat0.size()) +
                                                  " values, the system has " + std::to_string(c.n) + " states");
-    im->P0 = recorded_initial_covariance(c, options.initial_std);
+    im->P0 = baseline_initial_covariance(c, options.initial_std);
     im->set = im->build(im->dt);
     HINF_CHECK(im->set.filters.size() == 1, "Filter::create: '" + name + "' gave " +
                                                 std::to_string(im->set.filters.size()) + " filters (use create_all)");

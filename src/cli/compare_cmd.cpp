@@ -74,8 +74,6 @@ void add_compare_command(CLI::App& app) {
         FilterSet set = build_filter_set(
             cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, a->roughening, a->glf_vertices, a->ensemble}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
-        const std::string p0 = baseline_p0_note(cfg, a->filters);
-        if (!p0.empty()) std::printf("%s\n", p0.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());
         CompareSummary s = compare_run(cfg, filters, opt);

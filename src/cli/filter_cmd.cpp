@@ -6,6 +6,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "filters/factory.hpp"
+#include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
 #include "io/measurements.hpp"
 #include "sim/truth.hpp"
@@ -91,14 +92,10 @@ void add_filter_command(CLI::App& app) {
         HINF_CHECK(a->initial_std.empty() || int(a->initial_std.size()) == n,
                    "--initial-std has " + std::to_string(a->initial_std.size()) + " values, the system has " +
                        std::to_string(n) + " states");
-        opt.P0.assign(std::size_t(n) * n, 0.0);
-        for (int i = 0; i < n; ++i) {
-            const double d = cfg.x0[i] - cfg.xhat0[i];  // what `compare` tells the filters
-            const double sd = !a->initial_std.empty() ? a->initial_std[i]
-                              : !cfg.initial_std.empty() ? cfg.initial_std[i]
-                                                         : std::sqrt(std::max(d * d, 1.0));
-            HINF_CHECK(sd >= 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be >= 0");
-            opt.P0[i * n + i] = sd * sd;
+        opt.P0 = baseline_initial_covariance(cfg, a->initial_std);  // what `compare` tells the filters by default
+        if (a->initial_std.empty() && cfg.initial_std.empty() && !opt.quiet) {  // the default P0: say if certain
+            const std::string note = baseline_certain_note(cfg, opt.P0);
+            if (!note.empty()) std::printf("%s\n", note.c_str());
         }
 
         // the filters step on the record's own grid; EKF/UKF/PF are told the config's [baseline] model and statistics

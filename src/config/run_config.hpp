@@ -113,7 +113,7 @@ struct OnlineConfig {
     double told_disturbance_std = -1, told_noise_std = -1;  // resolved to [online]'s when not given
     std::vector<double> told_disturbance_weight, told_noise_weight;  // per input / output factors (FilterModel)
     std::vector<double> told_disturbance_chol, told_noise_chol;      // correlated: Cholesky factors (FilterModel)
-    std::vector<double> initial_std;            // [n] P0 = diag(initial_std^2); empty: diag(max((x0 - x^0)^2, 1))
+    std::vector<double> initial_std;            // [n] P0 = diag(initial_std^2); empty: diag((x0 - x^0)^2)
     double ukf_alpha = 1.0, ukf_beta = 2.0, ukf_kappa = 0.0;
     std::string pf_resampling = "systematic";   // "systematic" or "stratified"
     double pf_ess_fraction = 0.5;               // resample when ESS < fraction x particles (1: every step)

@@ -240,7 +240,7 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
                   "--set filter.rho=%.4g (%s) and compare both best.h5 (hinf compare %s --network %s --filters "
                   "dnn,ekf,ukf, with the training's --set options). On four systems of one's own 4 rho* settled at "
                   "1.02-1.71 times the EKF where 1.25 rho* gave 1.08-3.90 times (training seeds 1-3), every check "
-                  "still a PASS, but on three of them with worst ratios found above the EKF's (docs/method.md "
+                  "still a PASS, but on all four with worst ratios found above the EKF's (docs/method.md "
                   "section 16.12, \"Kept, and behind the EKF\")",
                   cfg.rho, behind, higher, label, advice_config(cfg).c_str(), path.c_str());
     return buf;

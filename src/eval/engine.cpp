@@ -24,49 +24,39 @@ std::uint64_t hash_bytes(std::uint64_t h, const void* data, std::size_t bytes) {
     return h;
 }
 
-FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run) {
+std::vector<double> baseline_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std) {
     const int n = cfg.n;
+    const std::vector<double>& sd = !initial_std.empty() ? initial_std : cfg.initial_std;
+    HINF_CHECK(sd.empty() || int(sd.size()) == n, "initial_std has " + std::to_string(sd.size()) +
+                                                      " values, the system has " + std::to_string(n) + " states");
+    std::vector<double> P0(std::size_t(n) * n, 0.0);
+    for (int i = 0; i < n; ++i) {
+        const double d = cfg.x0[i] - cfg.xhat0[i];  // the actual initial error (0: the start is known exactly)
+        const double v = sd.empty() ? d * d : sd[i] * sd[i];
+        HINF_CHECK(std::isfinite(v) && v >= 0, "initial_std: value " + std::to_string(i + 1) +
+                                                   " is not a finite number >= 0 (one standard deviation per state)");
+        P0[std::size_t(i) * n + i] = v;
+    }
+    return P0;
+}
+
+std::string baseline_certain_note(const RunConfig& cfg, const std::vector<double>& P0) {
+    const auto names = cfg.system->state_names();
+    std::string which;
+    for (int i = 0; i < cfg.n; ++i)
+        if (P0[std::size_t(i) * cfg.n + i] == 0) which += (which.empty() ? "" : ", ") + names[i];
+    if (which.empty()) return "";
+    return "note: ekf, ukf and pf start certain of " + which + " (x0 = x^0 there in the config, so the variance they "
+           "are told is 0); to give them a spread, pass --initial-std or set [baseline] initial_std (docs/compare.md)";
+}
+
+FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run) {
     FilterStart start;
     start.xhat0 = cfg.xhat0;
-    start.P0.assign(std::size_t(n) * n, 0.0);
-    for (int i = 0; i < n; ++i) {
-        // the initial estimate's error variance: [baseline] initial_std^2, else the actual squared initial error
-        // (floor 1), the same for all
-        const double d = cfg.x0[i] - cfg.xhat0[i];
-        start.P0[i * n + i] = cfg.initial_std.empty() ? std::max(d * d, 1.0) : cfg.initial_std[i] * cfg.initial_std[i];
-    }
+    start.P0 = baseline_initial_covariance(cfg);  // the same for every filter and run
     start.seed = cfg.online_seed;
     start.run = run;
     return start;
-}
-
-std::string baseline_p0_note(const RunConfig& cfg, const std::string& filters) {
-    if (!cfg.initial_std.empty()) return "";
-    bool bayes = false;
-    std::string word;
-    for (std::size_t i = 0; i <= filters.size(); ++i) {
-        if (i < filters.size() && filters[i] != ',') {
-            word += filters[i];
-            continue;
-        }
-        bayes = bayes || word == "ekf" || word == "ukf" || word == "pf";
-        word.clear();
-    }
-    if (!bayes) return "";
-    const auto names = cfg.system->state_names();
-    std::string which, told;
-    char v[32];
-    for (int i = 0; i < cfg.n; ++i) {
-        const double d = std::fabs(cfg.x0[i] - cfg.xhat0[i]);
-        if (d < 1) which += (which.empty() ? "" : ", ") + names[i];
-        std::snprintf(v, sizeof v, "%g", d > 0 ? d : 1.0);
-        told += (told.empty() ? "" : ",") + std::string(v);
-    }
-    if (which.empty()) return "";
-    return "note: ekf, ukf and pf start from P0 = diag(max(d^2, 1)), d = x0 - x^0, so for " + which +
-           " (|d| < 1) the floor 1 sets their initial variance, not d^2; where a state's scale is far from 1 that can "
-           "make them look much worse or better than they are. To tell them the initial error itself: --set "
-           "\"baseline.initial_std=[" + told + "]\" (a state with d = 0 keeps 1 there: choose its spread; docs/compare.md)";
 }
 
 std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& start, const double* x_true,

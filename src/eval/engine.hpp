@@ -139,15 +139,17 @@ EngineResult engine_run(const RunConfig& cfg, const std::vector<const OnlineFilt
 /// The process that computes run `run` of a Monte Carlo among `ranks`.
 std::int64_t engine_rank_of(std::int64_t run, int ranks);
 
-/// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0 with P0 = diag([baseline]
-/// initial_std^2), else diag(max(e0^2, 1)).
-FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);
+/// The initial error covariance EKF, UKF and PF are told (docs/compare.md, "Initial estimate"): diag(initial_std^2)
+/// with initial_std the argument, else [baseline] initial_std, else diag(d^2), d = x0 - x^0 of the config: the
+/// actual initial error of the simulated runs, 0 where the start is exact. In each state's own units, with no floor.
+std::vector<double> baseline_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std = {});
 
-/// One line for the user where that default P0 is set by its floor: `filters` (a --filters list) names ekf, ukf or
-/// pf, [baseline] initial_std is not given, and some state's |x0 - x^0| is below 1, so the Bayesian filters start
-/// with variance 1 there and not the initial error's square; it names those states and the --set that tells them
-/// |x0 - x^0| instead (docs/compare.md). "" otherwise.
-std::string baseline_p0_note(const RunConfig& cfg, const std::string& filters);
+/// One line for `hinf filter` when P0 (baseline_initial_covariance) is 0 in a state, i.e. the config's x0 and x^0
+/// agree there: the Bayesian filters start certain of it, which a recorded run may not justify. "" otherwise.
+std::string baseline_certain_note(const RunConfig& cfg, const std::vector<double>& P0);
+
+/// The initial estimate every filter of a Monte Carlo run starts from: cfg.xhat0, P0 = baseline_initial_covariance.
+FilterStart engine_filter_start(const RunConfig& cfg, std::uint64_t run);
 
 /// FNV-1a 64 over bytes, continuing from h (start with hash_start).
 constexpr std::uint64_t hash_start = 1469598103934665603ull;

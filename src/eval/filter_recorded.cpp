@@ -155,21 +155,6 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
     return results;
 }
 
-std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std) {
-    const int n = cfg.n;
-    HINF_CHECK(initial_std.empty() || int(initial_std.size()) == n,
-               "--initial-std has " + std::to_string(initial_std.size()) + " values, the system has " +
-                   std::to_string(n) + " states");
-    std::vector<double> P0(std::size_t(n) * n, 0.0);
-    for (int i = 0; i < n; ++i) {
-        const double d = cfg.x0[i] - cfg.xhat0[i];  // what `compare` tells the filters
-        const double sd = initial_std.empty() ? std::sqrt(std::max(d * d, 1.0)) : initial_std[i];
-        HINF_CHECK(sd > 0 && std::isfinite(sd), "--initial-std: value " + std::to_string(i + 1) + " must be > 0");
-        P0[i * n + i] = sd * sd;
-    }
-    return P0;
-}
-
 RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const Measurements& ms,
                                   const std::vector<double>& xhat0, const std::vector<double>& P0, bool quiet,
                                   RecordedPath* out) {

@@ -46,10 +46,6 @@ struct RecordedPath {
     bool has_cov = false;
 };
 
-/// `hinf filter`'s initial covariance told to EKF/UKF/PF: diag(initial_std^2), or with none given
-/// diag(max((x0 - xhat0)^2, 1)) of the config (what `compare` tells them).
-std::vector<double> recorded_initial_covariance(const RunConfig& cfg, const std::vector<double>& initial_std);
-
 /// Resets f to xhat0 / P0 and steps it over the whole record; *out receives its path. The one loop of
 /// `hinf filter` and of the library's Filter::run.
 RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const Measurements& ms,

@@ -82,7 +82,9 @@ struct WorstResult {
 /// The local NLopt algorithms the search accepts, comma-separated.
 std::string worst_algorithms();
 
-/// The config the search scores under: cfg itself, or with x^0 = x0 unless keep_initial_error.
+/// The config the search scores under: cfg itself, or unless keep_initial_error with x^0 = x0 and, where cfg gives
+/// no [baseline] initial_std, the one that keeps the P0 compare tells EKF/UKF/PF (|x0 - x^0| of cfg): the filters a
+/// user runs, started at the truth (docs/compare.md, "Worst case").
 RunConfig worst_config(const RunConfig& cfg, const WorstOptions& opt);
 
 /// The budget opt.energy resolves to on cfg over `steps` steps (checks it is finite and positive).

@@ -263,3 +263,34 @@ TEST_CASE("hinf filter over an earlier run's outputs leaves no old file beside t
     hinf::h5::Handle f = hinf::h5::open_file(d / "o/estimates.h5", false);
     CHECK(hinf::h5::get_attr_string(f.get(), "csv_files") == "estimates_ekf.csv");
 }
+
+TEST_CASE("hinf filter says when the config's start makes the Bayesian filters certain of a state", "[cli][filter]") {
+    TempDir d("cli-filter-p0");
+    const std::string text =
+        "[system]\nkind = \"expr\"\nstates = [\"w1\", \"w2\"]\ndisturbances = 1\nmeasurements = 1\n"
+        "f = [\"-w1*w2\", \"w1\"]\ng = [[\"1\"], [\"0\"]]\nh = [\"w1\"]\n"
+        "[filter]\nrho = 2\nx0 = [1.0, 0.5]\nxhat0 = [0.8, 0.5]\ndt = 0.01\nt_final = 1\n"
+        "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
+    const std::string cfg = write_file(d, "two.toml", text);
+    const std::string rec = write_file(d, "y.csv", "t,y\n0,0.9\n0.01,0.95\n0.02,0.97\n");
+    const std::string base = "filter " + cfg + " --filters ekf,ukf --measurements " + rec + " --out ";
+    // x0 = x^0 in w2: P0 = diag(0.04, 0), and the user is told so (a record's start may not be that certain)
+    auto r = run_hinf(base + (d / "a"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("start certain of w2 ") != std::string::npos);
+    CHECK(r.output.find("certain of w1") == std::string::npos);
+    auto told = run_hinf(base + (d / "b") + " --initial-std 0.2,0.3");
+    INFO(told.output);
+    REQUIRE(told.status == 0);
+    CHECK(told.output.find("start certain") == std::string::npos);
+    // the note is a note: the estimates are those of P0 = diag(0.04, 0) told explicitly through the config
+    auto same = run_hinf("filter " + write_file(d, "two_told.toml",
+                                                 text + "[baseline]\ninitial_std = [0.2, 0.0]\n") +
+                         " --filters ekf,ukf --measurements " + rec + " --out " + (d / "c"));
+    REQUIRE(same.status == 0);
+    CHECK(same.output.find("start certain") == std::string::npos);  // the user chose it
+    for (const char* g : {"ekf", "ukf"})
+        CHECK(hinf::test::bitwise_equal(read_group_doubles(d / "a/estimates.h5", g, "xhat"),
+                                        read_group_doubles(d / "c/estimates.h5", g, "xhat")));
+}

@@ -264,19 +264,35 @@ TEST_CASE("compare scenarios: Student-t and biased measurement noise have the st
     CHECK_THROWS_WITH(scenario_named("windy"), Catch::Contains("is not one of"));
 }
 
-TEST_CASE("compare names the states whose default P0 is set by its floor and the --set that tells |d|", "[eval][compare]") {
-    CHECK(baseline_p0_note(missile_config(), "dnn,ekf,ukf,pf").empty());  // initial errors of tens of metres
+TEST_CASE("the baselines are told the actual initial error in each state's units and no floor", "[eval][compare]") {
     const std::string text =
         "[system]\nkind = \"expr\"\nstates = [\"w1\", \"w2\"]\ndisturbances = 1\nmeasurements = 1\n"
         "f = [\"-w1*w2\", \"w1\"]\ng = [[\"1\"], [\"0\"]]\nh = [\"w1\"]\n"
         "[filter]\nrho = 2\nx0 = [1.0, 0.5]\nxhat0 = [0.8, 0.5]\ndt = 0.01\nt_final = 1\n"
         "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
     const RunConfig small = load_run_config(ConfigDoc::from_text(text, "small.toml"));
-    const std::string note = baseline_p0_note(small, "dnn,ekf,ukf");
-    CHECK_THAT(note, Catch::Contains("w1, w2") && Catch::Contains("baseline.initial_std=[0.2,1]"));
-    CHECK(baseline_p0_note(small, "dnn,open_loop").empty());  // no Bayesian filter: nothing starts from P0
-    CHECK(baseline_p0_note(load_run_config(ConfigDoc::from_text(text + "[baseline]\ninitial_std = [0.2, 0.1]\n",
-                                                                "told.toml")),
-                           "ekf")
-              .empty());
+    const std::vector<double> P0 = baseline_initial_covariance(small);
+    REQUIRE(P0.size() == 4);
+    CHECK(P0[0] == Approx(0.04).epsilon(1e-12));  // d = 0.2 rad/s: 0.04, not a floor of 1
+    CHECK(P0[1] == 0.0);
+    CHECK(P0[2] == 0.0);
+    CHECK(P0[3] == 0.0);  // x0 = x^0: the start is exact there
+    CHECK(engine_filter_start(small, 3).P0 == P0);
+    CHECK_THAT(baseline_certain_note(small, P0), Catch::Contains("certain of w2") && !Catch::Contains("w1"));
+    // an argument (hinf filter --initial-std, the library's initial_std) overrides the config, the config the default
+    const std::vector<double> told = baseline_initial_covariance(small, {0.3, 0.1});
+    CHECK(told[0] == Approx(0.09).epsilon(1e-12));
+    CHECK(told[3] == Approx(0.01).epsilon(1e-12));
+    CHECK(baseline_certain_note(small, told).empty());
+    const RunConfig cfg_told =
+        load_run_config(ConfigDoc::from_text(text + "[baseline]\ninitial_std = [0.5, 0.25]\n", "told.toml"));
+    CHECK(baseline_initial_covariance(cfg_told)[3] == Approx(0.0625).epsilon(1e-12));
+    CHECK_THROWS_WITH(baseline_initial_covariance(small, {0.1}), Catch::Contains("has 1 values, the system has 2"));
+    // the missile's initial errors of 6-10 km and 300 m/s: the squares themselves
+    const RunConfig missile = missile_config();
+    const std::vector<double> Pm = baseline_initial_covariance(missile);
+    for (int i = 0; i < missile.n; ++i) {
+        const double d = missile.x0[i] - missile.xhat0[i];
+        CHECK(Pm[std::size_t(i) * missile.n + i] == d * d);
+    }
 }

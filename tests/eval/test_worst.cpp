@@ -189,3 +189,23 @@ TEST_CASE("worst-case search: the engine replays the same ratio, any thread coun
     RunConfig missile = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/missile_hinf.toml")));
     CHECK_THROWS_WITH(worst_read(d / "worst.h5", missile, &steps, &keep), Catch::Contains("its signals are for system"));
 }
+
+TEST_CASE("worst-case search starts the filters compare runs at the truth: their P0 stays", "[eval][worst]") {
+    const RunConfig cfg = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml")));
+    WorstOptions opt;
+    const RunConfig c = worst_config(cfg, opt);
+    CHECK(c.xhat0 == cfg.x0);
+    // EKF/UKF/PF keep compare's P0 = diag((x0 - x^0)^2), not one for the moved start (0) or a floor
+    const std::vector<double> P0 = baseline_initial_covariance(cfg), Pw = engine_filter_start(c, 0).P0;
+    REQUIRE(Pw.size() == P0.size());
+    for (std::size_t i = 0; i < P0.size(); ++i) CHECK(Pw[i] == Approx(P0[i]).epsilon(1e-15));
+    CHECK(P0[0] == Approx(2.25).epsilon(1e-15));  // x0 - x^0 = (1.5, -1)
+    // a P0 the config names is kept as it is; --keep-initial-error changes nothing
+    RunConfig named = cfg;
+    named.initial_std = {0.1, 0.2};
+    CHECK(worst_config(named, opt).initial_std == named.initial_std);
+    opt.keep_initial_error = true;
+    const RunConfig k = worst_config(cfg, opt);
+    CHECK(k.xhat0 == cfg.xhat0);
+    CHECK(k.initial_std.empty());
+}
