@@ -93,16 +93,18 @@ void add_filter_command(CLI::App& app) {
                    "--initial-std has " + std::to_string(a->initial_std.size()) + " values, the system has " +
                        std::to_string(n) + " states");
         opt.P0 = baseline_initial_covariance(cfg, a->initial_std);  // what `compare` tells the filters by default
-        if (a->initial_std.empty() && cfg.initial_std.empty() && !opt.quiet) {  // the default P0: say if certain
-            const std::string note = baseline_certain_note(cfg, opt.P0);
-            if (!note.empty()) std::printf("%s\n", note.c_str());
-        }
 
         // the filters step on the record's own grid; EKF/UKF/PF are told the config's [baseline] model and statistics
         // (default: [system] and [online])
         FilterModel told = scenario_told_model(cfg, scenario_named("nominal")), model = filter_model(cfg);
         told.dt = model.dt = ms.dt;
         std::string names = a->filters.empty() ? (a->networks.empty() ? "ekf" : "dnn") : a->filters;
+        bool bayes = false;  // a filter that starts from P0
+        for (const char* b : {",ekf,", ",ukf,", ",pf,"}) bayes = bayes || ("," + names + ",").find(b) != std::string::npos;
+        if (bayes && a->initial_std.empty() && cfg.initial_std.empty() && !opt.quiet) {  // the default P0: say if certain
+            const std::string note = baseline_certain_note(cfg, opt.P0);
+            if (!note.empty()) std::printf("%s\n", note.c_str());
+        }
         FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->particles, a->roughening,
                                                             a->glf_vertices, a->ensemble},
                                          told, model);

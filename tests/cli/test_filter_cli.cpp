@@ -280,6 +280,9 @@ TEST_CASE("hinf filter says when the config's start makes the Bayesian filters c
     REQUIRE(r.status == 0);
     CHECK(r.output.find("start certain of w2 ") != std::string::npos);
     CHECK(r.output.find("certain of w1") == std::string::npos);
+    auto ol = run_hinf("filter " + cfg + " --filters open_loop --measurements " + rec + " --out " + (d / "ol"));
+    REQUIRE(ol.status == 0);
+    CHECK(ol.output.find("start certain") == std::string::npos);  // no filter that starts from P0
     auto told = run_hinf(base + (d / "b") + " --initial-std 0.2,0.3");
     INFO(told.output);
     REQUIRE(told.status == 0);
