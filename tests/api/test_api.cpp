@@ -207,3 +207,29 @@ TEST_CASE("library: constant_storage_violation says what hinf rho says about a d
     CHECK(radar.constant_storage_violation() <= 0);
     CHECK(std::isnan(hinf::Config::from_text(kTinyMissile, "tiny.toml").constant_storage_violation()));
 }
+
+TEST_CASE("library: a Filter is told the P0 hinf filter tells it (options, then [baseline] initial_std, then the error)",
+          "[api]") {
+    const std::string text =
+        "[system]\nkind = \"expr\"\nstates = [\"w1\", \"w2\"]\ndisturbances = 1\nmeasurements = 1\n"
+        "f = [\"-w1*w2\", \"w1\"]\ng = [[\"1\"], [\"0\"]]\nh = [\"w1\"]\n"
+        "[filter]\nrho = 2\nx0 = [1.0, 0.5]\nxhat0 = [0.8, 0.5]\ndt = 0.01\nt_final = 1\n"
+        "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
+    auto p0 = [](const hinf::Config& cfg, const std::vector<double>& sd) {
+        hinf::FilterOptions o;
+        o.initial_std = sd;
+        return hinf::Filter::create(cfg, "ekf", o).covariance();  // before any step: P0
+    };
+    const hinf::Config plain = hinf::Config::from_text(text);
+    std::vector<double> P = p0(plain, {});
+    REQUIRE(P.size() == 4u);
+    CHECK(P[0] == Approx(0.04).epsilon(1e-12));  // (x0 - x^0)^2 of w1, no floor of 1
+    CHECK(P[3] == 0.0);                           // w2 starts known
+    const hinf::Config told = hinf::Config::from_text(text + "[baseline]\ninitial_std = [0.5, 0.25]\n");
+    P = p0(told, {});  // the config's initial_std, which Filter::create ignored before 2026-11-30
+    CHECK(P[0] == Approx(0.25).epsilon(1e-12));
+    CHECK(P[3] == Approx(0.0625).epsilon(1e-12));
+    P = p0(told, {0.1, 0.2});  // the option over the config
+    CHECK(P[0] == Approx(0.01).epsilon(1e-12));
+    CHECK(P[3] == Approx(0.04).epsilon(1e-12));
+}
