@@ -50,8 +50,8 @@ void add_filter_command(CLI::App& app) {
     c->add_option("--initial-estimate", a->xhat0, "x^(t_0), one value per state (default: the config's [filter] xhat0)")
         ->delimiter(',');
     c->add_option("--initial-std", a->initial_std,
-                  "EKF/UKF/PF: standard deviation of x^(t_0)'s error per state (default: |x0 - xhat0| of the config, "
-                  "at least 1)")
+                  "EKF/UKF/PF: standard deviation of x^(t_0)'s error per state, 0 for a known state (default: the "
+                  "config's [baseline] initial_std, else |x0 - xhat0| of the config)")
         ->delimiter(',');
     c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
     c->add_option("--pf-roughening", a->roughening, "Particle filter: roughening constant K (default 0)");
@@ -88,7 +88,8 @@ void add_filter_command(CLI::App& app) {
             HINF_CHECK(std::isfinite(opt.xhat0[i]), "--initial-estimate: value " + std::to_string(i + 1) + " is not a "
                                                         "finite number (pass one number per state)");
         for (double v : a->initial_std)
-            HINF_CHECK(std::isfinite(v) && v > 0, "--initial-std: every value must be a finite number > 0");
+            HINF_CHECK(std::isfinite(v) && v >= 0, "--initial-std: every value must be a finite number >= 0 (0: the "
+                                                   "state is known at the start)");
         HINF_CHECK(a->initial_std.empty() || int(a->initial_std.size()) == n,
                    "--initial-std has " + std::to_string(a->initial_std.size()) + " values, the system has " +
                        std::to_string(n) + " states");
@@ -100,7 +101,7 @@ void add_filter_command(CLI::App& app) {
         told.dt = model.dt = ms.dt;
         std::string names = a->filters.empty() ? (a->networks.empty() ? "ekf" : "dnn") : a->filters;
         bool bayes = false;  // a filter that starts from P0
-        for (const char* b : {",ekf,", ",ukf,", ",pf,"}) bayes = bayes || ("," + names + ",").find(b) != std::string::npos;
+        for (const std::string& f : split_list(names)) bayes = bayes || f == "ekf" || f == "ukf" || f == "pf";
         if (bayes && a->initial_std.empty() && cfg.initial_std.empty() && !opt.quiet) {  // the default P0: say if certain
             const std::string note = baseline_certain_note(cfg, opt.P0);
             if (!note.empty()) std::printf("%s\n", note.c_str());

@@ -293,7 +293,14 @@ TEST_CASE("hinf filter says when the config's start makes the Bayesian filters c
                          " --filters ekf,ukf --measurements " + rec + " --out " + (d / "c"));
     REQUIRE(same.status == 0);
     CHECK(same.output.find("start certain") == std::string::npos);  // the user chose it
-    for (const char* g : {"ekf", "ukf"})
-        CHECK(hinf::test::bitwise_equal(read_group_doubles(d / "a/estimates.h5", g, "xhat"),
-                                        read_group_doubles(d / "c/estimates.h5", g, "xhat")));
+    // ... and through --initial-std, where 0 is a known state as in the config
+    auto flag = run_hinf(base + (d / "e") + " --initial-std 0.2,0");
+    INFO(flag.output);
+    REQUIRE(flag.status == 0);
+    for (const char* g : {"ekf", "ukf"}) {
+        const std::vector<double> a = read_group_doubles(d / "a/estimates.h5", g, "xhat");
+        CHECK(hinf::test::bitwise_equal(a, read_group_doubles(d / "c/estimates.h5", g, "xhat")));
+        CHECK(hinf::test::bitwise_equal(a, read_group_doubles(d / "e/estimates.h5", g, "xhat")));
+        CHECK_FALSE(hinf::test::bitwise_equal(a, read_group_doubles(d / "b/estimates.h5", g, "xhat")));  // told more
+    }
 }

@@ -198,7 +198,7 @@ TEST_CASE("worst-case search starts the filters compare runs at the truth: their
     // EKF/UKF/PF keep compare's P0 = diag((x0 - x^0)^2), not one for the moved start (0) or a floor
     const std::vector<double> P0 = baseline_initial_covariance(cfg), Pw = engine_filter_start(c, 0).P0;
     REQUIRE(Pw.size() == P0.size());
-    for (std::size_t i = 0; i < P0.size(); ++i) CHECK(Pw[i] == Approx(P0[i]).epsilon(1e-15));
+    CHECK(Pw == P0);  // bit for bit
     CHECK(P0[0] == Approx(2.25).epsilon(1e-15));  // x0 - x^0 = (1.5, -1)
     // a P0 the config names is kept as it is; --keep-initial-error changes nothing
     RunConfig named = cfg;
