@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <vector>
 
 #if defined(__AVX512F__)
 #include <immintrin.h>
@@ -225,15 +226,14 @@ int gemm_panel_width() {
 template <typename T>
 void gemm_own_packed(int m, int n, int k, const T* A, int a_rs, int a_cs, const T* packed, T* C, int ldc,
                      bool accumulate, const GemmEpi<T>& epi) {
-    // the naive loops over the packed layout (reference only: this build routes the MLP to OpenBLAS)
+    // reference only (this build routes the MLP to OpenBLAS): Bm unpacked, then the very loops of gemm_own, so both
+    // give the same bits (two copies of the loop may be contracted into FMAs differently)
     const int NR = gemm_panel_width<T>();
-    for (int i = 0; i < m; ++i)
-        for (int j = 0; j < n; ++j) {
-            const T* pb = packed + std::int64_t(j / NR) * k * NR + j % NR;
-            T acc = accumulate ? C[std::int64_t(i) * ldc + j] : T(0);
-            for (int p = 0; p < k; ++p) acc += A[std::int64_t(i) * a_rs + std::int64_t(p) * a_cs] * pb[std::int64_t(p) * NR];
-            C[std::int64_t(i) * ldc + j] = epilogue_scalar(acc, i, j, epi);
-        }
+    std::vector<T> Bm(std::size_t(k) * n);
+    for (int p = 0; p < k; ++p)
+        for (int j = 0; j < n; ++j)
+            Bm[std::size_t(p) * n + j] = packed[std::int64_t(j / NR) * k * NR + std::int64_t(p) * NR + j % NR];
+    gemm_own_naive(m, n, k, A, a_rs, a_cs, Bm.data(), n, C, ldc, accumulate, epi);
 }
 
 template <typename T>

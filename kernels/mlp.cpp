@@ -110,6 +110,18 @@ void gemm_prepare(GemmPath path) {
     if (path == GEMM_OPENBLAS && openblas_get_num_threads() != 1) openblas_set_num_threads(1);
 }
 
+namespace {
+// read during static initialisation: OpenBLAS, a shared library, has run its own constructor by then
+const int kBlasThreadsAtStart = openblas_get_num_threads();
+}  // namespace
+
+BlasThreadsAtStart::BlasThreadsAtStart() : saved_(openblas_get_num_threads()) {
+    if (saved_ != kBlasThreadsAtStart) openblas_set_num_threads(kBlasThreadsAtStart);
+}
+BlasThreadsAtStart::~BlasThreadsAtStart() {
+    if (openblas_get_num_threads() != saved_) openblas_set_num_threads(saved_);
+}
+
 std::string gemm_description(GemmPath path) {
     path = gemm_path_available(path);
     if (path == GEMM_OWN)

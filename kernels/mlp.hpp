@@ -29,6 +29,20 @@ std::string gemm_description(GemmPath path);
 /// Makes OpenBLAS run each call on the calling thread. Call outside parallel regions before a
 /// parallel loop of fast-kernel calls (step_gradient and network_eval do); cheap when already set.
 void gemm_prepare(GemmPath path);
+/// While it lives, OpenBLAS runs at the thread count it had when the process started (its default, or
+/// OPENBLAS_NUM_THREADS); the count before is restored after. For library code that calls BLAS/LAPACK (SDPA): its
+/// answer then does not depend on whether gemm_prepare ran earlier in the process (threaded reductions round
+/// differently).
+class BlasThreadsAtStart {
+public:
+    BlasThreadsAtStart();
+    ~BlasThreadsAtStart();
+    BlasThreadsAtStart(const BlasThreadsAtStart&) = delete;
+    BlasThreadsAtStart& operator=(const BlasThreadsAtStart&) = delete;
+
+private:
+    int saved_;
+};
 
 struct MlpShape {
     std::vector<int> sizes;      // D[0..L]

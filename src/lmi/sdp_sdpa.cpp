@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "hinf/error.hpp"
+#include "mlp.hpp"
 
 namespace hinf::lmi {
 
@@ -77,6 +78,11 @@ SdpResult sdp_solve(const SdpProblem& problem, const SdpOptions& options) {
     // SDPA writes remarks ("Strange behavior : primal < dual") to std::cout: keep them in the result instead.
     std::ostringstream remarks;
     std::streambuf* saved = std::cout.rdbuf(remarks.rdbuf());
+    // SDPA's BLAS is OpenBLAS: at the process's starting thread count, so that the answer does not depend on whether
+    // the MLP's OpenBLAS path (one thread, kern::gemm_prepare) ran first. Found on an AVX2 machine, where the MLP runs
+    // through OpenBLAS: a GLF designed in the CLI and in the Python module differed. One thread throughout is not the
+    // fix: the missile's 8-vertex GLF LMI then comes back infeasible (SDPA pdINF; tests/filters/test_glf.cpp).
+    const kern::BlasThreadsAtStart blas_threads;
     solver.initializeUpperTriangle();
     solver.initializeSolve();
     solver.solve();
