@@ -25,7 +25,8 @@ struct WorstArgs {
     std::int64_t particles = 2000;
     int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
-    bool keep_initial_error = false, no_game_start = false, quiet = false, plot = false, ensemble = false;
+    bool keep_initial_error = false, no_game_start = false, no_cross_starts = false, quiet = false, plot = false;
+    bool ensemble = false;
 };
 
 void print_cross(const WorstReplay& r) {
@@ -75,6 +76,8 @@ void add_worst_command(CLI::App& app) {
     c->add_option("--scenario-starts", a->scenario_starts,
                   "Compare scenarios whose signals are starts, comma list or 'none' (default nominal,energy_pulse,bias)");
     c->add_flag("--no-game-start", a->no_game_start, "Do not start DNN filters from the game's v* = B'p/(2 rho), n* = -dC");
+    c->add_flag("--no-cross-starts", a->no_cross_starts,
+                "Do not search on from another filter's worst signals where they beat a filter's own best");
     c->add_option("--evals", a->evals, "Objective evaluations per restart (default 200)");
     c->add_option("--algorithm", a->algorithm, "NLopt algorithm: " + worst_algorithms() + " (default LN_SBPLX)");
     c->add_flag("--keep-initial-error", a->keep_initial_error,
@@ -105,6 +108,7 @@ void add_worst_command(CLI::App& app) {
         opt.scenario_starts = a->scenario_starts == "none" ? std::vector<std::string>{} : split_list(a->scenario_starts);
         for (const auto& s : opt.scenario_starts) scenario_named(s);  // names checked before any work
         opt.game_start = !a->no_game_start;
+        opt.cross_starts = !a->no_cross_starts;
         opt.evals = a->evals;
         opt.algorithm = a->algorithm;
         opt.keep_initial_error = a->keep_initial_error;

@@ -34,7 +34,8 @@ FilterSet dnn_and_ekf(const RunConfig& cfg, const std::string& network) {
 // The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
 // (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
 // budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
-// energy-pulse scenario and, where the network gives dV/dx~ (not variant gain), the game's own worst case.
+// energy-pulse scenario and, where the network gives dV/dx~ (not variant gain), the game's own worst case; then the
+// search's cross starts (the EKF's worst set, where it beats the DNN filter's own best, and the other way round).
 struct AcceptanceWorst {
     double ratio = NAN, ekf_ratio = NAN;  // the largest ratio found for the DNN filter and for the EKF
     std::int64_t evals = 0;               // the DNN filter's objective evaluations, all its restarts

@@ -25,6 +25,7 @@ struct WorstOptions {
     int random_starts = 4;       // starts from Philox draws (RNG_STREAM_WORST, a = start): the same for every filter
     std::vector<std::string> scenario_starts = {"nominal", "energy_pulse", "bias"};  // compare scenarios as starts
     bool game_start = true;      // a DNN filter with a network also starts from the game's v* = B'p / (2 rho), n* = -dC
+    bool cross_starts = true;    // a filter whose cross-table column beats its own best searches on from those sets
     int evals = 200;             // objective evaluations per restart
     std::string algorithm = "LN_SBPLX";  // a local derivative-free NLopt algorithm (worst_algorithms())
     bool keep_initial_error = false;     // false: every filter starts at x^0 = x0 (the pure energy gain)
@@ -97,7 +98,9 @@ double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s
 /// The search: R restarts per filter, OpenMP over (filter, restart), each a pure function of its inputs:
 /// the result does not depend on the thread count; under mpirun the restarts are dealt out over the processes
 /// (worst_rank_of) and the result is the same bits for any number of them. games: [F] (or empty). Ends with the replay of every
-/// worst set against every filter (WorstResult::cross). Runs on worst_config(cfg, opt).
+/// worst set against every filter (WorstResult::cross); with opt.cross_starts, every other filter's worst set that
+/// beats a filter's own best is one more start for it ("cross:<name>") and the table is replayed again, for up to
+/// three rounds. Runs on worst_config(cfg, opt).
 WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt);
 

@@ -12,6 +12,7 @@
 #include "eval/worst.hpp"
 #include "filters/ekf.hpp"
 #include "filters/gain_law.hpp"
+#include "filters/ukf.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
 
@@ -208,4 +209,60 @@ TEST_CASE("worst-case search starts the filters compare runs at the truth: their
     const RunConfig k = worst_config(cfg, opt);
     CHECK(k.xhat0 == cfg.xhat0);
     CHECK(k.initial_std.empty());
+}
+
+TEST_CASE("worst-case search searches on from another filter's worst signals where they beat a filter's own",
+          "[eval][worst]") {
+    const RunConfig cfg = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml")));
+    auto ekf = make_ekf(filter_model(cfg));
+    auto ukf = make_ukf(filter_model(cfg));
+    FixedGainFilter fixed(filter_model(cfg), {2.0, 1.0});
+    const std::vector<const OnlineFilter*> filters = {ekf.get(), ukf.get(), &fixed};
+    const int F = 3;
+    WorstOptions opt;
+    opt.until = 3.0;
+    opt.random_starts = 2;
+    opt.scenario_starts = {};
+    opt.evals = 16;  // short local searches: here the fixed gain's worst set beats the EKF's and the UKF's own
+    opt.quiet = true;
+    opt.cross_starts = false;
+    const WorstResult off = worst_search(cfg, filters, {}, opt);
+    opt.cross_starts = true;
+    omp_set_num_threads(1);
+    const WorstResult on1 = worst_search(cfg, filters, {}, opt);
+    omp_set_num_threads(2);
+    const WorstResult on = worst_search(cfg, filters, {}, opt);
+    int cross_restarts = 0;
+    for (int i = 0; i < F; ++i) {
+        const auto& a = off.filters[i].restarts;
+        const auto& b = on.filters[i].restarts;
+        REQUIRE(b.size() >= a.size());
+        // the first round is the search without cross starts, bit for bit
+        for (std::size_t j = 0; j < a.size(); ++j) CHECK(b[j].ratio == a[j].ratio);
+        for (const auto& rs : a) CHECK(rs.start.rfind("cross:", 0) == std::string::npos);
+        double column = 0;  // the largest ratio any first-round worst set gives filter i
+        for (int d = 0; d < F; ++d) column = std::max(column, off.cross.ratio[std::size_t(d) * F + i]);
+        CHECK(on.filters[i].worst.ratio >= column);
+        // the second round: one start per first-round set that beat this filter's own best, in set order; each
+        // begins where that set left this filter, its cross-table entry (up to the rounding of scaling the set to
+        // the budget once more). Later rounds start from the sets the second round found.
+        std::size_t j = a.size();
+        for (int d = 0; d < F; ++d) {
+            if (d == i || !(off.cross.ratio[std::size_t(d) * F + i] > off.filters[i].worst.ratio)) continue;
+            REQUIRE(j < b.size());
+            CHECK(b[j].start == "cross:" + off.filters[d].name);
+            CHECK(b[j].start_ratio == Approx(off.cross.ratio[std::size_t(d) * F + i]).epsilon(1e-9));
+            ++j;
+        }
+        for (j = a.size(); j < b.size(); ++j) {
+            ++cross_restarts;
+            CHECK(b[j].start.rfind("cross:", 0) == 0);
+            CHECK(b[j].start != "cross:" + off.filters[i].name);
+            CHECK(b[j].ratio >= b[j].start_ratio);
+        }
+        CHECK(on.cross.ratio[std::size_t(i) * F + i] == on.filters[i].worst.ratio);  // the replay, bit for bit
+        REQUIRE(on1.filters[i].restarts.size() == b.size());  // any thread count: the same restarts, the same bits
+        for (std::size_t j = 0; j < b.size(); ++j) CHECK(on1.filters[i].restarts[j].ratio == b[j].ratio);
+    }
+    CHECK(cross_restarts >= 2);  // this setting exercises the cross starts (the EKF and the UKF)
 }
