@@ -246,7 +246,7 @@ PYBIND11_MODULE(_hinf, m) {
                                     filter_options(network, dt, x0, sd, particles, roughening, glf_vertices, ensemble,
                                                    cfg.states()));
     };
-    py::class_<hinf::Filter>(m, "Filter", "An on-line filter: dnn (measured mode), ekf, ukf, pf, glf or open_loop")
+    py::class_<hinf::Filter>(m, "Filter", "An on-line filter: dnn (measured mode), ekf, ukf, pf, ehf, glf or open_loop")
         .def(py::init(make_filter), py::arg("config"), py::arg("name"), py::arg("network") = py::none(),
              py::arg("dt") = 0.0, py::arg("initial_estimate") = py::none(), py::arg("initial_std") = py::none(),
              py::arg("particles") = 2000, py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8,

@@ -116,11 +116,11 @@ struct FilterTrace {
     std::vector<double> innovation_rms, innovation_mean;  ///< [m] over the steps before a divergence
 };
 
-/// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, glf or open_loop. A Filter is a
+/// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, ehf, glf or open_loop. A Filter is a
 /// handle: copies share one filter and its state (make another with create for an independent one).
 class Filter {
 public:
-    /// The names create() knows: "ekf, ukf, pf, open_loop, glf, dnn".
+    /// The names create() knows: "ekf, ukf, pf, ehf, open_loop, glf, dnn".
     static std::string names();
     /// Builds the filter `name` for cfg's system. For "dnn" with several networks, one filter per network:
     /// use create_all. Throws hinf::Error for an unknown name, a dnn without a network, or a network trained

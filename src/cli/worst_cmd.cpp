@@ -94,7 +94,7 @@ void add_worst_command(CLI::App& app) {
     c->callback([a, energy_opt]() {
         apply_threads(a->threads);
         HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         WorstOptions opt;
         if (energy_opt->count() > 0) {
             HINF_CHECK(std::isfinite(a->energy) && a->energy > 0,

@@ -24,7 +24,7 @@ public:
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
-        const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim();
+        const int n = sys.state_dim(), m = sys.output_dim();
         // measurement update with y(t_k)
         RowMat H(m, n);
         sys.measurement_jacobian(H.data(), x_.data(), in.t);
@@ -53,15 +53,11 @@ public:
                  : model_.noise_weight.empty() ? Mat(IKH * P_ * IKH.transpose() + r * K * K.transpose())
                                                : Mat(IKH * P_ * IKH.transpose() + K * rj.asDiagonal() * K.transpose());
         }
-        // predict to t_{k+1} through the shared step: Phi = d x_next / dx, G = d x_next / dv
-        RowMat F(n, n), Gr(n, nv);
-        system_advance_jacobian(sys, F.data(), Gr.data(), xu.data(), in.t, model_.dt);
-        Mat Phi = F, G = Gr;
-        Vec xn(n);
-        system_advance(sys, xn.data(), xu.data(), nullptr, in.t, model_.dt);
-        Mat Pn = Phi * Pu * Phi.transpose() + process_noise(G, model_);
-        Pn = 0.5 * (Pn + Pn.transpose()).eval();
-        if (!filter_estimate_ok(xn.data(), n) || !Pn.allFinite()) return FILTER_DIVERGED;
+        // predict to t_{k+1} through the shared step
+        Vec xn;
+        Mat Pn;
+        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return process_noise(G, model_); }, &xn, &Pn))
+            return FILTER_DIVERGED;
         x_ = xn;
         P_ = Pn;
         xf_ = xu;
@@ -81,5 +77,19 @@ private:
 }  // namespace
 
 std::unique_ptr<OnlineFilter> make_ekf(const FilterModel& model) { return std::make_unique<ExtendedKalmanFilter>(model); }
+
+bool ekf_predict(const FilterModel& model, double t, const Vec& xu, const Mat& Pu,
+                 const std::function<Mat(const Mat&)>& process, Vec* xn, Mat* Pn) {
+    const System& sys = *model.system;
+    const int n = sys.state_dim(), nv = sys.disturbance_dim();
+    RowMat F(n, n), Gr(n, nv);  // Phi = d x_next / dx, G = d x_next / dv
+    system_advance_jacobian(sys, F.data(), Gr.data(), xu.data(), t, model.dt);
+    Mat Phi = F, G = Gr;
+    xn->resize(n);
+    system_advance(sys, xn->data(), xu.data(), nullptr, t, model.dt);
+    *Pn = Phi * Pu * Phi.transpose() + process(G);
+    *Pn = 0.5 * (*Pn + Pn->transpose()).eval();
+    return filter_estimate_ok(xn->data(), n) && Pn->allFinite();
+}
 
 }  // namespace hinf

@@ -10,6 +10,7 @@
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
 #include "models/weighted_system.hpp"
+#include "filters/ehf.hpp"
 #include "filters/ekf.hpp"
 #include "filters/open_loop.hpp"
 #include "filters/pf.hpp"
@@ -28,7 +29,7 @@ std::vector<std::string> split_list(const std::string& s) {
 
 bool filters_need_level(const std::string& filters) {
     for (const std::string& name : split_list(filters))
-        if (name == "glf") return true;
+        if (name == "glf" || name == "ehf") return true;
     return false;
 }
 
@@ -51,6 +52,11 @@ const SimpleFilter kSimpleFilters[] = {
      [](const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& told, const FilterModel&) {
          return make_particle_filter(told, a.particles, cfg.pf_ess_fraction, a.roughening,
                                      cfg.pf_resampling == "stratified");
+     }},
+    {"ehf",  // the game's extended H-infinity filter at [filter] rho and Q
+     [](const RunConfig& cfg, const FilterSetArgs&, const FilterModel& told, const FilterModel&) {
+         HINF_CHECK(cfg.rho > 0, cfg.rho_unset);
+         return make_ehf(told, cfg.Q, cfg.rho);
      }},
     {"open_loop",
      [](const RunConfig&, const FilterSetArgs&, const FilterModel&, const FilterModel& exact) {

@@ -13,7 +13,7 @@
 namespace hinf {
 
 struct FilterSetArgs {
-    std::string filters;                // comma list: dnn, ekf, ukf, pf, open_loop, glf
+    std::string filters;                // comma list: dnn, ekf, ukf, pf, ehf, open_loop, glf
     std::vector<std::string> networks;  // checkpoints for dnn
     std::string modes;                  // comma list: oracle, measured
     std::int64_t particles = 2000;
