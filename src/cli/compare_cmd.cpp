@@ -99,6 +99,12 @@ void add_compare_command(CLI::App& app) {
             std::printf("  %10.4g %10.4g %10.4g %9.2f %9.2f %9.2f\n", fr.rmse_position, fr.rmse_position_settled,
                         fr.attenuation_ratio, fr.mse_db, fr.mse_filtered_db, fr.us_per_step);
         }
+        for (const auto& fr : s.filters)
+            if (fr.name == "ehf" && fr.report_runs > 0)
+                std::printf("ehf: no filter of level rho = %g along the estimate at %.0f step(s) of %lld run(s): it took "
+                            "Kalman steps with the game's weights there (a larger --set filter.rho=R avoids them; "
+                            "docs/compare.md \"The extended H-infinity filter\")\n",
+                            cfg.rho, fr.report_sum[0], static_cast<long long>(fr.report_runs));
         if (s.truth_escaped_runs > 0)
             std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
                         "beyond every scale its config gives it; the system escapes under its [online] noise); those "

@@ -142,6 +142,14 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             secs += er.runs[k][r].seconds;
             fr.stream_hash = hash_bytes(fr.stream_hash, &er.runs[k][r].stream_hash, 8);
             if (escaped) continue;
+            const std::vector<double>& rep = er.runs[k][r].reported;
+            if (fr.report_sum.size() < rep.size()) fr.report_sum.resize(rep.size(), 0.0);
+            bool any = false;
+            for (std::size_t j = 0; j < rep.size(); ++j) {
+                fr.report_sum[j] += rep[j];
+                any = any || rep[j] != 0;
+            }
+            fr.report_runs += any ? 1 : 0;
             if (runs[r].diverged_at >= 0) ++fr.diverged_runs;
             else kept.push_back(r);
         }

@@ -36,6 +36,10 @@ struct CompareFilterResult {
     double mse = 0, mse_db = 0, mse_filtered = NAN, mse_filtered_db = NAN;
     double us_per_step = 0;                                    // filter time only, per step
     std::uint64_t stream_hash = 0;                             // FNV-1a of every y this filter was fed
+    // OnlineFilter::run_report() summed entry by entry over the runs whose truth did not run away, and how many of
+    // them reported anything non-zero (ehf: the steps where its level failed; docs/compare.md)
+    std::vector<double> report_sum;
+    std::int64_t report_runs = 0;
 };
 
 struct CompareSummary {

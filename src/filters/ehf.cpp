@@ -75,6 +75,7 @@ public:
     const double* covariance() const override { return P_.data(); }  // symmetric: layout does not matter
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ExtendedHinfFilter>(*this); }
     std::int64_t level_steps_held() const { return held_; }
+    std::vector<double> run_report() const override { return {double(held_)}; }
 
 private:
     FilterModel model_;

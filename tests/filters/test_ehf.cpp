@@ -3,13 +3,14 @@
 // (independently of the filter's square-root form), and the exact worst-case gain of its error system over the
 // horizon -- a time-varying linear map from (v, n) to x~, its largest singular value by power iteration -- is
 // below rho, as the game promises; the worst-case search reaches it and never exceeds it. Below the level the
-// system allows, the filter counts the steps where it drops the -Q / rho term.
+// system allows, the filter counts the steps where it drops the -Q / rho term, and hinf compare says so in one line.
 #include <Eigen/Dense>
 #include <catch2/catch.hpp>
 #include <cmath>
 
 #include "eval/worst.hpp"
 #include "filters/ehf.hpp"
+#include "helpers.hpp"
 #include "hinf/error.hpp"
 
 using namespace hinf;
@@ -142,4 +143,20 @@ TEST_CASE("extended H-infinity filter below the system's level: Kalman steps cou
     CHECK(std::abs(f->estimate()[0]) < 0.5);  // the Kalman steps still pull the estimate towards y = 0
     CHECK_THROWS_AS(make_ehf(filter_model(cfg), cfg.Q, 0.0), Error);
     CHECK_THROWS_AS(make_ehf(filter_model(cfg), {1.0}, 1.0), Error);
+}
+
+TEST_CASE("hinf compare --filters ehf says where its level failed and is silent where it holds", "[filters][ehf][cli]") {
+    hinf::test::TempDir d("cli-ehf");
+    const std::string vdp = std::string(HINF_SOURCE_DIR) + "/runs/vanderpol.toml";
+    const std::string note = "ehf: no filter of level rho = 0.5 along the estimate";
+    auto low = hinf::test::run_hinf("compare " + vdp + " --set filter.rho=0.5 --filters ehf --runs 2 --until 3 --quiet "
+                                    "--out " + (d / "low"));
+    INFO(low.output);
+    REQUIRE(low.status == 0);
+    CHECK(low.output.find(note) != std::string::npos);
+    auto high = hinf::test::run_hinf("compare " + vdp + " --set filter.rho=5 --filters ehf --runs 2 --until 3 --quiet "
+                                     "--out " + (d / "high"));
+    INFO(high.output);
+    REQUIRE(high.status == 0);
+    CHECK(high.output.find("ehf: no filter of level") == std::string::npos);
 }
