@@ -109,6 +109,8 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["acceptance_note"] = r.acceptance_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_note));
     d["acceptance_rmse_settled"] = r.acceptance_rmse_settled;
     d["acceptance_rmse_settled_ekf"] = r.acceptance_rmse_settled_ekf;
+    d["acceptance_rms_q_settled"] = r.acceptance_rms_q_settled;
+    d["acceptance_rms_q_settled_ekf"] = r.acceptance_rms_q_settled_ekf;
     d["knot_runaway_step"] = r.knot_runaway_step;
     d["knot_runaway_knot"] = r.knot_runaway_knot;
     return d;

@@ -195,14 +195,19 @@ struct TrainReport {
     /// the acceptance check at t_final (docs/method.md 16.5): "pass", "fail", or "" where it did not run (a run
     /// stopped before t_final, training.acceptance_runs = 0); the checkpoint it judged; its one summary line; after
     /// a "fail", what to try (the line `hinf train` prints under it, "acceptance: next: ..."; "" otherwise); after a
-    /// "pass" whose settled error is above 1.25 times the EKF's on the check's runs, the level to try for a lower mean
-    /// error ("acceptance: note: ..."; "" otherwise)
+    /// "pass" whose settled error (position, or all states Q-weighted) is above 1.25 times the EKF's on the check's
+    /// runs, the level to try for a lower mean error ("acceptance: note: ..."; "" otherwise)
     std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice, acceptance_note;
     /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
     /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
     /// filter's, where a run diverged)
     double acceptance_rmse_settled = std::numeric_limits<double>::quiet_NaN();
     double acceptance_rmse_settled_ekf = std::numeric_limits<double>::quiet_NaN();
+    /// the same runs' error over all states weighted by the config's Q, sqrt(sum_j Q_jj (mean_j^2 + std_j^2)) after
+    /// settle_time (the selection's score as an RMS): a directly measured position can be close to the EKF's while
+    /// the unmeasured states are not
+    double acceptance_rms_q_settled = std::numeric_limits<double>::quiet_NaN();
+    double acceptance_rms_q_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     /// variant gain with knots: the first time step after which a knot's log-diagonal lay where it no longer moves
     /// S(t), the sign of every failed training measured (the note `hinf train` prints; docs/method.md 16.7); -1: none
     std::int64_t knot_runaway_step = -1;

@@ -241,13 +241,15 @@ def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     assert report["best_step"] > 0 and report["best_step"] % 10 == 0
     assert report["knot_runaway_step"] == -1 and report["knot_runaway_knot"] == -1
     assert math.isfinite(report["acceptance_rmse_settled"]) and report["acceptance_rmse_settled_ekf"] > 0
+    assert math.isfinite(report["acceptance_rms_q_settled"]) and report["acceptance_rms_q_settled_ekf"] > 0
     assert report["acceptance"] in ("pass", "fail")
     assert report["acceptance_checkpoint"] == report["best_checkpoint"]
     assert report["acceptance_line"].startswith("acceptance (")
     # what to try is given after a fail, and only then
     assert (report["acceptance_advice"] is not None) == (report["acceptance"] == "fail")
     # a level to try after a pass far behind the EKF on the check's runs, and only then (method 16.12)
-    behind = report["acceptance_rmse_settled"] > 1.25 * report["acceptance_rmse_settled_ekf"]
+    behind = (report["acceptance_rmse_settled"] > 1.25 * report["acceptance_rmse_settled_ekf"]
+              or report["acceptance_rms_q_settled"] > 1.25 * report["acceptance_rms_q_settled_ekf"])
     assert (report["acceptance_note"] is not None) == (report["acceptance"] == "pass" and behind)
     # stopped before t_final: no check
     early = hinf.train(cfg, str(tmp_path / "early"), until=0.1)

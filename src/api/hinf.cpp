@@ -407,6 +407,8 @@ void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, c
         r.acceptance_note = a.note;
         r.acceptance_rmse_settled = a.rmse_position_settled;
         r.acceptance_rmse_settled_ekf = a.rmse_position_settled_ekf;
+        r.acceptance_rms_q_settled = a.rms_q_settled;
+        r.acceptance_rms_q_settled_ekf = a.rms_q_settled_ekf;
     }
 }
 }  // namespace

@@ -82,25 +82,32 @@ struct AcceptanceOutcome {
     // filter's is NaN when a run diverged): the mean error the verdict, which judges rho, does not
     double rmse_position_settled = std::numeric_limits<double>::quiet_NaN();
     double rmse_position_settled_ekf = std::numeric_limits<double>::quiet_NaN();
+    // the same runs' error over all states weighted by the game's Q, sqrt(sum_j Q_jj (mean_j^2 + std_j^2)) (the
+    // selection's score, as an RMS), the DNN filter's (NaN when a run diverged) and the EKF's
+    double rms_q_settled = std::numeric_limits<double>::quiet_NaN();
+    double rms_q_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
 };
-/// The settled error, over the EKF's on the acceptance runs, above which a PASS gets AcceptanceOutcome::note
+/// The settled error, over the EKF's on the acceptance runs (the larger of the position and the all-state Q-weighted
+/// ratio), above which a PASS gets AcceptanceOutcome::note
 inline constexpr double kBehindEkf = 1.25;
 /// The settled error, over the EKF's on the acceptance runs, above which the advice after a FAIL says to use the EKF
 /// or UKF until a training does better (a coordinated turn of one's own settled 9.7-59x behind it: docs/byos.md
 /// section 4)
 inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
-/// section 16.12, "Kept, and behind the EKF"); `behind` the settled error over the EKF's. Empty where rho* is not
-/// known (the linearised game's level not bracketed).
-std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double behind);
+/// section 16.12, "Kept, and behind the EKF"); `position` and `all_q` the settled position RMSE and the all-state
+/// Q-weighted RMS error over the EKF's, the larger said first. Empty where rho* is not known (the linearised game's
+/// level not bracketed).
+std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q);
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)
     double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found
     bool diverged = false;   // the filter diverged under the worst signals found
     std::int64_t nominal_diverged = 0, nominal_runs = 0;  // the check's own runs ([online] noise) that diverged, of all
-    // the DNN filter's settled error over the EKF's on those runs (NaN: a run diverged, or no EKF figure)
+    // the DNN filter's settled error over the EKF's on those runs, the larger of the position and the all-state
+    // Q-weighted ratio (NaN: a run diverged, or no EKF figure)
     double behind_ekf = std::numeric_limits<double>::quiet_NaN();
 };
 /// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's

@@ -28,6 +28,10 @@ public:
     void reset(const FilterStart& start) override {
         const int n = model_.system->state_dim();
         x_ = Eigen::Map<const Vec>(start.xhat0.data(), n);
+        // the EKF's P0 as it is, though the game's weights are the unit statistics over tau (R = I / tau, process
+        // G G' / tau): at rho -> infinity this is the EKF started from tau P0 (tested). P0 / tau, the consistent
+        // scale, was measured and not kept: the level then fails along the first steps wherever x^0 is uncertain,
+        // and the near-singular corrections there threw the estimate off (docs/compare.md)
         P_ = Eigen::Map<const RowMat>(start.P0.data(), n, n);
         held_ = 0;
     }

@@ -185,6 +185,8 @@ TEST_CASE("library: a gain run keeps its best validated checkpoint and ends with
     CHECK(r.acceptance_line.rfind("acceptance (5 measured runs", 0) == 0);
     CHECK(std::isfinite(r.acceptance_rmse_settled));  // the check's runs against the EKF (outside the verdict)
     CHECK(std::isfinite(r.acceptance_rmse_settled_ekf));
+    CHECK(std::isfinite(r.acceptance_rms_q_settled));  // all states, Q-weighted
+    CHECK(r.acceptance_rms_q_settled_ekf > 0);
     CHECK(r.acceptance_line.find(" against the EKF's ") != std::string::npos);
     hinf::h5::Handle f = hinf::h5::open_file(r.best_checkpoint, false);
     CHECK(hinf::h5::get_attr_string(f.get(), "acceptance_verdict") == r.acceptance);

@@ -10,6 +10,7 @@
 
 #include "eval/worst.hpp"
 #include "filters/ehf.hpp"
+#include "filters/ekf.hpp"
 #include "helpers.hpp"
 #include "hinf/error.hpp"
 
@@ -122,6 +123,37 @@ TEST_CASE("extended H-infinity filter on a linear system: the game's recursion a
     INFO("found by the search " << r.filters[0].worst.ratio);
     CHECK(r.filters[0].worst.ratio <= rho);
     CHECK(r.filters[0].worst.ratio >= 0.2 * rho);
+}
+
+TEST_CASE("extended H-infinity filter at a level that does not bind is the EKF of a system in units of its noise from dt P0",
+          "[filters][ehf]") {
+    // noise_std = disturbance_std = 1: the game's weights are the statistics over dt, so at rho -> infinity the
+    // filter is the EKF with every covariance over dt: started from P0, it is the EKF started from dt P0 (ehf.hpp)
+    RunConfig cfg = oscillator(1e12);
+    std::unique_ptr<OnlineFilter> h = make_ehf(filter_model(cfg), cfg.Q, cfg.rho), e = make_ekf(filter_model(cfg));
+    FilterStart start;
+    start.xhat0 = {0.5, -0.3};
+    start.P0 = {0.25, 0.0, 0.0, 0.09};
+    h->reset(start);
+    for (double& p : start.P0) p *= cfg.dt;
+    e->reset(start);
+    double worst = 0;
+    for (std::int64_t k = 0; k < 300; ++k) {
+        const double y = std::sin(0.37 * double(k)) + 0.2;
+        FilterInput in;
+        in.y = &y;
+        in.t = cfg.dt * double(k);
+        in.step = k;
+        REQUIRE(h->step(in) == FILTER_OK);
+        REQUIRE(e->step(in) == FILTER_OK);
+        for (int i = 0; i < 2; ++i) {
+            worst = std::max(worst, std::abs(h->estimate()[i] - e->estimate()[i]));
+            worst = std::max(worst, std::abs(h->filtered()[i] - e->filtered()[i]));
+        }
+    }
+    INFO("largest difference of the estimates " << worst);
+    CHECK(worst < 1e-9);
+    CHECK(ehf_level_steps_held(*h) == 0);
 }
 
 TEST_CASE("extended H-infinity filter below the system's level: Kalman steps counted and a clear refusal",
