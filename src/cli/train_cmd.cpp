@@ -150,6 +150,8 @@ void add_train_commands(CLI::App& app) {
                 v.worst_ratio = a.worst_ratio;
                 v.rmse_settled = a.rmse_position_settled;
                 v.rmse_settled_ekf = a.rmse_position_settled_ekf;
+                v.rms_q_settled = a.rms_q_settled;
+                v.rms_q_settled_ekf = a.rms_q_settled_ekf;
             }
             return v;
         };
@@ -163,13 +165,13 @@ void add_train_commands(CLI::App& app) {
                         r.how.c_str(), r.summary.status, static_cast<long long>(r.summary.last_step),
                         r.summary.wall_seconds, r.summary.final_loss,
                         v.best_step >= 0 ? std::to_string(v.best_step).c_str() : "-", v.select_score,
-                        v.acceptance.c_str(), v.rmse_position, v.worst_ratio, v.rmse_settled / v.rmse_settled_ekf,
+                        v.acceptance.c_str(), v.rmse_position, v.worst_ratio, v.behind_ekf(),
                         r.summary.runaway_step >= 0 ? std::to_string(r.summary.runaway_step).c_str() : "-");
         }
         std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv, "
                     "best.h5 where the selection runs; valid. MSE: best.h5's settled Q-weighted MSE on the validation "
-                    "noise, the one to choose by; x EKF: the acceptance runs' settled position RMSE over the EKF's on "
-                    "the same runs; knots ran: the time step after which a knot of S(t) ran away, docs/method.md "
+                    "noise, the one to choose by; x EKF: the acceptance runs' settled error over the EKF's on the same "
+                    "runs, the larger of position and all states Q-weighted; knots ran: the time step after which a knot of S(t) ran away, docs/method.md "
                     "section 16.7)\n", opt.out_dir.c_str());
         // training.require_acceptance: a sweep is for finding a value that passes, so it fails when none does
         bool required = false, checked = false, passed = false;

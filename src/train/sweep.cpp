@@ -19,10 +19,11 @@ namespace {
 const char* kSummaryHeader =
     "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
     "fraction_steps_violation_ok,mean_cosine,best_step,select_score,acceptance,acceptance_rmse_position,"
-    "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,knot_runaway_step";
-// older summary lines: the trainer's 11 fields alone (before the selection and acceptance columns), and 16 (before
-// the comparison with the EKF and the knot run-away)
-constexpr std::size_t kFieldsBefore = 11, kFieldsVerdict = 16, kFields = 19;
+    "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,knot_runaway_step,"
+    "acceptance_rms_q_settled,acceptance_rms_q_settled_ekf";
+// older summary lines: the trainer's 11 fields alone (before the selection and acceptance columns), 16 (before the
+// comparison with the EKF and the knot run-away), and 19 (before the all-state comparison)
+constexpr std::size_t kFieldsBefore = 11, kFieldsVerdict = 16, kFieldsEkf = 19, kFields = 21;
 
 // one CSV line per value (values with a comma are refused up front)
 std::string row_line(const SweepRow& r) {
@@ -34,7 +35,8 @@ std::string row_line(const SweepRow& r) {
       << ',' << s.fraction_steps_violation_ok << ',' << s.mean_cosine;
     const SweepVerdict& v = r.verdict;
     o << ',' << v.best_step << ',' << v.select_score << ',' << v.acceptance << ',' << v.rmse_position << ','
-      << v.worst_ratio << ',' << v.rmse_settled << ',' << v.rmse_settled_ekf << ',' << s.runaway_step;
+      << v.worst_ratio << ',' << v.rmse_settled << ',' << v.rmse_settled_ekf << ',' << s.runaway_step << ','
+      << v.rms_q_settled << ',' << v.rms_q_settled_ekf;
     return o.str();
 }
 
@@ -42,7 +44,7 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     std::vector<std::string> f;
     std::stringstream in(line);
     for (std::string cell; std::getline(in, cell, ',');) f.push_back(cell);
-    HINF_CHECK(f.size() == kFields || f.size() == kFieldsVerdict || f.size() == kFieldsBefore,
+    HINF_CHECK(f.size() == kFields || f.size() == kFieldsEkf || f.size() == kFieldsVerdict || f.size() == kFieldsBefore,
                where + ": not a sweep summary line (delete the file to train that value again)");
     SweepRow r;
     r.value = f[0];
@@ -65,10 +67,14 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
         v.rmse_position = std::stod(f[14]);
         v.worst_ratio = std::stod(f[15]);
     }
-    if (f.size() == kFields) {
+    if (f.size() >= kFieldsEkf) {
         r.verdict.rmse_settled = std::stod(f[16]);
         r.verdict.rmse_settled_ekf = std::stod(f[17]);
         s.runaway_step = std::stoll(f[18]);
+    }
+    if (f.size() == kFields) {
+        r.verdict.rms_q_settled = std::stod(f[19]);
+        r.verdict.rms_q_settled_ekf = std::stod(f[20]);
     }
     return r;
 }

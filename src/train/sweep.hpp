@@ -5,6 +5,7 @@
 // Not the training itself (trainer.hpp), not what is checked around it (SweepOptions::around: the caller's, e.g.
 // the CLI's checkpoint selection and acceptance check of src/eval) and not the printing (cli/train_cmd.cpp).
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -26,6 +27,14 @@ struct SweepVerdict {
     // the acceptance Monte Carlo's runs against the EKF: the DNN filter's and the EKF's position RMSE after
     // settle_time (AcceptanceOutcome::rmse_position_settled, _ekf)
     double rmse_settled = NAN, rmse_settled_ekf = NAN;
+    // the same over all states weighted by Q (AcceptanceOutcome::rms_q_settled, _ekf; NaN in a row written before)
+    double rms_q_settled = NAN, rms_q_settled_ekf = NAN;
+    /// The settled error over the EKF's: the larger of the position and the all-state ratio, as the acceptance's note
+    /// keys on (the position ratio alone for a row without the all-state figures)
+    double behind_ekf() const {
+        const double p = rmse_settled / rmse_settled_ekf, q = rms_q_settled / rms_q_settled_ekf;
+        return std::isnan(q) ? p : std::max(p, q);
+    }
 };
 
 /// One value's training with the given options: a fresh start, or a resume from the value's own checkpoint.

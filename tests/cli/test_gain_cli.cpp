@@ -507,7 +507,8 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
                         std::stod(rows[1].at("acceptance_rmse_position"))));
         CHECK(same_bits(hinf::h5::get_attr_double(f.get(), "acceptance_worst_ratio"),
                         std::stod(rows[1].at("acceptance_worst_ratio"))));
-        for (const char* key : {"acceptance_rmse_position_settled", "acceptance_rmse_position_settled_ekf"}) {
+        for (const char* key : {"acceptance_rmse_position_settled", "acceptance_rmse_position_settled_ekf",
+                                "acceptance_rms_q_settled", "acceptance_rms_q_settled_ekf"}) {
             INFO(key);
             CHECK(std::isfinite(hinf::h5::get_attr_double(f.get(), key)));
             CHECK(same_bits(hinf::h5::get_attr_double(f.get(), key), std::stod(rows[1].at(key))));
@@ -547,5 +548,6 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     CHECK(v16[0].at("best_step") == "40");
     CHECK(v16[0].at("acceptance_worst_ratio") == "3.5");
     CHECK(v16[0].at("acceptance_rmse_position_settled") == "nan");
+    CHECK(v16[0].at("acceptance_rms_q_settled") == "nan");
     CHECK(v16[0].at("knot_runaway_step") == "-1");
 }
