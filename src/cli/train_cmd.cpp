@@ -171,8 +171,8 @@ void add_train_commands(CLI::App& app) {
         std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv, "
                     "best.h5 where the selection runs; valid. MSE: best.h5's settled Q-weighted MSE on the validation "
                     "noise, the one to choose by; x EKF: the acceptance runs' settled error over the EKF's on the same "
-                    "runs, the larger of position and all states Q-weighted; knots ran: the time step after which a knot of S(t) ran away, docs/method.md "
-                    "section 16.7)\n", opt.out_dir.c_str());
+                    "runs, the larger of position and all states Q-weighted; knots ran: the time step after which a "
+                    "knot of S(t) ran away, docs/method.md section 16.7)\n", opt.out_dir.c_str());
         // training.require_acceptance: a sweep is for finding a value that passes, so it fails when none does
         bool required = false, checked = false, passed = false;
         for (std::size_t i = 0; i < rows.size(); ++i) {

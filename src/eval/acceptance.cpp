@@ -254,12 +254,12 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
     char buf[1600];
     std::snprintf(buf, sizeof buf,
                   "acceptance: note: the filter keeps rho = %.4g, but on these runs it settles at %.3g times the EKF's "
-                  "error (position %.3gx, all states Q-weighted %.3gx). A higher level is a weaker promise that lets the gain trade worst case for mean error: try "
-                  "--set filter.rho=%.4g (%s) and compare both best.h5 (hinf compare %s --network %s --filters "
-                  "dnn,ekf,ukf, with the training's --set options). On four systems of one's own 4 rho* settled at "
-                  "1.02-1.71 times the EKF where 1.25 rho* gave 1.08-3.90 times (training seeds 1-3), every check "
-                  "still a PASS, but on all four with worst ratios found above the EKF's (docs/method.md "
-                  "section 16.12, \"Kept, and behind the EKF\")",
+                  "error (position %.3gx, all states Q-weighted %.3gx). A higher level is a weaker promise that lets "
+                  "the gain trade worst case for mean error: try --set filter.rho=%.4g (%s) and compare both best.h5 "
+                  "(hinf compare %s --network %s --filters dnn,ekf,ukf, with the training's --set options). On four "
+                  "systems of one's own 4 rho* settled at 1.02-1.71 times the EKF where 1.25 rho* gave 1.08-3.90 "
+                  "times (training seeds 1-3), every check still a PASS, but on all four with worst ratios found "
+                  "above the EKF's (docs/method.md section 16.12, \"Kept, and behind the EKF\")",
                   cfg.rho, behind, position, all_q, higher, label, advice_config(cfg).c_str(), path.c_str());
     return buf;
 }

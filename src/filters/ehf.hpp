@@ -16,7 +16,8 @@ namespace hinf {
 ///   P+ = L (I + tau L'(H'H - Q / rho) L)^-1 L',   x^+ = x^ + tau P+ H' (y - C(x^)),
 ///   x^_{k+1} = step(x^+),   P_{k+1} = F P+ F' + G G' / tau   (F, G the step's Jacobians at x^+).
 /// P_0 = P0, the EKF's: at rho -> infinity the filter is the EKF of a system in units of its noise started from
-/// tau P0, since the game's weights are the unit statistics over tau (docs/compare.md "The extended H-infinity filter").
+/// tau P0, since the game's weights are the unit statistics over tau (docs/compare.md, "The extended H-infinity
+/// filter").
 /// Where I + tau L'(H'H - Q / rho) L is not positive definite (no filter of level rho along this estimate) the
 /// step drops the -Q / rho term (a Kalman step with the game's unit weights) and counts it: level_steps_held().
 /// Q [n x n] row-major, rho > 0.

@@ -106,8 +106,9 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         }
         // all states weighted by the config's Q = I, sqrt(sum_j (mean_j^2 + std_j^2)) over the whole run (the
         // selection's score as an RMS), from the same comparison's per-state figures
-        for (const auto& [filter, attr] : {std::pair<std::string, std::string>{"dnn_gain_measured", "acceptance_rms_q_settled"},
-                                           {"ekf", "acceptance_rms_q_settled_ekf"}}) {
+        for (const auto& [filter, attr] :
+             {std::pair<std::string, std::string>{"dnn_gain_measured", "acceptance_rms_q_settled"},
+              {"ekf", "acceptance_rms_q_settled_ekf"}}) {
             INFO(filter);
             hinf::h5::Handle g = hinf::h5::open_group(cmp.get(), filter);
             const std::vector<double> mean = hinf::h5::read_doubles(g.get(), "error_mean"),

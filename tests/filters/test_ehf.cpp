@@ -125,8 +125,8 @@ TEST_CASE("extended H-infinity filter on a linear system: the game's recursion a
     CHECK(r.filters[0].worst.ratio >= 0.2 * rho);
 }
 
-TEST_CASE("extended H-infinity filter at a level that does not bind is the EKF of a system in units of its noise from dt P0",
-          "[filters][ehf]") {
+TEST_CASE("extended H-infinity filter at a level that does not bind is the EKF of a system in units of its noise "
+          "from dt P0", "[filters][ehf]") {
     // noise_std = disturbance_std = 1: the game's weights are the statistics over dt, so at rho -> infinity the
     // filter is the EKF with every covariance over dt: started from P0, it is the EKF started from dt P0 (ehf.hpp)
     RunConfig cfg = oscillator(1e12);
