@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "config/game_level.hpp"
@@ -92,6 +94,7 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
 struct AcceptanceVsEkf {
     double dnn = NAN, ekf = NAN;      // position RMSE
     double dnn_q = NAN, ekf_q = NAN;  // Q-weighted RMS over all states
+    std::string furthest;             // the two weighted states furthest behind, "om 2.8x, th 2.7x" ("": none)
     bool settled = true;
     double behind() const { return std::max(dnn / ekf, dnn_q / ekf_q); }  // NaN where either is
 };
@@ -100,6 +103,29 @@ double q_weighted_rms(const RunConfig& cfg, const std::vector<double>& mean, con
     double q = 0;
     for (int j = 0; j < cfg.n; ++j) q += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
     return std::sqrt(q);
+}
+
+// The (at most) two states with Q_jj > 0 whose RMS error sqrt(mean^2 + std^2) is furthest above the EKF's, as
+// "om 2.8x, th 2.7x"; "" where none is above it
+std::string furthest_behind(const RunConfig& cfg, const CompareFilterResult& d, const CompareFilterResult& e,
+                            bool settled) {
+    const std::vector<std::string> names = cfg.system->state_names();
+    std::vector<std::pair<double, int>> r;
+    for (int j = 0; j < cfg.n; ++j) {
+        if (!(cfg.Q[std::size_t(j) * cfg.n + j] > 0)) continue;
+        const double md = settled ? d.mean_settled[j] : d.mean[j], sd = settled ? d.std_settled[j] : d.std[j];
+        const double me = settled ? e.mean_settled[j] : e.mean[j], se = settled ? e.std_settled[j] : e.std[j];
+        const double ratio = std::sqrt(md * md + sd * sd) / std::sqrt(me * me + se * se);
+        if (ratio > 1) r.emplace_back(ratio, j);  // NaN is left out; an EKF error of 0 gives inf, kept
+    }
+    std::sort(r.begin(), r.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::string out;
+    char buf[64];
+    for (std::size_t i = 0; i < r.size() && i < 2; ++i) {
+        std::snprintf(buf, sizeof buf, "%.3gx", r[i].first);
+        out += (i ? ", " : "") + names[std::size_t(r[i].second)] + " " + buf;
+    }
+    return out;
 }
 
 AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& network, const std::string& out_dir) {
@@ -124,6 +150,7 @@ AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& netwo
         a.ekf_q = q_weighted_rms(cfg, e.mean, e.std);
         a.settled = false;
     }
+    a.furthest = furthest_behind(cfg, d, e, a.settled);
     if (d.diverged_runs > 0) a.dnn = a.dnn_q = NAN;  // the verdict fails on it already; no mean over the rest
     return a;
 }
@@ -245,8 +272,10 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
     return a;
 }
 
-std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q) {
+std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q,
+                                   const std::string& furthest) {
     const double behind = std::max(position, all_q);
+    const std::string states = furthest.empty() ? "" : "; furthest behind: " + furthest;
     const double bound = game_level_rho_star(cfg);
     const char* label = "";
     const double higher = higher_level(cfg, bound, &label);
@@ -254,13 +283,14 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
     char buf[1600];
     std::snprintf(buf, sizeof buf,
                   "acceptance: note: the filter keeps rho = %.4g, but on these runs it settles at %.3g times the EKF's "
-                  "error (position %.3gx, all states Q-weighted %.3gx). A higher level is a weaker promise that lets "
+                  "error (position %.3gx, all states Q-weighted %.3gx%s). A higher level is a weaker promise that lets "
                   "the gain trade worst case for mean error: try --set filter.rho=%.4g (%s) and compare both best.h5 "
                   "(hinf compare %s --network %s --filters dnn,ekf,ukf, with the training's --set options). On four "
                   "systems of one's own 4 rho* settled at 1.02-1.71 times the EKF where 1.25 rho* gave 1.08-3.90 "
                   "times (training seeds 1-3), every check still a PASS, but on all four with worst ratios found "
                   "above the EKF's (docs/method.md section 16.12, \"Kept, and behind the EKF\")",
-                  cfg.rho, behind, position, all_q, higher, label, advice_config(cfg).c_str(), path.c_str());
+                  cfg.rho, behind, position, all_q, states.c_str(), higher, label, advice_config(cfg).c_str(),
+                  path.c_str());
     return buf;
 }
 
@@ -343,7 +373,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.rms_q_settled_ekf = vs.ekf_q;
     o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
     if (pass && cfg.variant == "gain" && vs.behind() > kBehindEkf)  // NaN (a diverged run) is no PASS
-        o.note = acceptance_behind_note(cfg, path, vs.dnn / vs.ekf, vs.dnn_q / vs.ekf_q);
+        o.note = acceptance_behind_note(cfg, path, vs.dnn / vs.ekf, vs.dnn_q / vs.ekf_q, vs.furthest);
     if (!pass) {
         AcceptanceSearch found;
         found.ran = search && w.skipped.empty();

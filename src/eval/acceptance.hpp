@@ -97,9 +97,10 @@ inline constexpr double kBehindEkf = 1.25;
 inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
 /// section 16.12, "Kept, and behind the EKF"); `position` and `all_q` the settled position RMSE and the all-state
-/// Q-weighted RMS error over the EKF's, the larger said first. Empty where rho* is not known (the linearised game's
-/// level not bracketed).
-std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q);
+/// Q-weighted RMS error over the EKF's, the larger said first; `furthest` the states furthest behind ("om 2.8x, th
+/// 2.7x"; "" says none). Empty where rho* is not known (the linearised game's level not bracketed).
+std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q,
+                                   const std::string& furthest = "");
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)

@@ -251,7 +251,10 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     REQUIRE(behind_q > 0);
     const std::size_t note = ok.output.find("acceptance: note: the filter keeps rho = 5, but on these runs it settles at ");
     CHECK((note != std::string::npos) == (std::max(behind, behind_q) > 1.25));
-    if (note != std::string::npos) CHECK(ok.output.find("--set filter.rho=10 (twice rho)", note) != std::string::npos);
+    if (note != std::string::npos) {
+        CHECK(ok.output.find("--set filter.rho=10 (twice rho)", note) != std::string::npos);
+        CHECK(ok.output.find("; furthest behind: ", note) != std::string::npos);  // Q = I: a state is behind
+    }
 }
 
 TEST_CASE("acceptance: the worst-case search alone fails a filter whose Monte Carlo passes, and 0 evaluations skip it",

@@ -71,6 +71,9 @@ TEST_CASE("after a PASS far behind the EKF the note names a higher level and the
     CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
     const RunConfig near = scalar(std::to_string(1.25 * star));
     CHECK(has(acceptance_behind_note(near, "run/best.h5", 2.0, 2.0), "(4 rho*, hinf rho)"));
+    // the states furthest behind, where the check found any
+    CHECK(has(acceptance_behind_note(c, "run/best.h5", 1.1, 2.7, "om 2.8x, th 2.7x"),
+              "(position 1.1x, all states Q-weighted 2.7x; furthest behind: om 2.8x, th 2.7x)."));
     CHECK(kBehindEkf == 1.25);
 }
 
