@@ -99,23 +99,23 @@ struct AcceptanceVsEkf {
     double behind() const { return std::max(dnn / ekf, dnn_q / ekf_q); }  // NaN where either is
 };
 
-double q_weighted_rms(const RunConfig& cfg, const std::vector<double>& mean, const std::vector<double>& sd) {
+// The Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) of per-state error means and stds over time: the
+// selection's score (select_score below) and, as its square root, the acceptance's all-state figure
+double q_weighted_ms(const RunConfig& cfg, const std::vector<double>& mean, const std::vector<double>& sd) {
     double q = 0;
     for (int j = 0; j < cfg.n; ++j) q += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
-    return std::sqrt(q);
+    return q;
 }
 
 // The (at most) two states with Q_jj > 0 whose RMS error sqrt(mean^2 + std^2) is furthest above the EKF's, as
 // "om 2.8x, th 2.7x"; "" where none is above it
-std::string furthest_behind(const RunConfig& cfg, const CompareFilterResult& d, const CompareFilterResult& e,
-                            bool settled) {
+std::string furthest_behind(const RunConfig& cfg, const std::vector<double>& dm, const std::vector<double>& ds,
+                            const std::vector<double>& em, const std::vector<double>& es) {
     const std::vector<std::string> names = cfg.system->state_names();
     std::vector<std::pair<double, int>> r;
     for (int j = 0; j < cfg.n; ++j) {
         if (!(cfg.Q[std::size_t(j) * cfg.n + j] > 0)) continue;
-        const double md = settled ? d.mean_settled[j] : d.mean[j], sd = settled ? d.std_settled[j] : d.std[j];
-        const double me = settled ? e.mean_settled[j] : e.mean[j], se = settled ? e.std_settled[j] : e.std[j];
-        const double ratio = std::sqrt(md * md + sd * sd) / std::sqrt(me * me + se * se);
+        const double ratio = std::sqrt(dm[j] * dm[j] + ds[j] * ds[j]) / std::sqrt(em[j] * em[j] + es[j] * es[j]);
         if (ratio > 1) r.emplace_back(ratio, j);  // NaN is left out; an EKF error of 0 gives inf, kept
     }
     std::sort(r.begin(), r.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
@@ -139,18 +139,17 @@ AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& netwo
     const CompareSummary s = compare_run(cfg, filters, co);
     AcceptanceVsEkf a;
     const CompareFilterResult &d = s.filters[0], &e = s.filters[1];  // the DNN filter (dnn before ekf), the EKF
-    a.dnn = d.rmse_position_settled;
-    a.ekf = e.rmse_position_settled;
-    a.dnn_q = q_weighted_rms(cfg, d.mean_settled, d.std_settled);
-    a.ekf_q = q_weighted_rms(cfg, e.mean_settled, e.std_settled);
-    if (!std::isfinite(a.ekf)) {  // no settled window (t_final <= settle_time): the whole run
-        a.dnn = d.rmse_position;
-        a.ekf = e.rmse_position;
-        a.dnn_q = q_weighted_rms(cfg, d.mean, d.std);
-        a.ekf_q = q_weighted_rms(cfg, e.mean, e.std);
-        a.settled = false;
-    }
-    a.furthest = furthest_behind(cfg, d, e, a.settled);
+    // no settled window (t_final <= settle_time): the whole run
+    a.settled = std::isfinite(e.rmse_position_settled);
+    a.dnn = a.settled ? d.rmse_position_settled : d.rmse_position;
+    a.ekf = a.settled ? e.rmse_position_settled : e.rmse_position;
+    const std::vector<double>& dm = a.settled ? d.mean_settled : d.mean;
+    const std::vector<double>& ds = a.settled ? d.std_settled : d.std;
+    const std::vector<double>& em = a.settled ? e.mean_settled : e.mean;
+    const std::vector<double>& es = a.settled ? e.std_settled : e.std;
+    a.dnn_q = std::sqrt(q_weighted_ms(cfg, dm, ds));
+    a.ekf_q = std::sqrt(q_weighted_ms(cfg, em, es));
+    a.furthest = furthest_behind(cfg, dm, ds, em, es);
     if (d.diverged_runs > 0) a.dnn = a.dnn_q = NAN;  // the verdict fails on it already; no mean over the rest
     return a;
 }
@@ -427,8 +426,7 @@ SelectScore select_score(const RunConfig& cfg, const std::string& path, const st
     const bool settled = !s.error_mean_settled.empty() && std::isfinite(s.error_mean_settled[0]);
     const std::vector<double>& mean = settled ? s.error_mean_settled : s.error_mean;
     const std::vector<double>& sd = settled ? s.error_std_settled : s.error_std;
-    double score = 0;
-    for (int j = 0; j < n; ++j) score += cfg.Q[std::size_t(j) * n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
+    const double score = q_weighted_ms(cfg, mean, sd);
     v.score = std::isfinite(score) ? score : INFINITY;
     return v;
 }
