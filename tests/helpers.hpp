@@ -16,10 +16,28 @@
 #include <sys/wait.h>
 #include <vector>
 
+#include "config/run_config.hpp"
 #include "gemm.hpp"
+#include "hinf/config.hpp"
 #include "hinf/error.hpp"
 
 namespace hinf::test {
+
+/// A run config from TOML text, with one `--set` override (KEY=VALUE) applied first when `set` is given.
+inline RunConfig config_from_text(const std::string& text, const std::string& set = "") {
+    ConfigDoc doc = ConfigDoc::from_text(text, "t.toml");
+    if (!set.empty()) doc.set(set);
+    return load_run_config(doc);
+}
+
+/// The number of newline characters in `s`.
+inline int count_lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+/// A whole file's text ("" when it cannot be opened).
+inline std::string read_text(const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 /// A fresh directory under the system temp dir, removed at scope exit.
 struct TempDir {

@@ -28,11 +28,7 @@ void replace_all(std::string& s, const std::string& from, const std::string& to)
         s.replace(at, from.size(), to);
 }
 
-int count_lines(const std::string& s) {
-    int n = 0;
-    for (char c : s) n += c == '\n';
-    return n;
-}
+using hinf::test::count_lines;
 
 // One bad input: exit 2 (a hinf::Error, not a crash: signals give -1, internal errors 3), one line
 // "hinf: error: ..." holding the fragment (or one of the alternatives "A || B"), within 60 s.

@@ -9,13 +9,13 @@
 using hinf::test::run_hinf;
 
 namespace {
-const std::string kVdp = hinf::test::tiny_vdp_gain_config("0.5", "acceptance_runs = 1\n");
+const std::string kRetrainVdp = hinf::test::tiny_vdp_gain_config("0.5", "acceptance_runs = 1\n");
 }  // namespace
 
 TEST_CASE("operate with online.retrain: counts in operate.h5, the on-line network written and usable", "[cli][retrain]") {
     hinf::test::TempDir d("retraincli");
     const std::string cfg = d / "vdp.toml", net = d / "run/checkpoint.h5";
-    std::ofstream(cfg) << kVdp;
+    std::ofstream(cfg) << kRetrainVdp;
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
     INFO(t.output);
     REQUIRE(t.status == 0);

@@ -19,7 +19,7 @@
 using namespace hinf;
 
 namespace {
-RunConfig load(const std::string& text) { return load_run_config(ConfigDoc::from_text(text, "t.toml")); }
+using hinf::test::config_from_text;
 
 // x+ = F x + G v, y = H x + n (discrete, linear): 2 states, 2 inputs, 2 outputs
 const char* kLinear =
@@ -130,7 +130,7 @@ void check_pf_nearer(const hinf::Config& cfg, const std::vector<double>& t, cons
 }  // namespace
 
 TEST_CASE("std lists: the model measures every output and input in units of its own std", "[config][channels]") {
-    const RunConfig c = load(kLinear);
+    const RunConfig c = config_from_text(kLinear);
     CHECK(c.noise_std == 1.0);
     CHECK(c.disturbance_std == 1.0);
     CHECK(c.output_weight == std::vector<double>{1.0 / 0.1, 0.0, 0.0, 1.0 / 0.4});  // diag(1 / sn_j)
@@ -150,10 +150,10 @@ TEST_CASE("std lists: the model measures every output and input in units of its 
     outputs_to_user(c, u, 1);
     CHECK(u[0] == Approx(raw[0]).epsilon(1e-15));
     // a list's one-number partner is weighted too; two numbers keep the user's units
-    const RunConfig partner = load(random_walk("[0.1, 0.4]"));
+    const RunConfig partner = config_from_text(random_walk("[0.1, 0.4]"));
     CHECK(partner.disturbance_scale == std::vector<double>{0.1});
     CHECK(partner.disturbance_std == 1.0);
-    const RunConfig plain = load(random_walk("0.2"));
+    const RunConfig plain = config_from_text(random_walk("0.2"));
     CHECK(plain.output_weight.empty());
     CHECK(plain.disturbance_scale.empty());
     CHECK(dynamic_cast<const WeightedSystem*>(plain.system.get()) == nullptr);
@@ -161,7 +161,7 @@ TEST_CASE("std lists: the model measures every output and input in units of its 
 }
 
 TEST_CASE("std lists: the truth's noise has each output's std in the user's units", "[config][channels]") {
-    const RunConfig c = load(kLinear);
+    const RunConfig c = config_from_text(kLinear);
     const std::int64_t K = c.steps_until();
     const auto* w = dynamic_cast<const WeightedSystem*>(c.system.get());
     REQUIRE(w != nullptr);
@@ -220,7 +220,7 @@ TEST_CASE("std lists: rho* of a two-sensor random walk is b^2 + 1 / sum_j sn_j^-
     // in the model's units x+ = x + b v~, y~_j = x / sn_j + n~_j with unit stds, b = sv = 0.1: the a-priori
     // P+ = 1 / (1/P + h - 1/rho) + b^2, h = sum_j sn_j^-2, meets the existence bound P = rho at rho* = b^2 + 1/h
     // (one sensor in the user's units, b = h = 1: rho* = 2, test_game_level.cpp)
-    const RunConfig c = load(random_walk("[0.1, 0.4]"));
+    const RunConfig c = config_from_text(random_walk("[0.1, 0.4]"));
     const double h = 1.0 / (0.1 * 0.1) + 1.0 / (0.4 * 0.4), want = 0.01 + 1.0 / h;
     REQUIRE(c.rho_auto);
     CHECK(c.rho_bound == Approx(want).epsilon(1e-2));
@@ -229,14 +229,14 @@ TEST_CASE("std lists: rho* of a two-sensor random walk is b^2 + 1 / sum_j sn_j^-
 
 TEST_CASE("std lists: bad lists are one line", "[config][channels]") {
     auto fails = [](const std::string& text, const std::string& fragment) {
-        return hinf::test::one_line_error([&] { load(text); }, fragment);
+        return hinf::test::one_line_error([&] { config_from_text(text); }, fragment);
     };
     CHECK(fails(random_walk("[0.1, 0.0]"), "entries must be in (0, 1e12]"));
     CHECK(fails(random_walk("[0.1, 0.2, 0.3]"), "has 3 entries, expected 2"));
     CHECK(fails(random_walk("[0.1, -0.2]"), "entries must be in (0, 1e12]"));
     CHECK(fails(random_walk("[0.1, 0.2]") + "[baseline]\nnoise_std = [0.1, 0.0]\n", "must be > 0"));
     // a list's partner of 0 (no process noise) stays in its own units
-    const RunConfig still = load(random_walk("[0.1, 0.2]").replace(random_walk("[0.1, 0.2]").find("disturbance_std = 0.1"),
+    const RunConfig still = config_from_text(random_walk("[0.1, 0.2]").replace(random_walk("[0.1, 0.2]").find("disturbance_std = 0.1"),
                                                                     21, "disturbance_std = 0.0"));
     CHECK(still.disturbance_scale.empty());
     CHECK(still.disturbance_std == 0.0);
@@ -261,7 +261,7 @@ Eigen::Matrix2d mat2(const std::vector<double>& v) {
 }  // namespace
 
 TEST_CASE("noise_cov: the model whitens correlated outputs and inputs", "[config][channels][correlated]") {
-    const RunConfig c = load(correlated());
+    const RunConfig c = config_from_text(correlated());
     CHECK(c.noise_std == 1.0);
     CHECK(c.disturbance_std == 1.0);
     Eigen::Matrix2d R, V;
@@ -296,16 +296,16 @@ TEST_CASE("noise_cov: the model whitens correlated outputs and inputs", "[config
     CHECK(v[0] == Approx(v_want[0]).epsilon(1e-14));
     CHECK(v[1] == Approx(v_want[1]).epsilon(1e-14));
     // a diagonal given as a flat list is the std list of its square roots, bit for bit
-    const RunConfig flat = load(random_walk("0.1").replace(random_walk("0.1").find("noise_std = 0.1"), 15,
+    const RunConfig flat = config_from_text(random_walk("0.1").replace(random_walk("0.1").find("noise_std = 0.1"), 15,
                                                            "noise_cov = [0.01, 0.16]"));
-    const RunConfig list = load(random_walk("[0.1, 0.4]"));
+    const RunConfig list = config_from_text(random_walk("[0.1, 0.4]"));
     CHECK(flat.output_weight == list.output_weight);
     CHECK(flat.disturbance_scale == list.disturbance_scale);
 }
 
 TEST_CASE("noise_cov: the truth's noise and disturbance have the given covariances in the user's units",
           "[config][channels][correlated]") {
-    const RunConfig c = load(correlated());
+    const RunConfig c = config_from_text(correlated());
     const std::int64_t K = c.steps_until();
     const auto* w = dynamic_cast<const WeightedSystem*>(c.system.get());
     REQUIRE(w != nullptr);
@@ -365,7 +365,7 @@ TEST_CASE("noise_cov: rho* of a two-sensor random walk is b^2 + 1 / (1' R^-1 1)"
     // (the list's closed form above, with sum_j sn_j^-2 replaced)
     const std::string text = random_walk("0.1").replace(random_walk("0.1").find("noise_std = 0.1"), 15,
                                                          "noise_cov = [[0.01, -0.02], [-0.02, 0.16]]");
-    const RunConfig c = load(text);
+    const RunConfig c = config_from_text(text);
     Eigen::Matrix2d R;
     R << 0.01, -0.02, -0.02, 0.16;
     const double h = Eigen::Vector2d::Ones().dot(R.inverse() * Eigen::Vector2d::Ones()), want = 0.01 + 1.0 / h;
@@ -377,7 +377,7 @@ TEST_CASE("noise_cov: rho* of a two-sensor random walk is b^2 + 1 / (1' R^-1 1)"
 
 TEST_CASE("noise_cov: bad covariances are one line", "[config][channels][correlated]") {
     auto fails = [](const std::string& text, const std::string& fragment) {
-        return hinf::test::one_line_error([&] { load(text); }, fragment);
+        return hinf::test::one_line_error([&] { config_from_text(text); }, fragment);
     };
     const std::string base = random_walk("0.1");
     auto with = [&](const std::string& noise) { return base.substr(0, base.find("noise_std = 0.1")) + noise + "\n"; };

@@ -26,13 +26,13 @@ std::string integrator(const std::string& time, const std::string& dt, const std
            rho_line + "Q = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\ndt = " + dt + "\nt_final = " + t_final +
            "\n[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
 }
-RunConfig load(const std::string& text) { return load_run_config(ConfigDoc::from_text(text, "t.toml")); }
+using hinf::test::config_from_text;
 }  // namespace
 
 TEST_CASE("rho* of a continuous integrator is the escape level of its Riccati equation", "[config][rho]") {
     // P' = 1 - P^2 (1 - 1/rho), P(0) = 0: for rho < 1, P = tan(b t)/b with b^2 = 1/rho - 1 escapes at t = pi/(2b); over
     // [0, T] a filter of level rho exists iff pi/(2b) > T, so rho* = 1/(1 + pi^2/(4 T^2)) (0.97592 at T = 10)
-    const RunConfig c = load(integrator("continuous", "0.001", "10", "rho = 1\n"));
+    const RunConfig c = config_from_text(integrator("continuous", "0.001", "10", "rho = 1\n"));
     const double T = 10, want = 1.0 / (1.0 + M_PI * M_PI / (4 * T * T));
     const GameLevel g = game_level_bound(c, 1e-5);
     REQUIRE(g.bracketed);
@@ -44,8 +44,8 @@ TEST_CASE("rho* of a continuous integrator is the escape level of its Riccati eq
 
 TEST_CASE("rho* walks at most the horizon's first kGameLevelMaxSteps steps", "[config][rho]") {
     // reading a config stays quick whatever its horizon: a longer one gives the rho* of its first part
-    const RunConfig longer = load(integrator("continuous", "0.001", "30", "rho = 1\n"));  // 30000 steps
-    const RunConfig first = load(integrator("continuous", "0.001", "20", "rho = 1\n"));   // 20000 steps
+    const RunConfig longer = config_from_text(integrator("continuous", "0.001", "30", "rho = 1\n"));  // 30000 steps
+    const RunConfig first = config_from_text(integrator("continuous", "0.001", "20", "rho = 1\n"));   // 20000 steps
     REQUIRE(longer.steps_until() > kGameLevelMaxSteps);
     REQUIRE(first.steps_until() == kGameLevelMaxSteps);
     CHECK(game_level_bound(longer).bound == game_level_bound(first).bound);
@@ -54,7 +54,7 @@ TEST_CASE("rho* walks at most the horizon's first kGameLevelMaxSteps steps", "[c
 TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[config][rho]") {
     // P+ = (1/P + 1 - 1/rho)^-1 + 1 with the a-priori condition 1/P > 1/rho: the stationary P = 1/2 + sqrt(1/4 + 1/u),
     // u = 1 - 1/rho, equals rho exactly at rho = 2; below it the condition fails once P has settled, above it never
-    const RunConfig c = load(integrator("discrete", "1", "200", "rho = 3\n"));
+    const RunConfig c = config_from_text(integrator("discrete", "1", "200", "rho = 3\n"));
     const GameLevel g = game_level_bound(c, 1e-5);
     REQUIRE(g.bracketed);
     CHECK(g.bound == Approx(2.0).epsilon(1e-3));
@@ -65,26 +65,26 @@ TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[con
 
 TEST_CASE("a system of one's own that names no rho trains at 1.25 rho*, and says so in its config (and Q = I)",
           "[config][rho]") {
-    const RunConfig given = load(integrator("continuous", "0.01", "10", "rho = 0.7\n"));
+    const RunConfig given = config_from_text(integrator("continuous", "0.01", "10", "rho = 0.7\n"));
     CHECK_FALSE(given.rho_auto);
     CHECK(given.rho == 0.7);
-    const RunConfig c = load(integrator("continuous", "0.01", "10", ""));
+    const RunConfig c = config_from_text(integrator("continuous", "0.01", "10", ""));
     REQUIRE(c.rho_auto);
     CHECK(c.rho_bound == game_level_bound(given).bound);
     CHECK(c.rho == kAutoRhoFactor * c.rho_bound);
     // the effective config names the value: a checkpoint carries it, and loading that text gives the same rho
-    const RunConfig again = load(c.doc.text());
+    const RunConfig again = config_from_text(c.doc.text());
     CHECK_FALSE(again.rho_auto);
     CHECK(again.rho == c.rho);
     // the missiles keep their papers' 0.03 and Q = 1e-5 I; a system of one's own naming no Q weighs its states alike
-    const RunConfig missile = load("[system]\nkind = \"missile\"\n");
+    const RunConfig missile = config_from_text("[system]\nkind = \"missile\"\n");
     CHECK(missile.rho == 0.03);
     CHECK(missile.Q[0] == 1e-5);
     std::string no_q = integrator("continuous", "0.01", "10", "");
     no_q.replace(no_q.find("Q = [1.0]\n"), 10, "");
-    const RunConfig own = load(no_q);
+    const RunConfig own = config_from_text(no_q);
     CHECK(own.Q == std::vector<double>{1.0});
-    CHECK(load(own.doc.text()).Q == std::vector<double>{1.0});
+    CHECK(config_from_text(own.doc.text()).Q == std::vector<double>{1.0});
     CHECK(ConfigSection(own.doc, "filter").has("Q"));
 }
 
@@ -201,14 +201,14 @@ std::string oscillator(const std::string& time, const std::string& ds, const std
 }  // namespace
 
 TEST_CASE("constant_states finds a parameter estimated as a state and nothing else", "[config][rho]") {
-    CHECK(constant_states(load(oscillator("continuous", "0", "0", ""))) == std::vector<int>{2});
-    CHECK(constant_states(load(oscillator("discrete", "s", "0", ""))) == std::vector<int>{2});
+    CHECK(constant_states(config_from_text(oscillator("continuous", "0", "0", ""))) == std::vector<int>{2});
+    CHECK(constant_states(config_from_text(oscillator("discrete", "s", "0", ""))) == std::vector<int>{2});
     // a disturbance that reaches it, a drift however small, or a discrete map that moves it: not constant
-    CHECK(constant_states(load(oscillator("continuous", "0", "0.01", ""))).empty());
-    CHECK(constant_states(load(oscillator("continuous", "1e-6*x", "0", ""))).empty());
-    CHECK(constant_states(load(oscillator("discrete", "0.999*s", "0", ""))).empty());
+    CHECK(constant_states(config_from_text(oscillator("continuous", "0", "0.01", ""))).empty());
+    CHECK(constant_states(config_from_text(oscillator("continuous", "1e-6*x", "0", ""))).empty());
+    CHECK(constant_states(config_from_text(oscillator("discrete", "0.999*s", "0", ""))).empty());
     // a state with no drift that the disturbance drives (the integrator above) is not a parameter
-    CHECK(constant_states(load(integrator("continuous", "0.01", "1", "rho = 1\n"))).empty());
+    CHECK(constant_states(config_from_text(integrator("continuous", "0.01", "1", "rho = 1\n"))).empty());
 }
 
 TEST_CASE("train notes a constant state under the default Q and names the Q that leaves it out", "[config][rho][cli]") {

@@ -47,11 +47,7 @@ void write_bytes(const std::string& path, const std::string& bytes) {
     std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
 }
 
-int count_lines(const std::string& s) {
-    int n = 0;
-    for (char c : s) n += c == '\n';
-    return n;
-}
+using hinf::test::count_lines;
 
 // hinf resume <ckpt>: one line "hinf: error: ..." naming the file, with the fragment; exit 2.
 void expect_resume_error(const std::string& ckpt, const std::string& fragment, bool suggests_prev) {

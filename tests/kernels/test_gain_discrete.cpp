@@ -16,16 +16,16 @@ using namespace hinf::kern;
 namespace {
 
 // one random sample: n = 3, nv = 2, m = 2 (m < n)
-struct Case {
+struct DiscreteCase {
     int n = 3, nv = 2, m = 2;
     std::vector<double> xt, dA, B, dC, q, K, S, xt0;
     HjieSystemView view() const { return {n, nv, m, xt.data(), dA.data(), B.data(), dC.data(), q.data()}; }
 };
 
-Case make_case(unsigned seed) {
+DiscreteCase make_discrete_case(unsigned seed) {
     std::mt19937 g(seed);
     std::normal_distribution<double> N(0.0, 1.0);
-    Case c;
+    DiscreteCase c;
     auto fill = [&](std::vector<double>& v, int k, double s) {
         v.resize(k);
         for (double& x : v) x = s * N(g);
@@ -49,7 +49,7 @@ Case make_case(unsigned seed) {
 }
 
 // x~'Q x~ + V(x~_{k+1}) - V(x~_k) - rho |w|^2 with V = x~'S x~, x~_{k+1} = dA - K (dC + n) + B v, w = (v, n)
-double one_step(const Case& c, const double* w, double rho) {
+double one_step(const DiscreteCase& c, const double* w, double rho) {
     const int n = c.n;
     std::vector<double> next(n);
     for (int a = 0; a < n; ++a) {
@@ -66,7 +66,7 @@ double one_step(const Case& c, const double* w, double rho) {
 }
 
 // lambda_max(G'S G), G = [B, -K]
-double lambda_max(const Case& c) {
+double lambda_max(const DiscreteCase& c) {
     const int p = c.nv + c.m;
     Eigen::MatrixXd G(c.n, p), S(c.n, c.n);
     for (int a = 0; a < c.n; ++a) {
@@ -83,7 +83,7 @@ double lambda_max(const Case& c) {
 TEST_CASE("gain variant, discrete time: the closed-form sup over w equals a brute-force maximisation",
           "[kernel][gain][discrete]") {
     for (unsigned seed = 1; seed <= 6; ++seed) {
-        Case c = make_case(seed);
+        DiscreteCase c = make_discrete_case(seed);
         INFO("seed " << seed);
         const double rho = 1.5 * lambda_max(c) + 0.1;  // concave
         GainLossParams gp;
@@ -126,7 +126,7 @@ TEST_CASE("gain variant, discrete time: the closed-form sup over w equals a brut
 
 TEST_CASE("gain variant, discrete time: not concave in w, the sup is unbounded and the loss pushes back",
           "[kernel][gain][discrete]") {
-    Case c = make_case(3);
+    DiscreteCase c = make_discrete_case(3);
     const double lmax = lambda_max(c);
     GainLossParams gp;
     gp.rho = 0.8 * lmax;
@@ -163,7 +163,7 @@ TEST_CASE("gain variant, discrete time: per-sample loss gradient equals central 
           "[kernel][gain][discrete][grad]") {
     for (unsigned seed = 1; seed <= 6; ++seed) {
         for (double rho_factor : {1.5, 0.99, 0.7}) {  // concave with margin; concave inside the margin; not concave
-            Case c = make_case(seed);
+            DiscreteCase c = make_discrete_case(seed);
             INFO("seed " << seed << " rho / lambda_max " << rho_factor);
             GainLossParams gp;
             gp.discrete = true;
@@ -176,7 +176,7 @@ TEST_CASE("gain variant, discrete time: per-sample loss gradient equals central 
             gp.disturbance_intensity = 0.6;
             gp.noise_intensity = 1.3;
             const double dh = 0.8, dh2 = 0.3;
-            auto L = [&](const Case& cc) {
+            auto L = [&](const DiscreteCase& cc) {
                 GainSampleValue v = gain_discrete_sample_forward(cc.K.data(), cc.S.data(), cc.view(), 0, gp);
                 return dh * v.hinge + dh2 * v.h2;
             };
@@ -185,13 +185,13 @@ TEST_CASE("gain variant, discrete time: per-sample loss gradient equals central 
             gain_sample_backward(gK.data(), gS.data(), c.K.data(), c.S.data(), c.view(), 0, gp, dh, dh2);
             const double h = 1e-6;
             for (int k = 0; k < c.n * c.m; ++k) {
-                Case p = c, m = c;
+                DiscreteCase p = c, m = c;
                 p.K[k] += h;
                 m.K[k] -= h;
                 CHECK(gK[k] == Approx((L(p) - L(m)) / (2 * h)).epsilon(1e-5).margin(1e-8));
             }
             for (int k = 0; k < c.n * c.n; ++k) {
-                Case p = c, m = c;
+                DiscreteCase p = c, m = c;
                 p.S[k] += h;
                 m.S[k] -= h;
                 CHECK(gS[k] == Approx((L(p) - L(m)) / (2 * h)).epsilon(1e-5).margin(1e-8));

@@ -16,7 +16,7 @@
 using namespace hinf::kern;
 
 namespace {
-using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 GainSpec kalman_spec(int n, int m) {
     GainSpec g;
@@ -31,13 +31,13 @@ GainSpec kalman_spec(int n, int m) {
 }
 
 // P = c D (M M' + eps I) D, M = I + tril(o), from the packing's definition
-Mat p_of(const std::vector<double>& o, const GainSpec& g, int n) {
-    Mat M = Mat::Identity(n, n), D = Mat::Zero(n, n);
+RowMat p_of(const std::vector<double>& o, const GainSpec& g, int n) {
+    RowMat M = RowMat::Identity(n, n), D = RowMat::Zero(n, n);
     int k = 0;
     for (int a = 0; a < n; ++a)
         for (int b = 0; b <= a; ++b) M(a, b) += o[k++];
     for (int a = 0; a < n; ++a) D(a, a) = g.dx[a];
-    return g.kalman_scale * D * (M * M.transpose() + g.eps * Mat::Identity(n, n)) * D;
+    return g.kalman_scale * D * (M * M.transpose() + g.eps * RowMat::Identity(n, n)) * D;
 }
 }  // namespace
 
@@ -56,12 +56,12 @@ TEST_CASE("Kalman-form head: K = F P H'(H P H' + R)^-1 and its gradient equals c
         std::vector<double> K(n * m), A(n * m);
         gain_kalman_forward(K.data(), A.data(), o.data(), F.data(), H.data(), g, n, m);
         // by the definition, in Eigen
-        const Mat P = p_of(o, g, n);
-        const Mat Fm = Eigen::Map<const Mat>(F.data(), n, n), Hm = Eigen::Map<const Mat>(H.data(), m, n);
-        Mat R = Mat::Zero(m, m);
+        const RowMat P = p_of(o, g, n);
+        const RowMat Fm = Eigen::Map<const RowMat>(F.data(), n, n), Hm = Eigen::Map<const RowMat>(H.data(), m, n);
+        RowMat R = RowMat::Zero(m, m);
         for (int j = 0; j < m; ++j) R(j, j) = g.dy[j] * g.dy[j];
-        const Mat Aref = P * Hm.transpose() * (Hm * P * Hm.transpose() + R).inverse();
-        const Mat Kref = Fm * Aref;
+        const RowMat Aref = P * Hm.transpose() * (Hm * P * Hm.transpose() + R).inverse();
+        const RowMat Kref = Fm * Aref;
         for (int a = 0; a < n; ++a)
             for (int j = 0; j < m; ++j) {
                 CHECK(K[a * m + j] == Approx(Kref(a, j)).epsilon(1e-12).margin(1e-14));
@@ -107,8 +107,8 @@ TEST_CASE("Kalman-form head: the correction A H cannot over-correct however stee
         for (double& x : H) x *= steep;
         for (int a = 0; a < n; ++a) F[a * n + a] = 1.0;
         gain_kalman_forward(K.data(), A.data(), o.data(), F.data(), H.data(), g, n, m);
-        const Mat AH = Eigen::Map<const Mat>(A.data(), n, m) * Eigen::Map<const Mat>(H.data(), m, n);
-        const Eigen::VectorXcd ev = Eigen::EigenSolver<Mat>(AH).eigenvalues();
+        const RowMat AH = Eigen::Map<const RowMat>(A.data(), n, m) * Eigen::Map<const RowMat>(H.data(), m, n);
+        const Eigen::VectorXcd ev = Eigen::EigenSolver<RowMat>(AH).eigenvalues();
         for (int k = 0; k < n; ++k) {
             INFO("trial " << trial << " slope scale " << steep << " eigenvalue " << ev[k]);
             CHECK(std::fabs(ev[k].imag()) < 1e-9);
@@ -186,8 +186,8 @@ TEST_CASE("Kalman-form head: the minibatch gradient equals central differences a
                 CHECK(K[idx[r * G] * n * m + e] == Approx(Ktrain[r * n * m + e]).epsilon(1e-12));
         // K = F A at every estimate
         for (int i = 0; i < N; ++i) {
-            const Mat FA = Eigen::Map<const Mat>(Fx.data() + i * n * n, n, n) *
-                           Eigen::Map<const Mat>(A.data() + i * n * m, n, m);
+            const RowMat FA = Eigen::Map<const RowMat>(Fx.data() + i * n * n, n, n) *
+                           Eigen::Map<const RowMat>(A.data() + i * n * m, n, m);
             for (int e = 0; e < n * m; ++e) CHECK(K[i * n * m + e] == Approx(FA.data()[e]).epsilon(1e-12).margin(1e-14));
         }
     }

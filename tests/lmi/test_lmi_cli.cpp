@@ -14,16 +14,11 @@ using hinf::test::TempDir;
 
 namespace {
 
-std::string read_text(const std::string& path) {
-    std::ifstream f(path);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-}
+using hinf::test::read_text;
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
-int count_lines(const std::string& s) {
+int line_count(const std::string& s) {
     int n = 0;
     for (char ch : s) n += ch == '\n';
     return n + (!s.empty() && s.back() != '\n');
@@ -158,12 +153,12 @@ TEST_CASE("hinf lmi: bad input gives one line and a non-zero exit", "[lmi][cli]"
         auto r = run_hinf("lmi " + dir / "bad.toml" + " --out " + dir / "out");
         INFO(r.output);
         CHECK(r.status != 0);
-        CHECK(count_lines(r.output) == 1);
+        CHECK(line_count(r.output) == 1);
         CHECK(r.output.find(c.expect) != std::string::npos);
     }
     auto r = run_hinf("lmi " + dir / "missing.toml");
     CHECK(r.status != 0);
-    CHECK(count_lines(r.output) == 1);
+    CHECK(line_count(r.output) == 1);
     r = run_hinf("lmi " + source_path("runs/delay_hinf.toml") + " --out " + dir / "o" + " --operate --runs 1");
     CHECK(r.status != 0);
 }

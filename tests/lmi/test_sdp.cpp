@@ -14,7 +14,7 @@ using Eigen::MatrixXd;
 
 namespace {
 
-double max_eig(const MatrixXd& M) {
+double max_eigenvalue(const MatrixXd& M) {
     Eigen::SelfAdjointEigenSolver<MatrixXd> es(0.5 * (M + M.transpose()));
     return es.eigenvalues().maxCoeff();
 }
@@ -63,7 +63,7 @@ TEST_CASE("SDP: scalar bounded-real lemma gives (cb/a)^2", "[lmi][sdp]") {
     auto r = sdp_solve(p);
     REQUIRE(r.status == hinf::lmi::SDP_STATUS_OPTIMAL);
     CHECK(r.x[1] == Approx(std::pow(c * b / a, 2)).epsilon(1e-4));
-    for (const auto& blk : p.blocks) CHECK(max_eig(-hinf::lmi::sdp_block_value(blk, r.x)) < 0);  // block >= 0
+    for (const auto& blk : p.blocks) CHECK(max_eigenvalue(-hinf::lmi::sdp_block_value(blk, r.x)) < 0);  // block >= 0
 }
 
 TEST_CASE("SDP: 2-state bounded-real lemma matches a frequency sweep of |G(jw)|", "[lmi][sdp]") {
@@ -80,7 +80,7 @@ TEST_CASE("SDP: 2-state bounded-real lemma matches a frequency sweep of |G(jw)|"
     auto r = sdp_solve(p);
     REQUIRE(r.status == hinf::lmi::SDP_STATUS_OPTIMAL);
     CHECK(std::sqrt(r.x[3]) == Approx(peak).epsilon(1e-3));
-    for (const auto& blk : p.blocks) CHECK(max_eig(-hinf::lmi::sdp_block_value(blk, r.x)) < 0);
+    for (const auto& blk : p.blocks) CHECK(max_eigenvalue(-hinf::lmi::sdp_block_value(blk, r.x)) < 0);
 }
 
 TEST_CASE("SDP: contradictory LMIs are reported infeasible, not solved", "[lmi][sdp]") {

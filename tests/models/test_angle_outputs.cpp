@@ -36,7 +36,7 @@ std::string crossing(const std::string& angles, const std::string& online = "noi
            "[online]\ndisturbance_std = 0.2\n" + online + "settle_time = 5\n";
 }
 
-RunConfig load(const std::string& text) { return load_run_config(ConfigDoc::from_text(text, "cut.toml")); }
+using hinf::test::config_from_text;
 
 // settled position RMSE per filter from compare.csv
 std::vector<std::pair<std::string, double>> settled(const std::string& csv_path) {
@@ -66,12 +66,12 @@ TEST_CASE("angle outputs: differences wrap into [-pi, pi] through any output wei
     const double wrapped = 6.20 - 2.0 * M_PI;
     double r[2];
     SECTION("one noise std: the system itself") {
-        const RunConfig cfg = load(crossing("angle_outputs = [2]\n", "noise_std = 5.0\n"));
+        const RunConfig cfg = config_from_text(crossing("angle_outputs = [2]\n", "noise_std = 5.0\n"));
         REQUIRE(cfg.system->angle_outputs() == std::vector<int>{1});
         cfg.system->output_difference(r, y, c);
         CHECK(r[0] == 10.0);
         CHECK(r[1] == Approx(wrapped).epsilon(1e-12));
-        const RunConfig plain = load(crossing("", "noise_std = 5.0\n"));
+        const RunConfig plain = config_from_text(crossing("", "noise_std = 5.0\n"));
         CHECK_FALSE(plain.system->wraps_outputs());
         plain.system->output_difference(r, y, c);
         CHECK(r[0] == y[0] - c[0]);
@@ -79,7 +79,7 @@ TEST_CASE("angle outputs: differences wrap into [-pi, pi] through any output wei
     }
     SECTION("noise std lists and a noise covariance: W wrap(y - c) in the user's units") {
         for (const char* online : {"noise_std = [5.0, 0.005]\n", "noise_cov = [[25.0, 0.01], [0.01, 2.5e-5]]\n"}) {
-            const RunConfig cfg = load(crossing("angle_outputs = [2]\n", online));
+            const RunConfig cfg = config_from_text(crossing("angle_outputs = [2]\n", online));
             REQUIRE(cfg.system->wraps_outputs());
             const auto* ws = dynamic_cast<const WeightedSystem*>(cfg.system.get());
             REQUIRE(ws != nullptr);
@@ -91,7 +91,7 @@ TEST_CASE("angle outputs: differences wrap into [-pi, pi] through any output wei
             CHECK(r[0] == Approx(W[0] * 10.0).epsilon(1e-12));
             CHECK(r[1] == Approx(W[2] * 10.0 + W[3] * wrapped).epsilon(1e-9));
             // without the key the weighted difference is the plain subtraction, bit for bit
-            const RunConfig plain = load(crossing("", online));
+            const RunConfig plain = config_from_text(crossing("", online));
             plain.system->output_difference(r, yw, cw);
             CHECK(r[0] == yw[0] - cw[0]);
             CHECK(r[1] == yw[1] - cw[1]);
@@ -104,7 +104,7 @@ TEST_CASE("angle outputs: bad lists are refused in one line", "[angles]") {
     for (const char* key : bad) {
         INFO(key);
         try {
-            load(crossing(key));
+            config_from_text(crossing(key));
             FAIL("accepted");
         } catch (const Error& e) {
             const std::string what = e.what();
@@ -137,7 +137,7 @@ TEST_CASE("angle outputs: the gain variant's samples see the wrapped bearing dif
     // errors sampled around estimates near the cut straddle it: without the key their bearing difference is near
     // 2 pi (in units of the bearing's noise, 0.005 rad: about 1257); with it, within pi of 0 there
     for (const bool angles : {true, false}) {
-        const RunConfig cfg = load(crossing(angles ? "angle_outputs = [2]\n" : ""));
+        const RunConfig cfg = config_from_text(crossing(angles ? "angle_outputs = [2]\n" : ""));
         const GainPool pool = gain_pool_build(cfg);
         const kern::GainSpec g = network_step_config(cfg).gain;
         GainSamples s;

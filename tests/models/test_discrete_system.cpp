@@ -41,7 +41,7 @@ noise_std = 1
 )toml";
 
 // x_{k+1} = F x_k + G w_k, y_k = H x_k + v_k with n = 2, nv = 1, m = 1
-const char* kLinear = R"toml([system]
+const char* kLinearDiscrete = R"toml([system]
 kind = "expr"
 time = "discrete"
 states = ["a", "b"]
@@ -119,7 +119,7 @@ TEST_CASE("discrete system: the truth equals f iterated by hand with the drawn s
 }
 
 TEST_CASE("discrete system: EKF and UKF equal the Kalman filter's closed form on a linear system", "[models][discrete][kalman]") {
-    RunConfig cfg = config_of(kLinear);
+    RunConfig cfg = config_of(kLinearDiscrete);
     const std::int64_t K = cfg.steps_until();
     TruthRun tr = truth_simulate(cfg, scenario_named("nominal"), 0, K);
     FilterModel model = filter_model(cfg);
@@ -163,7 +163,7 @@ TEST_CASE("discrete system: EKF and UKF equal the Kalman filter's closed form on
 }
 
 TEST_CASE("discrete system: a known initial state (P0 = 0) and the PF's stratified resampling", "[models][discrete][pf]") {
-    RunConfig cfg = config_of(kLinear);
+    RunConfig cfg = config_of(kLinearDiscrete);
     const std::int64_t K = 60;
     TruthRun tr = truth_simulate(cfg, scenario_named("nominal"), 1, K);
     FilterStart start;
@@ -208,7 +208,7 @@ TEST_CASE("discrete system: a known initial state (P0 = 0) and the PF's stratifi
 }
 
 TEST_CASE("discrete system: [baseline] changes what the filters are told, not the truth", "[models][discrete][baseline]") {
-    const std::string with_param = std::string(kLinear).replace(std::string(kLinear).find("f = ["), 5,
+    const std::string with_param = std::string(kLinearDiscrete).replace(std::string(kLinearDiscrete).find("f = ["), 5,
                                                                 "parameters = { c = 0.2 }\nf = [") ;
     std::string text = with_param;
     text.replace(text.find("0.9*a + 0.2*b"), 13, "0.9*a + c*b");

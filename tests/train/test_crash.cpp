@@ -92,10 +92,7 @@ std::vector<std::string> next_command(const std::string& cfg, const std::string&
 
 
 
-std::string read_text(const std::string& path) {
-    std::ifstream in(path);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using hinf::test::read_text;
 
 }  // namespace
 

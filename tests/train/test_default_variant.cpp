@@ -12,16 +12,16 @@
 #include "io/checkpoint.hpp"
 
 namespace {
-hinf::RunConfig load(const std::string& text) { return hinf::load_run_config(hinf::ConfigDoc::from_text(text, "t.toml")); }
+using hinf::test::config_from_text;
 }  // namespace
 
 TEST_CASE("the default variant is gain where it applies, dissipative elsewhere", "[config][gain][default]") {
     const std::string missile = "[system]\nkind = \"missile\"\n";
-    CHECK(load(missile).variant == "gain");
-    CHECK(load(missile).mode == "measured");
-    CHECK(load(missile + "[filter]\ntype = \"h2hinf\"\n").variant == "dissipative");
-    CHECK(load(missile + "[filter]\ntype = \"h2hinf\"\n").mode == "oracle");
-    CHECK(load(missile + "[filter]\nvariant = \"dissipative\"\n").mode == "oracle");
+    CHECK(config_from_text(missile).variant == "gain");
+    CHECK(config_from_text(missile).mode == "measured");
+    CHECK(config_from_text(missile + "[filter]\ntype = \"h2hinf\"\n").variant == "dissipative");
+    CHECK(config_from_text(missile + "[filter]\ntype = \"h2hinf\"\n").mode == "oracle");
+    CHECK(config_from_text(missile + "[filter]\nvariant = \"dissipative\"\n").mode == "oracle");
     // more than 32 states: the gain variant's fixed-size kernels do not take it
     std::string big = "[system]\nkind = \"expr\"\nstates = [";
     std::string f = "f = [", h = "h = [", g = "g = [";
@@ -39,8 +39,8 @@ TEST_CASE("the default variant is gain where it applies, dissipative elsewhere",
     }
     big += "]\nmeasurements = 3\n" + f + "]\n" + g + "]\n" + h + "]\n[filter]\n" + x0 + "]\n" + xh0 + "]\ndt = 0.01\nt_final = 1\n" +
            "[online]\ndisturbance_std = 1\nnoise_std = 1\n";
-    CHECK(load(big).n == 33);
-    CHECK(load(big).variant == "dissipative");
+    CHECK(config_from_text(big).n == 33);
+    CHECK(config_from_text(big).variant == "dissipative");
 }
 
 TEST_CASE("a config that names no variant trains the gain filter and operates it from measurements",
@@ -81,7 +81,7 @@ TEST_CASE("a checkpoint from before gain became the default resumes and operates
     const std::string dir = d / "run";
     hinf::test::copy_legacy_run("dissipative_default", dir);
     CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").variant == "dissipative");
-    CHECK(load(hinf::ConfigDoc::from_text(hinf::h5::read_string(hinf::h5::open_file(dir + "/checkpoint.h5", false).get(),
+    CHECK(config_from_text(hinf::ConfigDoc::from_text(hinf::h5::read_string(hinf::h5::open_file(dir + "/checkpoint.h5", false).get(),
                                                                 "config"),
                                           "c.toml")
                    .text())

@@ -25,7 +25,7 @@ using namespace hinf;
 
 namespace {
 
-const std::string kLinear = hinf::test::linear_discrete_system_toml() + R"toml([filter]
+const std::string kLinearGainTrain = hinf::test::linear_discrete_system_toml() + R"toml([filter]
 variant = "gain"
 rho = 6
 Q = [1.0, 1.0]
@@ -53,7 +53,7 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
   for (const std::string head : {"direct", "kalman"}) {
     INFO("network.gain_head = " << head);
     test::TempDir d("gain-discrete-" + head);
-    std::string text = kLinear;
+    std::string text = kLinearGainTrain;
     text.replace(text.find("hidden = [16, 8]"), 16, "hidden = [16, 8]\ngain_head = \"" + head + "\"");
     RunConfig cfg = load_run_config(ConfigDoc::from_text(text, "linear.toml"));
     TrainOptions opt;
@@ -131,7 +131,7 @@ TEST_CASE("gain variant on a linear discrete system: stable, dissipative at samp
 TEST_CASE("an ensemble of gain networks filters with the mean of their gains and refuses mixed models",
           "[train][gain][discrete][ensemble]") {
     test::TempDir d("gain-ensemble");
-    ConfigDoc doc = ConfigDoc::from_text(kLinear, "linear.toml");
+    ConfigDoc doc = ConfigDoc::from_text(kLinearGainTrain, "linear.toml");
     doc.set("filter.t_final=40");
     const RunConfig cfg = load_run_config(doc);
     auto train = [&](const std::vector<std::string>& sets, const std::string& dir) {

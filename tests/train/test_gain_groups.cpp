@@ -12,7 +12,7 @@
 #include "train/gain_samples.hpp"
 
 namespace {
-hinf::RunConfig load(const std::string& text) { return hinf::load_run_config(hinf::ConfigDoc::from_text(text, "t.toml")); }
+using hinf::test::config_from_text;
 
 std::string with_training(const std::string& lines) {
     std::string text = hinf::test::tiny_vdp_gain_config("0.5");
@@ -24,20 +24,20 @@ std::string with_training(const std::string& lines) {
 }  // namespace
 
 TEST_CASE("errors_per_estimate: the default divides the samples and the minibatch", "[gain][groups]") {
-    CHECK(load(hinf::test::tiny_vdp_gain_config("0.5")).errors_per_estimate == 4);  // 100 and 40
-    CHECK(load(with_training("samples = 60\nbatch = 30\n")).errors_per_estimate == 2);
-    CHECK(load(with_training("samples = 63\nbatch = 21\n")).errors_per_estimate == 1);
+    CHECK(config_from_text(hinf::test::tiny_vdp_gain_config("0.5")).errors_per_estimate == 4);  // 100 and 40
+    CHECK(config_from_text(with_training("samples = 60\nbatch = 30\n")).errors_per_estimate == 2);
+    CHECK(config_from_text(with_training("samples = 63\nbatch = 21\n")).errors_per_estimate == 1);
     std::string five = hinf::test::tiny_vdp_gain_config("0.5");
     five.replace(five.find("trajectories = 3"), 16, "trajectories = 3\nerrors_per_estimate = 5");
-    CHECK(load(five).errors_per_estimate == 5);
+    CHECK(config_from_text(five).errors_per_estimate == 5);
     std::string dissipative = hinf::test::tiny_vdp_gain_config("0.5");
     dissipative.replace(dissipative.find("variant = \"gain\""), 16, "variant = \"dissipative\"");
-    CHECK(load(dissipative).errors_per_estimate == 1);
+    CHECK(config_from_text(dissipative).errors_per_estimate == 1);
 }
 
 TEST_CASE("errors_per_estimate: a group shares its first sample's estimate and time, which an ungrouped run draws",
           "[gain][groups]") {
-    const hinf::RunConfig grouped = load(hinf::test::tiny_vdp_gain_config("0.5"));
+    const hinf::RunConfig grouped = config_from_text(hinf::test::tiny_vdp_gain_config("0.5"));
     hinf::RunConfig single = grouped;
     single.errors_per_estimate = 1;
     REQUIRE(grouped.errors_per_estimate == 4);

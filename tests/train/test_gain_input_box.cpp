@@ -24,11 +24,7 @@ std::string constant_s_config() {
     return text.replace(text.find(at), at.size(), at + "storage_knots = 0\n");
 }
 
-RunConfig load(const std::string& text, const std::string& set = "") {
-    ConfigDoc doc = ConfigDoc::from_text(text, "t.toml");
-    if (!set.empty()) doc.set(set);
-    return load_run_config(doc);
-}
+using hinf::test::config_from_text;
 
 void train(const RunConfig& cfg, const std::string& dir) {
     TrainOptions opt;
@@ -48,7 +44,8 @@ std::vector<double> gain_at(FrozenNetwork& net, const RunConfig& cfg, const std:
 TEST_CASE("input_box: training is unchanged, and the filter holds the network's input in the training estimates' box",
           "[gain][input_box]") {
     test::TempDir d("inputbox");
-    const RunConfig held = load(constant_s_config()), free = load(constant_s_config(), "network.input_box=0");
+    const RunConfig held = config_from_text(constant_s_config());
+    const RunConfig free = config_from_text(constant_s_config(), "network.input_box=0");
     CHECK(held.input_box == 0.005);
     train(held, d / "held");
     train(free, d / "free");
@@ -114,14 +111,14 @@ TEST_CASE("input_box: a gain checkpoint from before the key holds nothing and re
 }
 
 TEST_CASE("input_box: a share in [0, 0.49], for the gain variant only (and the Adam default of the gain variant)", "[gain][input_box][config]") {
-    CHECK(load(constant_s_config(), "network.input_box=0.02").input_box == 0.02);
-    CHECK_THROWS_WITH(load(constant_s_config(), "network.input_box=0.5"), Catch::Contains("input_box"));
+    CHECK(config_from_text(constant_s_config(), "network.input_box=0.02").input_box == 0.02);
+    CHECK_THROWS_WITH(config_from_text(constant_s_config(), "network.input_box=0.5"), Catch::Contains("input_box"));
     std::string dissipative = constant_s_config();
     dissipative.replace(dissipative.find("variant = \"gain\""), 16, "variant = \"dissipative\"");
     dissipative.replace(dissipative.find("storage_knots = 0\n"), 18, "");
-    CHECK(load(dissipative).input_box == 0);
+    CHECK(config_from_text(dissipative).input_box == 0);
     // Adam: the gain variant keeps its moments across time steps, the chained variants restart them (method.md 16.11)
-    CHECK_FALSE(load(constant_s_config()).reset_adam);
-    CHECK(load(dissipative).reset_adam);
-    CHECK_THROWS_WITH(load(dissipative, "network.input_box=0.01"), Catch::Contains("variant = \"gain\""));
+    CHECK_FALSE(config_from_text(constant_s_config()).reset_adam);
+    CHECK(config_from_text(dissipative).reset_adam);
+    CHECK_THROWS_WITH(config_from_text(dissipative, "network.input_box=0.01"), Catch::Contains("variant = \"gain\""));
 }

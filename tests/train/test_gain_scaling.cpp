@@ -67,12 +67,12 @@ std::vector<double> initial_gain(const hinf::RunConfig& cfg) {
     return {cfg.rho / S[0], cfg.rho / S[3]};
 }
 
-hinf::RunConfig load(const std::string& text) { return hinf::load_run_config(hinf::ConfigDoc::from_text(text, "t.toml")); }
+using hinf::test::config_from_text;
 
 }  // namespace
 
 TEST_CASE("storage_scaling: the initial Riccati gain is the same rate on every measured state", "[gain][scaling]") {
-    const hinf::RunConfig out = load(two_scale_config());
+    const hinf::RunConfig out = config_from_text(two_scale_config());
     REQUIRE(out.storage_scaling == "output");
     REQUIRE(out.storage_knots > 0);
     const double rate = hinf::network_step_config(out).gain.rate, eps = hinf::network_step_config(out).gain.eps;
@@ -93,7 +93,7 @@ TEST_CASE("storage_scaling: the initial Riccati gain is the same rate on every m
                 CHECK(K[a * 2 + j] == Approx(rate / (1 + eps) * ((a == j ? 1.0 : 0.0) + g.dx[a] / g.dy[j])).epsilon(1e-9));
     }
     // one scalar: the small state starts about 10^3 times slower (rate dx_b^2 / mean(dy^2), dx = |x~0| + floor)
-    const hinf::RunConfig mean = load(two_scale_config("storage_scaling = \"mean\"\n"));
+    const hinf::RunConfig mean = config_from_text(two_scale_config("storage_scaling = \"mean\"\n"));
     const std::vector<double> km = initial_gain(mean);
     CHECK(km[1] < 2e-3 * km[0]);
     CHECK(km[0] > rate);
@@ -106,7 +106,7 @@ TEST_CASE("storage_scaling: a Jacobian that vanishes at x^0 does not ask for a g
     const std::string h = "h = [\"a\", \"b\"]", x = "xhat0 = [0.0, 0.0]";
     text.replace(text.find(h), h.size(), "h = [\"a\", \"b^2\"]");
     text.replace(text.find(x), x.size(), "xhat0 = [0.0, 1e-7]");
-    const hinf::RunConfig c = load(text);
+    const hinf::RunConfig c = config_from_text(text);
     const hinf::kern::StepConfig sc = hinf::network_step_config(c);
     const hinf::kern::GainSpec& g = sc.gain;
     std::vector<double> theta(sc.shape.param_count() + g.storage_params(2), 0.0), S(4);
@@ -118,7 +118,7 @@ TEST_CASE("storage_scaling: a Jacobian that vanishes at x^0 does not ask for a g
 }
 
 TEST_CASE("storage_scaling: one output keeps the error scale bit for bit", "[gain][scaling]") {
-    const hinf::RunConfig c = load(hinf::test::tiny_vdp_gain_config("0.5"));
+    const hinf::RunConfig c = config_from_text(hinf::test::tiny_vdp_gain_config("0.5"));
     REQUIRE(c.storage_knots > 0);
     const hinf::kern::GainSpec g = hinf::network_step_config(c).gain;
     for (int a = 0; a < c.n; ++a) CHECK(g.storage_dx()[a] == g.dx[a]);
@@ -136,7 +136,7 @@ TEST_CASE("an S(t) checkpoint from before storage_scaling loads with the one-sca
     // and, from before network.storage_init: flat knots and the margin of then (0.02; now 0 with S(t))
     CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").storage_init == "flat");
     CHECK(hinf::ckpt_config(dir + "/checkpoint.h5").margin == 0.02);
-    CHECK(load(two_scale_config()).margin == 0.0);
+    CHECK(config_from_text(two_scale_config()).margin == 0.0);
     auto r = hinf::test::run_hinf("resume " + dir + "/checkpoint.h5 --quiet");
     INFO(r.output);
     REQUIRE(r.status == 0);
@@ -176,7 +176,7 @@ std::string riccati_config(double rho, double q) {
 
 TEST_CASE("storage_init = riccati: the knots start on the game's Riccati solution", "[gain][scaling][riccati]") {
     const double rho = 4.0, q = 1.0;
-    const hinf::RunConfig c = load(riccati_config(rho, q));
+    const hinf::RunConfig c = config_from_text(riccati_config(rho, q));
     REQUIRE(c.storage_init == "riccati");
     const hinf::Network<double> net = hinf::network_create<double>(c);
     const hinf::kern::StepConfig& sc = net.step;
@@ -214,7 +214,7 @@ TEST_CASE("storage_init = riccati: where the game's Riccati equation loses defin
     // Q / rho = 1.2 against H'H = 1: the information falls slowly (s' = 0.2 s - 0.1 on the first state, in the
     // scaled form) and reaches the floor after the first knot (t = 0.5 s): no H-infinity filter of level rho from this
     // start beyond there. S(t) is held at its floor max(2 eps, rate dt / kappa) in its scale, S(0) = (1 + eps) in it
-    const hinf::RunConfig c = load(riccati_config(0.5, 0.6));
+    const hinf::RunConfig c = config_from_text(riccati_config(0.5, 0.6));
     REQUIRE(c.margin == 0.0);
     const hinf::Network<double> net = hinf::network_create<double>(c);
     const hinf::kern::GainSpec& g = net.step.gain;
@@ -236,7 +236,7 @@ TEST_CASE("storage_init = riccati: where the game's Riccati equation loses defin
     // "flat" starts every knot at S(0) and keeps the margin of before
     std::string text = riccati_config(0.5, 0.6);
     text.replace(text.find("\"riccati\""), 9, "\"flat\"");
-    const hinf::RunConfig flat = load(text);
+    const hinf::RunConfig flat = config_from_text(text);
     REQUIRE(flat.storage_init == "flat");
     CHECK(flat.margin == 0.02);
     const hinf::Network<double> fnet = hinf::network_create<double>(flat);
@@ -248,7 +248,7 @@ TEST_CASE("storage_init = riccati: held at its floor before the first knot, the 
     // Q / rho = 200 against H'H = 1: the information falls through zero at once, so every knot after S(0) would sit
     // at the floor (the gain at its sampled-data cap) -- a start far worse than the flat one on a stiff spring chain
     // (docs/method.md section 16.7). The knots start flat, as with storage_init = "flat" (but the margin stays 0).
-    const hinf::RunConfig c = load(riccati_config(0.5, 100.0));
+    const hinf::RunConfig c = config_from_text(riccati_config(0.5, 100.0));
     REQUIRE(c.storage_init == "riccati");
     const hinf::Network<double> net = hinf::network_create<double>(c);
     for (std::size_t e = net.step.shape.param_count(); e < net.theta.size(); ++e) CHECK(net.theta[e] == 0.0);
@@ -267,7 +267,7 @@ TEST_CASE("storage_init = riccati: a noise-free trajectory that escapes stops th
     put("x0 = [30.0, 1.0]", "x0 = [1.0, 1.0]");
     put("rho = 0.5", "rho = 4.0");
     put("t_final = 0.3", "t_final = 2.0");
-    const hinf::RunConfig c = load(text);
+    const hinf::RunConfig c = config_from_text(text);
     REQUIRE(c.storage_init == "riccati");
     const hinf::Network<double> net = hinf::network_create<double>(c);
     const std::int64_t P = net.step.shape.param_count();
@@ -295,7 +295,7 @@ TEST_CASE("a knot whose log-diagonal runs below the runaway level is said once a
     // method.md 16.7 "Why 280 knots fail": every failed missile training had a knot there, no good one had
     hinf::test::TempDir d("runaway");
     std::ofstream(d / "k.toml") << two_scale_config("storage_knots = 4\n");
-    const hinf::RunConfig cfg = load(two_scale_config("storage_knots = 4\n"));
+    const hinf::RunConfig cfg = config_from_text(two_scale_config("storage_knots = 4\n"));
     const double level = hinf::storage_runaway_level(hinf::network_step_config(cfg).gain);
     CHECK(level == Approx(0.5 * std::log(1e-3) - 3.0));
     const hinf::StorageLow start = hinf::storage_lowest_log_diagonal(hinf::network_create<double>(cfg));

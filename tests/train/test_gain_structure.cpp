@@ -52,13 +52,13 @@ noise_std = 0.1
 )";
 }
 
-RunConfig load(const std::string& text) { return load_run_config(ConfigDoc::from_text(text, "split.toml")); }
+using hinf::test::config_from_text;
 
 }  // namespace
 
 TEST_CASE("gain structure: the components of the dependency graph give the gain's zeros", "[train][gain][structure]") {
     SECTION("two subsystems: each state takes only its own subsystem's output") {
-        const RunConfig cfg = load(split_config());
+        const RunConfig cfg = config_from_text(split_config());
         std::vector<int> comp;
         const std::vector<double> mask = gain_component_mask(cfg, &comp);
         CHECK(mask == std::vector<double>{1, 0, 0, 1, 0, 1});
@@ -70,14 +70,15 @@ TEST_CASE("gain structure: the components of the dependency graph give the gain'
         CHECK(network_step_config(cfg).gain.mask == mask);
     }
     SECTION("a Q that couples the subsystems, or gain_structure = full: no mask") {
-        CHECK(network_step_config(load(split_config("Q = [[1, 0.1, 0], [0.1, 1, 0], [0, 0, 1]]\n"))).gain.mask.empty());
-        CHECK(network_step_config(load(split_config("", "gain_structure = \"full\"\n"))).gain.mask.empty());
+        const RunConfig coupled = config_from_text(split_config("Q = [[1, 0.1, 0], [0.1, 1, 0], [0, 0, 1]]\n"));
+        CHECK(network_step_config(coupled).gain.mask.empty());
+        CHECK(network_step_config(config_from_text(split_config("", "gain_structure = \"full\"\n"))).gain.mask.empty());
     }
     SECTION("a disturbance into both subsystems joins them") {
         std::string text = split_config();
         const std::string g = "g = [[\"0\"], [\"0\"], [\"1\"]]";
         text.replace(text.find(g), g.size(), "g = [[\"1\"], [\"0\"], [\"1\"]]");
-        CHECK(network_step_config(load(text)).gain.mask.empty());
+        CHECK(network_step_config(config_from_text(text)).gain.mask.empty());
     }
     SECTION("the paper's missile: two positions see only their own output, the third and the velocities the rest") {
         ConfigDoc doc = ConfigDoc::from_file(std::string(HINF_SOURCE_DIR) + "/runs/missile_hinf.toml");
@@ -98,14 +99,14 @@ TEST_CASE("gain structure: the components of the dependency graph give the gain'
     SECTION("refused in one line for another variant") {
         std::string text = split_config("", "gain_structure = \"components\"\n");
         text.replace(text.find("variant = \"gain\""), 16, "variant = \"dissipative\"");
-        CHECK_THROWS_WITH(load(text), Catch::Contains("gain_structure: shapes the gain K(x^)"));
+        CHECK_THROWS_WITH(config_from_text(text), Catch::Contains("gain_structure: shapes the gain K(x^)"));
     }
 }
 
 TEST_CASE("gain structure: a trained gain has the zeros, and a checkpoint without the key reads as full",
           "[train][gain][structure]") {
     test::TempDir d("gain-structure");
-    const RunConfig cfg = load(split_config());
+    const RunConfig cfg = config_from_text(split_config());
     TrainOptions opt;
     opt.out_dir = d / "run";
     opt.quiet = true;

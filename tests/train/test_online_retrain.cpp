@@ -21,10 +21,10 @@ using hinf::test::TempDir;
 
 namespace {
 
-const std::string kVdp = hinf::test::tiny_vdp_gain_config("1.0");
+const std::string kOnlineVdp = hinf::test::tiny_vdp_gain_config("1.0");
 
-RunConfig vdp_config(const std::vector<std::string>& sets = {}) {
-    ConfigDoc doc = ConfigDoc::from_text(kVdp, "vdp.toml");
+RunConfig retrain_vdp_config(const std::vector<std::string>& sets = {}) {
+    ConfigDoc doc = ConfigDoc::from_text(kOnlineVdp, "vdp.toml");
     for (const std::string& s : sets) doc.set(s);
     return load_run_config(std::move(doc));
 }
@@ -35,7 +35,7 @@ std::string train_brief(const TempDir& d) {
     opt.out_dir = d / "run";
     opt.until = 0.3;
     opt.quiet = true;
-    train_start(vdp_config(), opt);
+    train_start(retrain_vdp_config(), opt);
     return d / "run/checkpoint.h5";
 }
 
@@ -71,7 +71,7 @@ OnlineRetrainSettings settings(const RunConfig& cfg, const std::string& ckpt, do
 TEST_CASE("on-line retraining triggers where the check fails and lowers the violation there", "[train][online][retrain]") {
     TempDir d("retrain");
     const std::string ckpt = train_brief(d);
-    const RunConfig cfg = vdp_config({"online.retrain=true"});
+    const RunConfig cfg = retrain_vdp_config({"online.retrain=true"});
     const FilterModel model = filter_model(cfg);
     const std::int64_t K = cfg.steps_until();
     const TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K);
@@ -88,7 +88,7 @@ TEST_CASE("on-line retraining triggers where the check fails and lowers the viol
     // the measured effect: at the points where it triggered, the same check errors violate less afterwards
     CHECK(s.counts.eps_after < s.counts.eps_before);
     // and the network changed: the estimates differ from the plain (frozen) gain filter's
-    RunConfig plain_cfg = vdp_config();
+    RunConfig plain_cfg = retrain_vdp_config();
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(ckpt);
     std::unique_ptr<OnlineFilter> plain = make_gain_filter(model, *net, "dnn");
     plain->reset(engine_filter_start(cfg, 0));
@@ -98,7 +98,7 @@ TEST_CASE("on-line retraining triggers where the check fails and lowers the viol
 TEST_CASE("on-line retraining with a huge delta never triggers and equals the frozen gain filter", "[train][online][retrain]") {
     TempDir d("retrain");
     const std::string ckpt = train_brief(d);
-    const RunConfig cfg = vdp_config({"online.retrain=true", "online.retrain_delta=1e9"});
+    const RunConfig cfg = retrain_vdp_config({"online.retrain=true", "online.retrain_delta=1e9"});
     const FilterModel model = filter_model(cfg);
     const std::int64_t K = cfg.steps_until();
     const TruthRun tr = truth_simulate(cfg, Scenario{}, 1, K);
@@ -119,7 +119,7 @@ TEST_CASE("on-line retraining with a huge delta never triggers and equals the fr
     oo.runs = 2;
     oo.quiet = true;
     oo.out_dir = d / "op_off";
-    const OperateSummary off = operate_run(vdp_config(), *net, ckpt, oo);
+    const OperateSummary off = operate_run(retrain_vdp_config(), *net, ckpt, oo);
     oo.out_dir = d / "op_on";
     const OperateSummary on = operate_run(cfg, *net, ckpt, oo);
     CHECK(off.online_check_violation_fraction > 0);
@@ -132,7 +132,7 @@ TEST_CASE("on-line retraining with a huge delta never triggers and equals the fr
 TEST_CASE("on-line retraining is deterministic: repeated, 1 vs 2 threads, each run on its own network", "[train][online][retrain][determinism]") {
     TempDir d("retrain");
     const std::string ckpt = train_brief(d);
-    const RunConfig cfg = vdp_config({"online.retrain=true", "online.retrain_delta=0.01"});
+    const RunConfig cfg = retrain_vdp_config({"online.retrain=true", "online.retrain_delta=0.01"});
     const FilterModel model = filter_model(cfg);
     std::unique_ptr<OnlineFilter> proto =
         make_retrain_gain_filter(model, cfg, ckpt, online_retrain_settings(cfg, ckpt), "dnn");
@@ -180,10 +180,10 @@ TEST_CASE("on-line retraining resumes bit-identically from its on-line checkpoin
             opt.out_dir = d / "run_double";
             opt.until = 0.3;
             opt.quiet = true;
-            train_start(vdp_config({"network.precision=\"double\""}), opt);
+            train_start(retrain_vdp_config({"network.precision=\"double\""}), opt);
             source = d / "run_double/checkpoint.h5";
         }
-        const RunConfig cfg = vdp_config({"online.retrain=true", "online.retrain_delta=0.01"});
+        const RunConfig cfg = retrain_vdp_config({"online.retrain=true", "online.retrain_delta=0.01"});
         const FilterModel model = filter_model(cfg);
         const OnlineRetrainSettings st = online_retrain_settings(cfg, source);
         const std::int64_t K = cfg.steps_until(), split = 37;

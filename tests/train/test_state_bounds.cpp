@@ -15,7 +15,7 @@ using namespace hinf;
 
 namespace {
 
-RunConfig load(const std::string& set = "") {
+RunConfig load_vdp(const std::string& set = "") {
     ConfigDoc doc = ConfigDoc::from_text(test::tiny_vdp_gain_config("0.5"), "t.toml");
     if (!set.empty()) doc.set(set);
     return load_run_config(doc);
@@ -31,8 +31,8 @@ GainSamples draw(const RunConfig& cfg) {
 
 TEST_CASE("state_bounds hold the gain variant's training samples inside the region and change nothing else",
           "[gain][state_bounds]") {
-    const RunConfig free = load(), open = load("sampling.state_bounds=[[-inf, inf], [-inf, inf]]"),
-                    held = load("sampling.state_bounds=[[0.0, 2.5], [-inf, inf]]");
+    const RunConfig free = load_vdp(), open = load_vdp("sampling.state_bounds=[[-inf, inf], [-inf, inf]]"),
+                    held = load_vdp("sampling.state_bounds=[[0.0, 2.5], [-inf, inf]]");
     REQUIRE(free.state_lo.empty());
     REQUIRE(held.state_lo.size() == 2);
     CHECK(held.state_lo[0] == 0.0);
@@ -74,13 +74,15 @@ TEST_CASE("state_bounds hold the gain variant's training samples inside the regi
 }
 
 TEST_CASE("state_bounds are refused in one line where they cannot hold", "[gain][state_bounds]") {
-    CHECK_THROWS_WITH(load("sampling.state_bounds=[[0.0, 1.0]]"), Catch::Contains("one [lo, hi] pair per state (2)"));
-    CHECK_THROWS_WITH(load("sampling.state_bounds=[[1.0, 1.0], [-inf, inf]]"), Catch::Contains("lo must be below hi"));
-    CHECK_THROWS_WITH(load("sampling.state_bounds=[[0.0, 1.0], [-inf, inf]]"),
+    CHECK_THROWS_WITH(load_vdp("sampling.state_bounds=[[0.0, 1.0]]"),
+                      Catch::Contains("one [lo, hi] pair per state (2)"));
+    CHECK_THROWS_WITH(load_vdp("sampling.state_bounds=[[1.0, 1.0], [-inf, inf]]"),
+                      Catch::Contains("lo must be below hi"));
+    CHECK_THROWS_WITH(load_vdp("sampling.state_bounds=[[0.0, 1.0], [-inf, inf]]"),
                       Catch::Contains("must hold [filter] x0 = 2 and xhat0 = 0.5"));
-    CHECK_THROWS_WITH(load("sampling.state_bounds=[[0.0, 1.0, 2.0], [-inf, inf]]"),
+    CHECK_THROWS_WITH(load_vdp("sampling.state_bounds=[[0.0, 1.0, 2.0], [-inf, inf]]"),
                       Catch::Contains("must be two numbers [lo, hi]"));
-    CHECK_THROWS_WITH(load("sampling.state_bounds=[[\"a\", 1.0], [-inf, inf]]"),
+    CHECK_THROWS_WITH(load_vdp("sampling.state_bounds=[[\"a\", 1.0], [-inf, inf]]"),
                       Catch::Contains("must be two numbers [lo, hi]"));
     std::string text = test::tiny_vdp_gain_config("0.5");
     text.replace(text.find("variant = \"gain\""), 16, "variant = \"dissipative\"");

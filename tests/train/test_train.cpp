@@ -16,7 +16,7 @@ using hinf::test::require_same_trajectory;
 
 namespace {
 
-const char* kSmall = R"(
+const char* kSmallTrain = R"(
 [system]
 kind = "KIND"
 [filter]
@@ -69,7 +69,7 @@ RunConfig small_config(const std::string& variant, const std::string& precision,
         text.replace(text.find("RESET"), 5, reset ? "" : "reset_adam_each_step = false");
         return load_run_config(ConfigDoc::from_text(text, "small_discrete.toml"));
     }
-    std::string text = kSmall;
+    std::string text = kSmallTrain;
     text.replace(text.find("KIND"), 4, type == "h2hinf" ? "maneuvering_missile" : "missile");
     text.replace(text.find("TYPE"), 4, type);
     text.replace(text.find("VARIANT"), 7, variant);
