@@ -18,6 +18,7 @@ using hinf::test::read_text;
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
+// lines of output, a last one without its newline included
 int line_count(const std::string& s) {
     int n = 0;
     for (char ch : s) n += ch == '\n';
