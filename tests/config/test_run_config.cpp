@@ -11,10 +11,7 @@
 using namespace hinf;
 
 namespace {
-std::string own_text() {
-    std::ifstream in(test::source_path("tests/corpus/good/vanderpol_own_defaults.toml"));
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
+std::string own_text() { return test::read_text(test::source_path("tests/corpus/good/vanderpol_own_defaults.toml")); }
 }  // namespace
 
 TEST_CASE("a system of one's own gets defaults from its own scales", "[config][defaults]") {

@@ -147,8 +147,7 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
             CHECK(c.compared >= 20);
             CHECK(c.scale > 100);  // the missile's positions: a real trajectory was compared
             CHECK(c.max_abs <= 1e-11 * c.scale);
-            std::ifstream src(d / "c/hinf_filter.c");
-            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             CHECK((code.find("_zlo[a]") != std::string::npos) == (std::string(variant) == "gain"));
             CHECK((code.find("_output_weight[j] * y[j]") != std::string::npos) ==
                   (std::string(network).find("noise_std") != std::string::npos));
@@ -210,8 +209,7 @@ TEST_CASE("exported C filter with noise and disturbance std lists or covariances
             CHECK(c.rows == 201);
             CHECK(c.compared == 201);
             CHECK(c.max_abs <= 1e-11 * c.scale);
-            std::ifstream src(d / "c/hinf_filter.c");
-            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             CHECK(code.find("_disturbance_scale[") != std::string::npos);
             CHECK(code.find(cs.weigh_y) != std::string::npos);
 
@@ -283,8 +281,7 @@ TEST_CASE("exported C filter of a discrete-time system matches hinf filter to do
             CHECK(c.compared >= (members > 1 ? 50u : 101u));
             CHECK(c.scale > 0.1);
             CHECK(c.max_abs <= 1e-11 * c.scale);
-            std::ifstream src(d / "c/hinf_filter.c");
-            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             CHECK(code.find("const double k = nearbyint(hinf_t_ / (0.5));") != std::string::npos);
             CHECK(code.find("s->xhat[i] = a[i] + ke;") != std::string::npos);
             CHECK((code.find("hinf_filter_drift_jacobian(F, xhat, t);") != std::string::npos) == (cs.head == "kalman"));
@@ -314,8 +311,7 @@ TEST_CASE("exported C filter with an angle output matches hinf filter across the
             CHECK(c.rows == 41);
             CHECK(c.compared == 41);
             CHECK(c.max_abs <= 1e-11 * c.scale);
-            std::ifstream src(d / "c/hinf_filter.c");
-            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             CHECK(code.find("e[1] = remainder(e[1], 6.2831853071795862);") != std::string::npos);
             // the record crosses the cut: its bearings take both signs near pi
             hinf::h5::Handle f = hinf::h5::open_file(d / "op/operate.h5", false);
@@ -346,8 +342,7 @@ TEST_CASE("exported C ensemble of gain networks matches hinf filter --ensemble t
             CHECK(c.compared == 301);
             CHECK(c.scale > 100);
             CHECK(c.max_abs <= 1e-11 * c.scale);
-            std::ifstream src(d / "c/hinf_filter.c");
-            const std::string code((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             for (int e = 0; e < members; ++e)
                 CHECK(code.find("hinf_filter_m" + std::to_string(e) + "_theta[") != std::string::npos);
             CHECK(code.find("hinf_filter_m" + std::to_string(members) + "_") == std::string::npos);
