@@ -280,6 +280,18 @@ struct KnotAt {
 KnotAt knot_at(double t, const GainSpec& g) {
     KnotAt k;
     const int J = g.knots;
+    if (g.knot_ratio != 1.0 && J > 1) {  // graded knots: the interval from the inverse of knot_time, then checked
+        if (!(t > 0)) return {0, 0.0, 1.0 / g.knot_time(1)};
+        if (t >= g.knot_span) return {J - 1, 1.0, 0.0};
+        const double lq = std::log(g.knot_ratio) / (J - 1);
+        k.j = std::max(0, std::min(J - 1, int(std::log1p(t * std::expm1(J * lq) / g.knot_span) / lq)));
+        while (k.j > 0 && t < g.knot_time(k.j)) --k.j;
+        while (k.j < J - 1 && t >= g.knot_time(k.j + 1)) ++k.j;
+        const double t0 = g.knot_time(k.j), h = g.knot_time(k.j + 1) - t0;
+        k.w = (t - t0) / h;
+        k.slope = 1.0 / h;
+        return k;
+    }
     const double h = g.knot_span / J;
     if (!(t > 0)) return {0, 0.0, 1.0 / h};
     if (t >= g.knot_span) return {J - 1, 1.0, 0.0};
@@ -839,16 +851,27 @@ void gauss_solve(const double* A, double* X, int n, int cols) {
 template <typename T>
 void naive_storage_tv(double* S, double* Sd, const T* s, double t, const GainSpec& g, int n) {
     const int np = n * (n + 1) / 2, J = g.knots;
-    const double h = g.knot_span / J;
+    // the knot intervals one by one: h_0 = span / J evenly, else h_0 q^j with sum span (a sum, not knot_time's form)
+    const double q = J > 1 && g.knot_ratio != 1.0 ? std::pow(g.knot_ratio, 1.0 / (J - 1)) : 1.0;
+    const double h0 = q == 1.0 ? g.knot_span / J : g.knot_span * (q - 1) / (std::pow(q, J) - 1);
     int j = 0;
-    double w = 0, slope = 1.0 / h;
+    double w = 0, slope = 1.0 / h0;
     if (t >= g.knot_span) {
         j = J - 1;
         w = 1.0;
         slope = 0.0;
+    } else if (t > 0 && q == 1.0) {
+        j = std::min(J - 1, int(t / h0));
+        w = t / h0 - j;
     } else if (t > 0) {
-        j = std::min(J - 1, int(t / h));
-        w = t / h - j;
+        double tj = 0, h = h0;
+        while (j < J - 1 && t >= tj + h) {
+            tj += h;
+            h *= q;
+            ++j;
+        }
+        w = (t - tj) / h;
+        slope = 1.0 / h;
     }
     double Mt[kMax * kMax] = {}, Md[kMax * kMax] = {};
     int e = 0;

@@ -2,6 +2,7 @@
 // and the loss constants. Part of kern::StepConfig; the kernels are in gain.hpp.
 #pragma once
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace hinf::kern {
@@ -47,11 +48,22 @@ struct GainSpec {
     int group = 1;
     GainLossParams loss;             // xt0 points into this spec's xt0 at call time
     // Time-varying storage (knots > 0, docs/method.md section 16.7): S(t) from knot vectors s_0..s_J at
-    // t_j = j span / J (linear between knots, constant after span), M = diag(exp(.)) + strict tril(.), and the gain
+    // t_j = knot_time(j) (linear between knots, constant after span), M = diag(exp(.)) + strict tril(.), and the gain
     // head K = rho S(t)^-1 (H(x^)' + D^-1 o diag(dy)) (the game's minimiser for the linearised output plus the
     // network's correction). knots = 0: the constant S and K = rate D o diag(dy)^-1 of sections 16.1-16.4.
     int knots = 0;
     double knot_span = 1.0;          // [s]
+    // network.knot_ratio (section 16.7, "Graded knots"): the last knot interval over the first. 1: t_j = j span / J;
+    // r > 1: intervals h_0 q^j, q = r^(1/(J - 1)), closer together near t = 0 where the filter's transient is
+    double knot_ratio = 1.0;
+    /// t_j, the time of knot j (0 before the first, span after the last)
+    double knot_time(int j) const {
+        if (j <= 0) return 0.0;
+        if (j >= knots) return knot_span;
+        if (knot_ratio == 1.0 || knots < 2) return j * knot_span / knots;
+        const double lq = std::log(knot_ratio) / (knots - 1);
+        return knot_span * std::expm1(j * lq) / std::expm1(knots * lq);
+    }
     // The Kalman-form head (discrete-time systems, network.gain_head = "kalman", docs/method.md section 16.16): the
     // network's n(n+1)/2 outputs give P(x^) = kalman_scale D (M M' + eps I) D, M = I + tril(o), D = diag(dx), and
     // K = F P H' (H P H' + diag(dy)^2)^-1 with F, H the Jacobians at the estimate (HjieSystemView::Fx, Hx).

@@ -492,6 +492,18 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
                                     "discrete-time system: its one-step inequality uses one S, docs/method.md §16.8)");
     if (c.storage_knots > 0 && c.variant != "gain")
         net.reject("storage_knots", "a time-varying storage is for [filter] variant = \"gain\" only (remove the key)");
+    c.knot_ratio = net.get_double("knot_ratio", c.knot_ratio, 1.0, 1e6);
+    if (net.has("knot_ratio") && c.storage_knots == 0)
+        net.reject("knot_ratio", "spaces the knots of a time-varying storage: it needs [filter] variant = \"gain\" and "
+                                 "network.storage_knots > 0 (remove the key)");
+    if (c.knot_ratio != 1.0 && c.storage_knots > 1) {  // the first interval, as GainSpec::knot_time places it
+        const double lq = std::log(c.knot_ratio) / double(c.storage_knots - 1);
+        const double first = c.t_final * std::expm1(lq) / std::expm1(double(c.storage_knots) * lq);
+        if (first < c.dt)
+            net.reject("knot_ratio", "puts the first of network.storage_knots = " + std::to_string(c.storage_knots) +
+                                         " knots at t = " + format_g(first) + " s, within the first time step (dt = " +
+                                         format_g(c.dt) + " s): lower the ratio or the knot count");
+    }
     c.gain_head = net.get_string("gain_head", c.gain_head, {"direct", "kalman"});
     if (c.gain_head == "kalman" && (c.variant != "gain" || !c.system->discrete_time()))
         net.reject("gain_head", "the Kalman-form head is built for [filter] variant = \"gain\" on a discrete-time "

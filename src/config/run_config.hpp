@@ -54,6 +54,7 @@ struct TrainingConfig {
     std::string gain_structure = "components";  // variant gain: K_aj = 0 where state a and output j are in different components of the system's dependency graph ("components", §16.17) or every entry learned ("full", before 2026-11-28)
     std::string gain_head = "direct";  // variant gain on a discrete-time system: K = rate D o diag(dy)^-1 ("direct") or F P H'(H P H' + diag(dy)^2)^-1 with a learned P(x^) ("kalman", §16.16)
     std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
+    double knot_ratio = 1.0;  // variant gain with S(t): the last knot interval over the first (1: evenly spaced; §16.7 "Graded knots")
     double eps = 0.0;  // 0: auto from max_step_correction
     double input_box = 0.005;  // variant gain: the filter holds the network's input inside the box of all but this share of the training estimates on each side of each state (0: not held, §16.10)
     int chunk = 100;

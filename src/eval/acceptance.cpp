@@ -636,7 +636,8 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
                        bool quiet) {
     const ConfigSection net(cfg->doc, "network");
     if (!(s->status == 0 && s->first_step == 0 && s->last_step == cfg->steps_until() && *best && (*best)->step >= 0 &&
-          par_size() == 1 && !net.has("storage_knots") && !net.has("storage_init") && riccati_start_held_at_once(*cfg)))
+          par_size() == 1 && !net.has("storage_knots") && !net.has("storage_init") && !net.has("knot_ratio") &&
+          riccati_start_held_at_once(*cfg)))
         return false;
     const std::string alt = dir + "/alternative";
     ConfigDoc doc = cfg->doc;

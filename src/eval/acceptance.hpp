@@ -50,8 +50,8 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 /// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
 /// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and on some systems a
 /// constant storage does far better (on others far worse). So after a fresh run of such a config that reached t_final
-/// with a kept best checkpoint, on one process, and whose config names neither network.storage_knots nor
-/// network.storage_init, this trains the same config with network.storage_knots = 0 in DIR/alternative (with its own
+/// with a kept best checkpoint, on one process, and whose config names none of network.storage_knots,
+/// network.storage_init and network.knot_ratio, this trains the same config with network.storage_knots = 0 in DIR/alternative (with its own
 /// selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
 /// DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does nothing (false)
 /// elsewhere. An interrupted second run keeps the first and sets s->status to its status (128 + signal).

@@ -483,7 +483,7 @@ std::string chol_solve_c(const std::string& A, const std::string& X, int dim, in
 LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::string& S, bool member) {
     const kern::GainSpec& g = sc.gain;
     const int n = sc.head.n, m = g.m, np = n * (n + 1) / 2;
-    const bool tv = g.knots > 0;
+    const bool tv = g.knots > 0, graded = tv && g.knots > 1 && g.knot_ratio != 1.0;
     auto array = [](const std::string& name, const double* v, int count) {
         std::ostringstream c;
         c << "static const double " << name << "[" << count << "] = {";
@@ -503,6 +503,12 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
     if (tv) {
         c << array(P + "_sdx", g.storage_dx(), n);
         if (!g.corr.empty()) c << array(P + "_corr", g.corr.data(), n * m);
+        if (graded) {
+            std::vector<double> tk(static_cast<std::size_t>(g.knots + 1));
+            for (int j = 0; j <= g.knots; ++j) tk[static_cast<std::size_t>(j)] = g.knot_time(j);
+            c << "/* the knot times t_j (network.knot_ratio, docs/method.md 16.7) */\n"
+              << array(P + "_knot_t", tk.data(), g.knots + 1);
+        }
     }
     c << "\n/* K(x^, t) [n x m], the trained gain (kernels/gain.cpp gain_network_eval) */\n"
       << (member || !g.mask.empty() ? "static " : "") << "void " << P
@@ -566,22 +572,37 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
           << "}\n\n";
     } else {
         const std::int64_t off = sc.shape.param_count();
-        c << "    {\n"
-          << "        /* S(t) from knots j, j + 1 at t_j = j span / J (clamped after span) */\n"
-          << "        const " << P << "_real* s = " << P << "_theta + " << off << ";\n"
-          << "        const double h = " << lit(g.knot_span) << " / " << g.knots << ".0;\n"
-          << "        double v[" << np << "], M[" << n * n << "], S[" << n * n << "], L[" << n * n << "], H[" << m * n
-          << "], tt[" << m << "], w = 0.0;\n"
-          << "        int j = 0, b, e, kk;\n"
-          << "        if (t >= " << lit(g.knot_span) << ") {\n"
-          << "            j = " << g.knots - 1 << ";\n"
-          << "            w = 1.0;\n"
-          << "        } else if (t > 0) {\n"
-          << "            const double u = t / h;\n"
-          << "            j = (int)u;\n"
-          << "            if (j > " << g.knots - 1 << ") j = " << g.knots - 1 << ";\n"
-          << "            w = u - j;\n"
-          << "        }\n"
+        c << "    {\n";
+        if (graded)
+            c << "        /* S(t) from knots j, j + 1 at t_j = " << P << "_knot_t[j] (clamped after the last) */\n"
+              << "        const " << P << "_real* s = " << P << "_theta + " << off << ";\n"
+              << "        double v[" << np << "], M[" << n * n << "], S[" << n * n << "], L[" << n * n << "], H["
+              << m * n << "], tt[" << m << "], w = 0.0;\n"
+              << "        int j = 0, b, e, kk;\n"
+              << "        if (t >= " << P << "_knot_t[" << g.knots << "]) {\n"
+              << "            j = " << g.knots - 1 << ";\n"
+              << "            w = 1.0;\n"
+              << "        } else if (t > 0) {\n"
+              << "            while (j < " << g.knots - 1 << " && t >= " << P << "_knot_t[j + 1]) ++j;\n"
+              << "            w = (t - " << P << "_knot_t[j]) / (" << P << "_knot_t[j + 1] - " << P << "_knot_t[j]);\n"
+              << "        }\n";
+        else
+            c << "        /* S(t) from knots j, j + 1 at t_j = j span / J (clamped after span) */\n"
+              << "        const " << P << "_real* s = " << P << "_theta + " << off << ";\n"
+              << "        const double h = " << lit(g.knot_span) << " / " << g.knots << ".0;\n"
+              << "        double v[" << np << "], M[" << n * n << "], S[" << n * n << "], L[" << n * n << "], H["
+              << m * n << "], tt[" << m << "], w = 0.0;\n"
+              << "        int j = 0, b, e, kk;\n"
+              << "        if (t >= " << lit(g.knot_span) << ") {\n"
+              << "            j = " << g.knots - 1 << ";\n"
+              << "            w = 1.0;\n"
+              << "        } else if (t > 0) {\n"
+              << "            const double u = t / h;\n"
+              << "            j = (int)u;\n"
+              << "            if (j > " << g.knots - 1 << ") j = " << g.knots - 1 << ";\n"
+              << "            w = u - j;\n"
+              << "        }\n";
+        c
           << "        for (e = 0; e < " << np << "; ++e)\n"
           << "            v[e] = (1.0 - w) * (double)s[j * " << np << " + e] + w * (double)s[(j + 1) * " << np << " + e];\n"
           << "        for (e = 0; e < " << n * n << "; ++e) M[e] = 0.0;\n"

@@ -182,6 +182,8 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
                 h5::set_attr(net.get(), "storage_state_scale",
                              std::vector<double>(sc.gain.storage_dx(), sc.gain.storage_dx() + cfg.n));
                 h5::set_attr(net.get(), "storage_init", cfg.storage_init);
+                // the knots' spacing (network.knot_ratio; a file without it has uniform knots, the default so far)
+                h5::set_attr(net.get(), "knot_ratio", cfg.knot_ratio);
             }
         }
         h5::flush(root);

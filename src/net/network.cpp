@@ -169,6 +169,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     if (cfg.storage_knots > 0) {  // section 16.7: S(t) on knots; the scale makes the initial head's gain ~ rate
         g.knots = static_cast<int>(cfg.storage_knots);
         g.knot_span = T;
+        g.knot_ratio = cfg.knot_ratio;
         double dy2 = 0;
         for (int j = 0; j < m; ++j) dy2 += g.dy[j] * g.dy[j] / m;
         g.storage_scale = cfg.rho * dy2 / g.rate;
@@ -374,8 +375,8 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
             r.stopped = t;
             break;
         }
-        // knot `next` at t_j = j T / J: S = rho P^-1 there, M = chol(Ds S Ds / c - eps I)
-        while (next <= J && cfg.time_of(k + 1) >= next * g.knot_span / J - 0.5 * dt) {
+        // knot `next` at t_j (j T / J evenly): S = rho P^-1 there, M = chol(Ds S Ds / c - eps I)
+        while (next <= J && cfg.time_of(k + 1) >= g.knot_time(next) - 0.5 * dt) {
             Eigen::LLT<Mat> lk(P);
             if (lk.info() != Eigen::Success) {
                 r.stopped = t;
@@ -465,7 +466,7 @@ Network<T> network_create(const RunConfig& cfg) {
                          "level rho = %g from this start for the linearised system, or none whose gain stays within the "
                          "sampled-data cap. The knots start flat instead; a larger rho, or network.storage_knots = 0 (a "
                          "constant storage), may do better on this system (docs/method.md section 16.7)\n",
-                         r.held, g.knot_span / g.knots, cfg.rho);
+                         r.held, g.knot_time(1), cfg.rho);
             return net;
         }
         if (r.stopped >= 0)

@@ -375,7 +375,7 @@ private:
                      "on a chaotic Roessler system it happened at 1.7 times, and fewer knots were worse. Compare this "
                      "count with fewer knots: hinf sweep CONFIG --vary network.storage_knots=%s (docs/method.md "
                      "section 16.7)\n",
-                     static_cast<long long>(ck_.state.step), low.knot, J, ck_.net.step.gain.knot_span * low.knot / J,
+                     static_cast<long long>(ck_.state.step), low.knot, J, ck_.net.step.gain.knot_time(low.knot),
                      state.c_str(), low.value, storage_runaway_level(ck_.net.step.gain), counts.c_str());
     }
 

@@ -1,8 +1,8 @@
 // A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
 // Riccati equation falls to the storage's floor before its first knot, the knots start flat, and hinf train trains a
 // constant storage as well and keeps, in its --out directory, the run whose best checkpoint validated lower; the
-// other run is in DIR/alternative. A config that names network.storage_knots gets no second run, and a fresh run
-// removes an earlier run's DIR/alternative.
+// other run is in DIR/alternative. A config that names network.storage_knots (or network.knot_ratio) gets no second
+// run, and a fresh run removes an earlier run's DIR/alternative.
 #include <catch2/catch.hpp>
 #include <cstdlib>
 #include <filesystem>
@@ -86,5 +86,9 @@ TEST_CASE("a Riccati start held at once trains both storages and keeps the one t
     // a config that names the storage's knots trains one storage, and a fresh run removes the old second one
     const auto named = train_chain(d, "--force --set network.storage_knots=32");
     CHECK(named.output.find("hinf trains it too") == std::string::npos);
+    CHECK(!std::filesystem::exists(out + "/alternative"));
+    // so does one that names their spacing (network.knot_ratio; a constant storage has no knots to space)
+    const auto spaced = train_chain(d, "--force --set network.knot_ratio=1.5");
+    CHECK(spaced.output.find("hinf trains it too") == std::string::npos);
     CHECK(!std::filesystem::exists(out + "/alternative"));
 }

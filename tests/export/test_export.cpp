@@ -129,6 +129,8 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
         {"missile", "gain", ""}, {"missile", "gain", "storage_knots = 0\n"},
         // a tight input box (the central 40 % of the training estimates): the C holds z where hinf does
         {"missile", "gain", "input_box = 0.3\n"},
+        // graded knots (network.knot_ratio): the C looks the interval up in its table of knot times
+        {"missile", "gain", "knot_ratio = 10\n"},
         // outputs of different noise ([online] noise_std list): C weighs y and C(x^) as hinf's model does
         {"missile", "gain", "[online]\nnoise_std = [20.0, 40.0, 10.0, 5.0, 2.0, 8.0]\n"}};
     for (const auto& [kind, variant, network] : cases) {
@@ -149,6 +151,8 @@ TEST_CASE("exported C filter of a double network on a built-in system matches hi
             CHECK(c.max_abs <= 1e-11 * c.scale);
             const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
             CHECK((code.find("_zlo[a]") != std::string::npos) == (std::string(variant) == "gain"));
+            CHECK((code.find("_knot_t[") != std::string::npos) ==
+                  (std::string(network).find("knot_ratio") != std::string::npos));
             CHECK((code.find("_output_weight[j] * y[j]") != std::string::npos) ==
                   (std::string(network).find("noise_std") != std::string::npos));
         }

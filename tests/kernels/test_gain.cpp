@@ -241,18 +241,51 @@ StepConfig small_gain_config(int n, int m) {
 }
 }  // namespace
 
+TEST_CASE("gain variant: graded knots run from 0 to the span with the last interval the ratio times the first",
+          "[kernel][gain]") {
+    GainSpec g;
+    g.knot_span = 20.0;
+    for (const int J : {1, 2, 5, 40}) {
+        for (const double r : {1.0, 1.5, 30.0, 1e4}) {
+            INFO("J " << J << " ratio " << r);
+            g.knots = J;
+            g.knot_ratio = r;
+            CHECK(g.knot_time(0) == 0.0);
+            CHECK(g.knot_time(J) == 20.0);
+            for (int j = 0; j < J; ++j) CHECK(g.knot_time(j + 1) > g.knot_time(j));
+            if (J > 1) {
+                const double first = g.knot_time(1), last = 20.0 - g.knot_time(J - 1);
+                CHECK(last / first == Approx(r).epsilon(1e-9));
+                for (int j = 1; j + 1 < J; ++j)  // geometric: each interval the same factor times the one before
+                    CHECK((g.knot_time(j + 1) - g.knot_time(j)) / (g.knot_time(j) - g.knot_time(j - 1)) ==
+                          Approx(std::pow(r, 1.0 / (J - 1))).epsilon(1e-9));
+            }
+            if (r == 1.0)
+                for (int j = 0; j <= J; ++j) CHECK(g.knot_time(j) == Approx(20.0 * j / J).epsilon(1e-15));
+        }
+    }
+}
+
 TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 threads bit-identical",
           "[kernel][gain][grad][determinism]") {
   // knots = 0: constant storage and the rate head; knots = 3: S(t) on knots (samples before, between, on and after
   // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o diag(dy))
   // masked: the gain's structural zeros (network.gain_structure, docs/method.md 16.17) on two of the six entries
-  for (const auto& [knots, masked] : std::vector<std::pair<int, bool>>{{0, false}, {3, false}, {0, true}, {3, true}}) {
-    INFO("knots " << knots << " masked " << masked);
+  // ratio 4: graded knots (network.knot_ratio; t_j = 0, 0.286, 0.857, 2)
+  struct KnotCase {
+    int knots;
+    bool masked;
+    double ratio;
+  };
+  for (const auto& [knots, masked, ratio] :
+       std::vector<KnotCase>{{0, false, 1.0}, {3, false, 1.0}, {0, true, 1.0}, {3, true, 1.0}, {3, false, 4.0}}) {
+    INFO("knots " << knots << " masked " << masked << " ratio " << ratio);
     const int n = 3, nv = 2, m = 2, N = 11;
     StepConfig sc = small_gain_config(n, m);
     if (masked) sc.gain.mask = {1, 0, 0, 1, 1, 1};
     sc.gain.knots = knots;
     sc.gain.knot_span = 2.0;
+    sc.gain.knot_ratio = ratio;
     const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
     std::vector<double> theta(P), xt(N * n), dA(N * n), B(N * n * nv), dC(N * m), q(N), z(N * n);
     rng_normal(theta.data(), P, 5, RNG_STREAM_INIT, 0, 0);
@@ -301,7 +334,9 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
         for (int i = 0; i < N; ++i) {
             gain_storage_eval(S.data(), Sd.data(), theta.data(), t[i], sc);
             // dS/dt by central differences of S(t) away from knots
-            if (t[i] > 0.01 && std::fabs(t[i] / (2.0 / 3) - std::round(t[i] / (2.0 / 3))) > 0.01 && t[i] < 1.99) {
+            double from_knot = 1.0;
+            for (int j = 0; j <= knots; ++j) from_knot = std::min(from_knot, std::fabs(t[i] - sc.gain.knot_time(j)));
+            if (from_knot > 0.01 && t[i] < 1.99) {
                 std::vector<double> Sp(n * n), Sm(n * n);
                 gain_storage_eval(Sp.data(), static_cast<double*>(nullptr), theta.data(), t[i] + 1e-6, sc);
                 gain_storage_eval(Sm.data(), static_cast<double*>(nullptr), theta.data(), t[i] - 1e-6, sc);
@@ -361,12 +396,14 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         bool discrete, output_scale;
         int group;
         bool masked = false;
+        double ratio = 1.0;  // network.knot_ratio: graded knots
     };
     for (const Case cs : {Case{0, false, false, 1}, Case{0, true, false, 1}, Case{35, false, false, 1},
                           Case{35, false, true, 1}, Case{0, false, false, 4}, Case{0, true, false, 4},
-                          Case{35, false, true, 4}, Case{35, false, true, 4, true}, Case{0, true, false, 1, true}}) {
+                          Case{35, false, true, 4}, Case{35, false, true, 4, true}, Case{0, true, false, 1, true},
+                          Case{35, false, true, 4, false, 30.0}}) {
         INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale << " group "
-                      << cs.group << " masked " << cs.masked);
+                      << cs.group << " masked " << cs.masked << " ratio " << cs.ratio);
         StepConfig sc;
         sc.shape.sizes = {n, 256, 128, 32, n * m};
         sc.head.n = n;
@@ -387,6 +424,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         sc.gain.loss.discrete = cs.discrete;
         sc.gain.knots = cs.knots;
         sc.gain.knot_span = 70.0;
+        sc.gain.knot_ratio = cs.ratio;
         sc.gain.group = cs.group;
         if (cs.masked) {
             sc.gain.mask.assign(n * m, 1.0);
