@@ -496,6 +496,9 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     if (net.has("knot_ratio") && c.storage_knots == 0)
         net.reject("knot_ratio", "spaces the knots of a time-varying storage: it needs [filter] variant = \"gain\" and "
                                  "network.storage_knots > 0 (remove the key)");
+    if (c.knot_ratio != 1.0 && c.storage_knots == 1)
+        net.reject("knot_ratio", "with network.storage_knots = 1 there is one knot interval, nothing to space (remove "
+                                 "the key, or use more knots)");
     if (c.knot_ratio != 1.0 && c.storage_knots > 1) {  // the first interval, as GainSpec::knot_time places it
         const double lq = std::log(c.knot_ratio) / double(c.storage_knots - 1);
         const double first = c.t_final * std::expm1(lq) / std::expm1(double(c.storage_knots) * lq);

@@ -51,8 +51,8 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 /// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and on some systems a
 /// constant storage does far better (on others far worse). So after a fresh run of such a config that reached t_final
 /// with a kept best checkpoint, on one process, and whose config names none of network.storage_knots,
-/// network.storage_init and network.knot_ratio, this trains the same config with network.storage_knots = 0 in DIR/alternative (with its own
-/// selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
+/// network.storage_init and network.knot_ratio, this trains the same config with network.storage_knots = 0 in
+/// DIR/alternative (with its own selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
 /// DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does nothing (false)
 /// elsewhere. An interrupted second run keeps the first and sets s->status to its status (128 + signal).
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
