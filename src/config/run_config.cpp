@@ -499,9 +499,12 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     if (c.knot_ratio != 1.0 && c.storage_knots == 1)
         net.reject("knot_ratio", "with network.storage_knots = 1 there is one knot interval, nothing to space (remove "
                                  "the key, or use more knots)");
-    if (c.knot_ratio != 1.0 && c.storage_knots > 1) {  // the first interval, as GainSpec::knot_time places it
-        const double lq = std::log(c.knot_ratio) / double(c.storage_knots - 1);
-        const double first = c.t_final * std::expm1(lq) / std::expm1(double(c.storage_knots) * lq);
+    if (c.knot_ratio != 1.0 && c.storage_knots > 1) {  // the first knot, where the storage will place it
+        kern::GainSpec knots;
+        knots.knots = static_cast<int>(c.storage_knots);
+        knots.knot_span = c.t_final;
+        knots.knot_ratio = c.knot_ratio;
+        const double first = knots.knot_time(1);
         if (first < c.dt)
             net.reject("knot_ratio", "puts the first of network.storage_knots = " + std::to_string(c.storage_knots) +
                                          " knots at t = " + format_g(first) + " s, within the first time step (dt = " +
