@@ -8,6 +8,7 @@
 #include "eval/compare.hpp"
 #include "eval/engine.hpp"
 #include "filters/factory.hpp"
+#include "sim/truth.hpp"
 
 namespace hinf::cli {
 
@@ -107,9 +108,10 @@ void add_compare_command(CLI::App& app) {
                             cfg.rho, fr.report_sum[0], static_cast<long long>(fr.report_runs));
         if (s.truth_escaped_runs > 0)
             std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
-                        "beyond every scale its config gives it; the system escapes under its [online] noise); those "
+                        "beyond every scale its config gives it; %s); those "
                         "runs count for no filter, in the table and in the files\n",
-                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape);
+                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape,
+                        truth_escape_cause(cfg).c_str());
         std::printf("MSEp / MSEf: 10 log10 of the mean over runs of each run's MSE over all states and steps, of the "
                     "one-step prediction x^(k|k-1) / of the filtered estimate x^(k|k) (nan: none)\n");
         bool same = true;

@@ -170,4 +170,12 @@ std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const 
     return msg + " or check the model";
 }
 
+std::string truth_escape_cause(const RunConfig& cfg) {
+    std::string s = "the system escapes under its [online] noise";
+    if (cfg.system != nullptr && !cfg.system->discrete_time())
+        s += ", or forward Euler's step dt = " + format_g(cfg.dt) +
+             " s is too long for its dynamics where the noise took it (a shorter [filter] dt tells which)";
+    return s;
+}
+
 }  // namespace hinf

@@ -76,6 +76,11 @@ std::int64_t truth_escape_step(const TruthRun& run, int n, int m, const double* 
 /// first at t = T s): ..." with what to change (for a continuous-time system also a shorter dt: forward Euler).
 std::string truth_escape_refusal(const RunConfig& cfg, std::int64_t runs, const std::string& what, double first);
 
+/// Why some truth runs ran away, for train's, compare's and operate's notes: "the system escapes under its [online]
+/// noise", and for a continuous-time system also that forward Euler's step may be too long for the dynamics where the
+/// noise took the run (Lorenz-96 at dt = 0.01 s: 1 of 20 runs ran away, none at 0.005 s; docs/compare.md).
+std::string truth_escape_cause(const RunConfig& cfg);
+
 /// What EKF/UKF/PF are told under a scenario: the [baseline] model and statistics (default: the truth's) with
 /// variances scaled by the scenario's told factors.
 FilterModel scenario_told_model(const RunConfig& cfg, const Scenario& sc);

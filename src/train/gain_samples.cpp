@@ -48,7 +48,7 @@ std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool) {
     if (pool.escaped == 0) return "";
     return "hinf: note: " + std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories) +
            " training truth runs ran away (the first at t = " + format_g(pool.first_escape) +
-           " s: the system escapes under its [online] noise); training draws its estimates from the other " +
+           " s: " + truth_escape_cause(cfg) + "); training draws its estimates from the other " +
            std::to_string(pool.runs.size()) + " (docs/method.md section 16.3)\n";
 }
 

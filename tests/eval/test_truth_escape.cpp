@@ -2,7 +2,8 @@
 // of the finite numbers, or 1e12 times beyond every scale the config gives them). Training draws from the runs that
 // stay; compare and operate leave such runs out of every filter's figures and count them apart, instead of calling
 // them every filter's divergence; the worst-case search scores them 0; a model every run of which escapes is refused
-// in one line, and a continuous one whose Euler step runs away is told to take a shorter dt. (docs/compare.md "A
+// in one line, and a continuous one whose Euler step runs away is told to take a shorter dt (where only some runs
+// escape, the notes name the step beside the noise). (docs/compare.md "A
 // truth that escapes", docs/method.md section 16.3.)
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -64,6 +65,8 @@ TEST_CASE("training's truth pool leaves out the runs that escape and keeps the o
     for (const TruthRun& r : pool.runs) CHECK(truth_escape_step(r, cfg.n, cfg.m, bound.data()) == -1);
     const std::string note = gain_pool_note(cfg, pool);
     CHECK(note.find(std::to_string(pool.escaped) + " of " + std::to_string(cfg.trajectories)) != std::string::npos);
+    CHECK(note.find(truth_escape_cause(cfg)) != std::string::npos);
+    CHECK(note.find("Euler") == std::string::npos);  // a map has no Euler step to blame
     // every run escapes: refused in one line that says what to change
     CHECK_THROWS_WITH(gain_pool_build(henon("2*x^2 + 1 + y")), Catch::Contains("ran away") &&
                                                                    Catch::Contains("lower the noise"));
@@ -124,6 +127,9 @@ TEST_CASE("a continuous model whose Euler step runs away is told to take a short
     opt.runs = 3;
     opt.quiet = true;
     CHECK_THROWS_WITH(compare_run(bad, {ekf.get()}, opt), Catch::Contains("shorter [filter] dt"));
+    // where only some runs escape, train's, compare's and operate's notes name the step as a cause beside the noise
+    CHECK_THAT(truth_escape_cause(bad), Catch::Contains("under its [online] noise") &&
+                                            Catch::Contains("step dt = 0.9 s") && Catch::Contains("shorter [filter] dt"));
     const RunConfig good = with_dt("0.01");  // ... and with a step the dynamics allow, one
     CHECK(good.rho > 0);
 }
