@@ -110,8 +110,8 @@ void add_compare_command(CLI::App& app) {
             std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
                         "beyond every scale its config gives it; %s); those "
                         "runs count for no filter, in the table and in the files\n",
-                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape,
-                        truth_escape_cause(cfg).c_str());
+                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs),
+                        s.first_truth_escape, truth_escape_cause(cfg).c_str());
         std::printf("MSEp / MSEf: 10 log10 of the mean over runs of each run's MSE over all states and steps, of the "
                     "one-step prediction x^(k|k-1) / of the filtered estimate x^(k|k) (nan: none)\n");
         bool same = true;

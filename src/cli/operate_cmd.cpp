@@ -108,8 +108,8 @@ void add_operate_command(CLI::App& app) {
             std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
                         "beyond every scale its config gives it; %s); those "
                         "runs count for no figure below\n",
-                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs), s.first_truth_escape,
-                        truth_escape_cause(cfg).c_str());
+                        static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs),
+                        s.first_truth_escape, truth_escape_cause(cfg).c_str());
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",
                         static_cast<long long>(s.diverged_runs), static_cast<long long>(s.runs), s.first_divergence);

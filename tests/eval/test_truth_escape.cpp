@@ -128,8 +128,9 @@ TEST_CASE("a continuous model whose Euler step runs away is told to take a short
     opt.quiet = true;
     CHECK_THROWS_WITH(compare_run(bad, {ekf.get()}, opt), Catch::Contains("shorter [filter] dt"));
     // where only some runs escape, train's, compare's and operate's notes name the step as a cause beside the noise
-    CHECK_THAT(truth_escape_cause(bad), Catch::Contains("under its [online] noise") &&
-                                            Catch::Contains("step dt = 0.9 s") && Catch::Contains("shorter [filter] dt"));
+    const std::string cause = truth_escape_cause(bad);
+    CHECK_THAT(cause, Catch::Contains("under its [online] noise") && Catch::Contains("step dt = 0.9 s") &&
+                          Catch::Contains("shorter [filter] dt"));
     const RunConfig good = with_dt("0.01");  // ... and with a step the dynamics allow, one
     CHECK(good.rho > 0);
 }
