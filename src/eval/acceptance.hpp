@@ -91,12 +91,12 @@ struct AcceptanceOutcome {
 /// The settled error, over the EKF's on the acceptance runs (the larger of the position and the all-state Q-weighted
 /// ratio), above which a PASS gets AcceptanceOutcome::note
 inline constexpr double kBehindEkf = 1.25;
-/// The settled error, over the EKF's on the acceptance runs, above which the advice after a FAIL says to use the EKF
-/// or UKF until a training does better (a coordinated turn of one's own settled 9.7-59x behind it: docs/byos.md
-/// section 4)
+/// The settled error, over the EKF's on the acceptance runs, above which the advice after a FAIL, and the note after
+/// a PASS, say to use the EKF or UKF until a training does better (a coordinated turn of one's own settled 9.7-59x
+/// behind it, docs/byos.md section 4; Lorenz-96 PASSed at 4 rho* 7x behind it, docs/method.md section 16.7)
 inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
-/// section 16.12, "Kept, and behind the EKF"); `position` and `all_q` the settled position RMSE and the all-state
+/// section 16.12, "Kept, and behind the EKF"), and beyond kFarBehindEkf the EKF or UKF is the filter; `position` and `all_q` the settled position RMSE and the all-state
 /// Q-weighted RMS error over the EKF's, the larger said first; `furthest` the states furthest behind ("om 2.8x, th
 /// 2.7x"; "" says none). Empty where rho* is not known (the linearised game's level not bracketed).
 std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q,

@@ -75,6 +75,12 @@ TEST_CASE("after a PASS far behind the EKF the note names a higher level and the
     CHECK(has(acceptance_behind_note(c, "run/best.h5", 1.1, 2.7, "om 2.8x, th 2.7x"),
               "(position 1.1x, all states Q-weighted 2.7x; furthest behind: om 2.8x, th 2.7x)."));
     CHECK(kBehindEkf == 1.25);
+    // beyond kFarBehindEkf the note says, as the advice after a FAIL does, which filter to use meanwhile
+    const std::string use_ekf = "the EKF or UKF is the filter for this system until a training does better";
+    CHECK_FALSE(has(a, use_ekf));  // 1.69x
+    CHECK(has(acceptance_behind_note(c, "run/best.h5", 2.5, 1.3), use_ekf));
+    CHECK(has(acceptance_behind_note(c, "run/best.h5", 1.1, 7.0), use_ekf));
+    CHECK_FALSE(has(acceptance_behind_note(c, "run/best.h5", kFarBehindEkf, 1.0), use_ekf));
 }
 
 TEST_CASE("acceptance advice says a divergence under the worst signals without offering a cure", "[acceptance]") {
