@@ -52,9 +52,10 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 /// constant storage does far better (on others far worse). So after a fresh run of such a config that reached t_final
 /// with a kept best checkpoint, on one process, and whose config names none of network.storage_knots,
 /// network.storage_init and network.knot_ratio, this trains the same config with network.storage_knots = 0 in
-/// DIR/alternative (with its own selection) and keeps the run whose best checkpoint validated lower in DIR; the other run's files go to
-/// DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does nothing (false)
-/// elsewhere. An interrupted second run keeps the first and sets s->status to its status (128 + signal).
+/// DIR/alternative (with its own selection) and keeps the run whose best checkpoint validated lower in DIR; the other
+/// run's files go to DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does
+/// nothing (false) elsewhere. An interrupted second run keeps the first and sets s->status to its status
+/// (128 + signal).
 bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
                        bool quiet);
 
@@ -96,9 +97,10 @@ inline constexpr double kBehindEkf = 1.25;
 /// behind it, docs/byos.md section 4; Lorenz-96 PASSed at 4 rho* 7x behind it, docs/method.md section 16.7)
 inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
-/// section 16.12, "Kept, and behind the EKF"), and beyond kFarBehindEkf the EKF or UKF is the filter; `position` and `all_q` the settled position RMSE and the all-state
-/// Q-weighted RMS error over the EKF's, the larger said first; `furthest` the states furthest behind ("om 2.8x, th
-/// 2.7x"; "" says none). Empty where rho* is not known (the linearised game's level not bracketed).
+/// section 16.12, "Kept, and behind the EKF"), and beyond kFarBehindEkf the EKF or UKF is the filter; `position`
+/// and `all_q` the settled position RMSE and the all-state Q-weighted RMS error over the EKF's, the larger said first;
+/// `furthest` the states furthest behind ("om 2.8x, th 2.7x"; "" says none). Empty where rho* is not known (the
+/// linearised game's level not bracketed).
 std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path, double position, double all_q,
                                    const std::string& furthest = "");
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
@@ -116,8 +118,8 @@ struct AcceptanceSearch {
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);
 
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
-/// trained at least one step), on one process (or a sweep's group of one), with cfg.acceptance_runs > 0; its verdict and figures are written
-/// into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
+/// trained at least one step), on one process (or a sweep's group of one), with cfg.acceptance_runs > 0; its
+/// verdict and figures are written into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
                                    const Selection* best, bool resumed, bool quiet);
 
