@@ -392,8 +392,8 @@ TrainReport report_of(const TrainSummary& s, const std::string& dir) {
 }
 
 // the selection's and the acceptance check's results, as `hinf train`/`resume` print them
-void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, const TrainSummary& s,
-                   const Selection* best, bool resumed, bool quiet) {
+AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, const TrainSummary& s,
+                                const Selection* best, bool resumed, bool quiet) {
     if (best != nullptr && best->step >= 0) {
         r.best_checkpoint = dir + "/best.h5";
         r.best_step = best->step;
@@ -410,6 +410,7 @@ void finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, c
         r.acceptance_rms_q_settled = a.rms_q_settled;
         r.acceptance_rms_q_settled_ekf = a.rms_q_settled_ekf;
     }
+    return a;
 }
 }  // namespace
 
@@ -425,7 +426,12 @@ TrainReport train(const Config& cfg, const TrainSettings& settings) {
     choose_held_start(&c, &s, &best, settings.out_dir, settings.quiet);  // a Riccati start held at once: both storages
     choose_game_in_noise_units(&c, &s, &best, settings.out_dir, settings.quiet);  // none validated: the other game
     TrainReport r = report_of(s, settings.out_dir);
-    finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
+    const AcceptanceOutcome a = finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
+    if (choose_storage_far_behind(&c, &s, &best, settings.out_dir, settings.quiet, a)) {  // the constant storage kept
+        r = report_of(s, settings.out_dir);
+        finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
+    }
+    if (s.status != 0) r.diverged = true;  // interrupted in the constant storage's run: the first run stays
     return r;
 }
 
@@ -446,9 +452,18 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
         best = selection_begin(c, dir, /*fresh=*/false, opt);
     } catch (const std::exception&) {
     }
-    const TrainSummary s = train_resume(checkpoint_path, opt);
+    TrainSummary s = train_resume(checkpoint_path, opt);
+    if (readable && s.status == 0) {  // resumed to t_final: it ends as the same run uninterrupted (as `hinf resume`)
+        choose_held_start(&c, &s, &best, dir, settings.quiet);
+    }
     TrainReport r = report_of(s, dir);
-    finish_report(r, readable ? c : ckpt_config(checkpoint_path), dir, s, best.get(), /*resumed=*/true, settings.quiet);
+    const AcceptanceOutcome a = finish_report(r, readable ? c : ckpt_config(checkpoint_path), dir, s, best.get(),
+                                              /*resumed=*/true, settings.quiet);
+    if (readable && choose_storage_far_behind(&c, &s, &best, dir, settings.quiet, a)) {  // the constant storage kept
+        r = report_of(s, dir);
+        finish_report(r, c, dir, s, best.get(), /*resumed=*/false, settings.quiet);
+    }
+    if (s.status != 0) r.diverged = true;  // interrupted in the second storage's run: the first run stays
     return r;
 }
 

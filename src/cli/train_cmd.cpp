@@ -58,6 +58,29 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
     std::printf("files: %s/trajectory.h5 %s/checkpoint.h5\n", dir.c_str(), dir.c_str());
 }
 
+void print_acceptance(const AcceptanceOutcome& a) {
+    if (a.ran) std::printf("%s\n", a.line.c_str());
+    if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
+    if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
+    std::fflush(stdout);  // before what comes next on stderr
+}
+
+// The acceptance check of a run that stopped with s, printed; where it finds a run with knots far behind the EKF,
+// the constant storage's run too (choose_storage_far_behind) and, where that is kept, its summary and check. Returns
+// the kept run's outcome; s->status is non-zero where the second run was interrupted.
+AcceptanceOutcome check_run(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
+                            bool resumed, bool quiet) {
+    AcceptanceOutcome a = acceptance_after(*cfg, dir, *s, best->get(), resumed, quiet);
+    print_acceptance(a);
+    if (choose_storage_far_behind(cfg, s, best, dir, quiet, a)) {
+        print_summary(*s, dir);
+        std::printf("%s\n", selection_line(*cfg, **best, dir).c_str());
+        a = acceptance_after(*cfg, dir, *s, best->get(), /*resumed=*/false, quiet);
+        print_acceptance(a);
+    }
+    return a;
+}
+
 }  // namespace
 
 void add_train_commands(CLI::App& app) {
@@ -94,10 +117,8 @@ void add_train_commands(CLI::App& app) {
             std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");
         if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
             std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
-        const AcceptanceOutcome a = acceptance_after(cfg, opt.out_dir, s, best.get(), /*resumed=*/false, args->quiet);
-        if (a.ran) std::printf("%s\n", a.line.c_str());
-        if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
-        if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
+        const AcceptanceOutcome a = check_run(&cfg, &s, &best, opt.out_dir, /*resumed=*/false, args->quiet);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the constant storage's run
         if (a.ran && !a.pass && cfg.require_acceptance) {
             std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s: attenuation ratio or "
                                  "worst-case ratio above [filter] rho, or a diverged run); training.require_acceptance "
@@ -220,19 +241,20 @@ void add_train_commands(CLI::App& app) {
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);
         if (s.status != 0) throw CLI::RuntimeError(s.status);
+        RunConfig after = ckpt_config(args->checkpoint);  // with the keys changed on resume
+        // a run resumed to t_final ends as the same run uninterrupted: a Riccati start held at once trains both storages
+        choose_held_start(&after, &s, &best, dir, args->quiet);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second storage's run
         print_summary(s, dir);
-        if (best) std::printf("%s\n", selection_line(before, *best, dir).c_str());
+        if (best) std::printf("%s\n", selection_line(after, *best, dir).c_str());
         if (!args->sets.empty()) {
             std::string changed;
             for (const auto& v : args->sets) changed += " " + v;
             std::printf("changed on resume at step %lld:%s (recorded as a '# hinf resume' line in the config of the "
                         "checkpoint and trajectory)\n", static_cast<long long>(s.first_step), changed.c_str());
         }
-        const RunConfig after = ckpt_config(args->checkpoint);  // with the keys changed on resume
-        const AcceptanceOutcome a = acceptance_after(after, dir, s, best.get(), /*resumed=*/true, args->quiet);
-        if (a.ran) std::printf("%s\n", a.line.c_str());
-        if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
-        if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
+        const AcceptanceOutcome a = check_run(&after, &s, &best, dir, /*resumed=*/true, args->quiet);
+        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the constant storage's run
         if (a.ran && !a.pass && after.require_acceptance) {
             std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s); "
                                  "training.require_acceptance is set\n", a.file.c_str());

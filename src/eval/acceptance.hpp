@@ -49,8 +49,9 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 
 /// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
 /// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and on some systems a
-/// constant storage does far better (on others far worse). So after a fresh run of such a config that reached t_final
-/// with a kept best checkpoint, on one process, and whose config names none of network.storage_knots,
+/// constant storage does far better (on others far worse). So after a run of such a config that trained (fresh, or
+/// resumed: it ends as the run uninterrupted) to t_final with a kept best checkpoint, on one process, and whose config
+/// names none of network.storage_knots,
 /// network.storage_init and network.knot_ratio, this trains the same config with network.storage_knots = 0 in
 /// DIR/alternative (with its own selection) and keeps the run whose best checkpoint validated lower in DIR; the other
 /// run's files go to DIR/alternative. cfg, s and best then describe the kept run (true). Prints its notes; does
@@ -122,5 +123,18 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
 /// verdict and figures are written into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
                                    const Selection* best, bool resumed, bool quiet);
+
+/// Far behind the EKF (docs/method.md section 16.7, "Far behind the EKF: a constant storage tried"): where the
+/// acceptance check `a` of a `gain` run with a time-varying storage (network.storage_knots > 0) found it settled above
+/// kFarBehindEkf times the EKF's error, the run trained (fresh or resumed) to t_final with a kept best checkpoint on
+/// one process, its
+/// config names none of network.storage_knots, network.storage_init and network.knot_ratio, and its start was not
+/// held at once (choose_held_start trained both there), this trains the same config with network.storage_knots = 0
+/// in DIR/alternative and keeps the run whose best checkpoint validated lower in DIR, as choose_held_start does.
+/// true: the constant storage is kept, cfg, s and best describe it, and its acceptance check is yet to run (the
+/// caller's `a` is the other run's). Prints its notes; does nothing (false) elsewhere. An interrupted second run keeps
+/// the first and sets s->status (128 + signal).
+bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
+                               const std::string& dir, bool quiet, const AcceptanceOutcome& a);
 
 }  // namespace hinf
