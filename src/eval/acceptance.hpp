@@ -95,7 +95,8 @@ struct AcceptanceOutcome {
 inline constexpr double kBehindEkf = 1.25;
 /// The settled error, over the EKF's on the acceptance runs, above which the advice after a FAIL, and the note after
 /// a PASS, say to use the EKF or UKF until a training does better (a coordinated turn of one's own settled 9.7-59x
-/// behind it, docs/byos.md section 4; Lorenz-96 PASSed at 4 rho* 7x behind it, docs/method.md section 16.7)
+/// behind it, docs/byos.md section 4; Lorenz-96 PASSed at 4 rho* 7x behind it, docs/method.md section 16.7); beyond
+/// it, a run with knots also trains a constant storage (choose_storage_far_behind)
 inline constexpr double kFarBehindEkf = 2.0;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
 /// section 16.12, "Kept, and behind the EKF"), and beyond kFarBehindEkf the EKF or UKF is the filter; `position`
