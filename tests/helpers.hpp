@@ -33,6 +33,13 @@ inline RunConfig config_from_text(const std::string& text, const std::string& se
 /// The number of newline characters in `s`.
 inline int count_lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
+/// How often `what` occurs in `text` (overlapping occurrences counted).
+inline int count_occurrences(const std::string& text, const std::string& what) {
+    int n = 0;
+    for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
+
 /// A whole file's text ("" when it cannot be opened).
 inline std::string read_text(const std::string& path) {
     std::ifstream in(path);

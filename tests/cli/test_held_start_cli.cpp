@@ -74,10 +74,13 @@ hinf::test::CommandResult train_short_vdp(const std::string& out, const std::str
     return r;
 }
 
-std::size_t count_of(const std::string& text, const std::string& what) {
-    std::size_t n = 0;
-    for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-    return n;
+// each directory holds one whole run: its checkpoint and best checkpoint agree on the storage, DIR's on the kept one
+void check_runs_whole(const std::string& out, bool kept_constant) {
+    CHECK(names_constant_storage(out + "/checkpoint.h5") == kept_constant);
+    CHECK(names_constant_storage(out + "/best.h5") == kept_constant);
+    CHECK(names_constant_storage(out + "/alternative/checkpoint.h5") == !kept_constant);
+    CHECK(names_constant_storage(out + "/alternative/best.h5") == !kept_constant);
+    CHECK(!std::filesystem::exists(out + "/alternative.swap"));
 }
 
 // the run in `out` is whole, and the kept one is the one whose best checkpoint validated lower
@@ -89,14 +92,10 @@ void check_choice(const hinf::test::CommandResult& r, const std::string& out, bo
     const bool kept_constant = constant < knots;
     CHECK(kept_constant == constant_expected);  // the case this test means to cover (see train_short_vdp)
     CHECK(r.output.find(kept_constant ? "keeps the constant storage" : "keeps the knots") != std::string::npos);
-    CHECK(names_constant_storage(out + "/checkpoint.h5") == kept_constant);
-    CHECK(names_constant_storage(out + "/best.h5") == kept_constant);
-    CHECK(names_constant_storage(out + "/alternative/checkpoint.h5") == !kept_constant);
-    CHECK(names_constant_storage(out + "/alternative/best.h5") == !kept_constant);
-    CHECK(!std::filesystem::exists(out + "/alternative.swap"));
+    check_runs_whole(out, kept_constant);
     // the kept run was checked: one acceptance line for the knots' run, a second for a kept constant storage, whose
     // verdict is in its own best checkpoint
-    CHECK(count_of(r.output, "acceptance (5 measured runs") == (kept_constant ? 2u : 1u));
+    CHECK(hinf::test::count_occurrences(r.output, "acceptance (5 measured runs") == (kept_constant ? 2 : 1));
     hinf::h5::Handle f = hinf::h5::open_file(out + "/best.h5", false);
     CHECK(hinf::h5::has_attr(f.get(), "acceptance_verdict"));
 }
@@ -116,12 +115,7 @@ TEST_CASE("a Riccati start held at once trains both storages and keeps the one t
     REQUIRE(std::filesystem::exists(out + "/alternative/best.h5"));
     const bool kept_constant = constant < flat;
     CHECK(r.output.find(kept_constant ? "keeps the constant storage" : "keeps the flat knots") != std::string::npos);
-    // each directory holds one whole run: its checkpoint and best checkpoint agree on the storage
-    CHECK(names_constant_storage(out + "/checkpoint.h5") == kept_constant);
-    CHECK(names_constant_storage(out + "/best.h5") == kept_constant);
-    CHECK(names_constant_storage(out + "/alternative/checkpoint.h5") == !kept_constant);
-    CHECK(names_constant_storage(out + "/alternative/best.h5") == !kept_constant);
-    CHECK(!std::filesystem::exists(out + "/alternative.swap"));
+    check_runs_whole(out, kept_constant);
     // the kept run resumes as a run of its own config (it is at t_final: nothing to add, no error)
     auto again = run_hinf("resume " + out + "/checkpoint.h5 --quiet");
     INFO(again.output);

@@ -271,11 +271,7 @@ TEST_CASE("a gain run diverging from the Riccati start hinf chose starts again f
     INFO(a.output);
     CHECK(a.status == 4);
     REQUIRE(diverged_step(a.output) > 0);
-    auto count = [](const std::string& out, const std::string& what) {
-        int c = 0;
-        for (std::size_t at = out.find(what); at != std::string::npos; at = out.find(what, at + 1)) ++c;
-        return c;
-    };
+    const auto count = test::count_occurrences;
     CHECK(count(a.output, "training diverged at time step ") == 2);
     CHECK(count(a.output, "the run starts again from flat knots (below).") == 1);
     CHECK(count(a.output, "it starts again from flat knots, recorded in its config") == 1);
