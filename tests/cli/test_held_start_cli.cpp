@@ -37,6 +37,9 @@ dt = 0.01
 t_final = 1
 [training]
 acceptance_runs = 0
+samples = 400
+batch = 200
+adam_steps = 10
 [online]
 disturbance_std = 0.2
 noise_std = 0.05
@@ -62,13 +65,14 @@ bool names_constant_storage(const std::string& checkpoint) {
     return hinf::ckpt_read<float>(checkpoint).config_text.find("storage_knots = 0") != std::string::npos;
 }
 
-// Van der Pol cut to 3 s with one or two Adam steps a time step: its Riccati start is held from 1.77 s, after its
-// first knot (not at once), and the acceptance check found these runs 3.4x (seed 2) and 5.3x (seed 3) behind the EKF
-// when this test was written; the constant storage validated lower for seed 2 and higher for seed 3
+// Van der Pol cut to 3 s, 500 samples, one or two Adam steps a time step and a short acceptance search: its Riccati
+// start is held from 1.77 s, after its first knot (not at once), and the acceptance check found these runs 3.1x (two
+// steps, seed 2) and 3.6x (one step, seed 1) behind the EKF when this test was written; the constant storage
+// validated lower for the first (0.0021 against the knots' 0.0044) and higher for the second (0.0127 against 0.0053)
 hinf::test::CommandResult train_short_vdp(const std::string& out, const std::string& extra) {
     auto r = run_hinf("train " + hinf::test::source_path("runs/vanderpol.toml") +
-                      " --quiet --threads 1 --set filter.t_final=3 --set online.settle_time=1 " + extra + " --out " +
-                      out);
+                      " --quiet --threads 1 --set filter.t_final=3 --set online.settle_time=1 --set training.samples=500"
+                      " --set training.batch=100 --set training.acceptance_worst_evals=24 " + extra + " --out " + out);
     INFO(r.output);
     REQUIRE(r.status == 0);
     return r;
@@ -153,10 +157,10 @@ TEST_CASE("a knots run far behind the EKF trains a constant storage and keeps th
         CHECK(c.net.theta == e.net.theta);
     }
     SECTION("the knots validate lower: kept") {
-        check_choice(train_short_vdp(out, "--set training.adam_steps=1 --set training.seed=3"), out, false);
+        check_choice(train_short_vdp(out, "--set training.adam_steps=1 --set training.seed=1"), out, false);
     }
     SECTION("a config that names the storage trains it alone") {
-        const auto r = train_short_vdp(out, "--set training.adam_steps=1 --set training.seed=3 "
+        const auto r = train_short_vdp(out, "--set training.adam_steps=1 --set training.seed=1 "
                                             "--set network.storage_knots=32");
         INFO(r.output);
         CHECK(r.output.find("Its storage S(t) changes with time") == std::string::npos);
