@@ -456,7 +456,9 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         HINF_CHECK(is_identifier(name), spec.where + " " + what + " '" + name +
                                             "' is not a name (letters, digits and _, not starting with a digit, at most 64 characters)");
         HINF_CHECK(!reserved_names().count(name) && !(discrete_ && name == "k"),
-                   spec.where + " " + what + " '" + name + "' is reserved (t, pi, a function name" +
+                   spec.where + " " + what + " '" + name +
+                       "' is reserved (the time t, a constant of the expression parsers: pi, Pi, I, the imaginary "
+                       "unit, Euler, Catalan, Digits, _pi, _e, or a function name" +
                        (discrete_ ? ", or k, the step index of a discrete system" : "") + "): rename it");
         HINF_CHECK(seen.insert(name).second, spec.where + " " + what + " '" + name + "' is defined twice: rename one");
         symbols.push_back(name);

@@ -403,6 +403,7 @@ TEST_CASE("expression errors are one line naming the key, the expression and the
     SECTION("names") {
         bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"p\"]"), "state 'p' is defined twice");
         bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"t\"]"), "state 't' is reserved");
+        bad_text(replace(ok, "[\"p\", \"w\"]", "[\"p\", \"I\"]"), "state 'I' is reserved (the time t, a constant");
         bad("definitions = [\"speed w\"]\n",
             "[system] definitions entry 1 \"speed w\" must read \"name = expression\"");
     }
