@@ -1,5 +1,6 @@
 // `hinf compare`: EKF, UKF, PF, the open-loop predictor and trained DNN filters side by side on the same
 // truth and measurements; prints the table, writes compare.h5 and compare.csv, optionally the plots.
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 
@@ -80,10 +81,17 @@ void add_compare_command(CLI::App& app) {
         CompareSummary s = compare_run(cfg, filters, opt);
 
         const auto names = cfg.system->state_names();
-        std::printf("compare: scenario %s, %lld run(s), %lld steps of %g s; errors x - x^ after t = %g s: per-run "
+        // no step at or after settle_time (a run no longer than it): the state columns give the whole run's errors
+        const bool settled = !s.filters.empty() && std::isfinite(s.filters[0].rmse_position_settled);
+        char window[96];
+        if (settled)
+            std::snprintf(window, sizeof window, "after t = %g s", cfg.settle_time);
+        else
+            std::snprintf(window, sizeof window, "over the whole run (no step at or after t = %g s)", cfg.settle_time);
+        std::printf("compare: scenario %s, %lld run(s), %lld steps of %g s; errors x - x^ %s: per-run "
                     "(mean, std) averaged over runs, +- 95%% CI\n",
                     s.scenario.c_str(), static_cast<long long>(s.runs), static_cast<long long>(s.steps), cfg.dt,
-                    cfg.settle_time);
+                    window);
         std::printf("%-26s %-8s %5s", "filter", "mode", "div");
         for (int i = 0; i < std::min(cfg.n, 3); ++i) std::printf("  %-27s", (names[i] + " (mean, std)").c_str());
         char settled_head[32];  // the settled-window RMSE, named by its window
@@ -93,8 +101,12 @@ void add_compare_command(CLI::App& app) {
             std::printf("%-26s %-8s %5lld", fr.name.c_str(), fr.mode.c_str(), static_cast<long long>(fr.diverged_runs));
             for (int i = 0; i < std::min(cfg.n, 3); ++i) {
                 char cell[64];
-                std::snprintf(cell, sizeof cell, "%.3g+-%.2g, %.3g+-%.2g", fr.mean_settled[i], fr.mean_settled_ci[i],
-                              fr.std_settled[i], fr.std_settled_ci[i]);
+                if (settled)
+                    std::snprintf(cell, sizeof cell, "%.3g+-%.2g, %.3g+-%.2g", fr.mean_settled[i],
+                                  fr.mean_settled_ci[i], fr.std_settled[i], fr.std_settled_ci[i]);
+                else
+                    std::snprintf(cell, sizeof cell, "%.3g+-%.2g, %.3g+-%.2g", fr.mean[i], fr.mean_ci[i], fr.std[i],
+                                  fr.std_ci[i]);
                 std::printf("  %-27s", cell);
             }
             std::printf("  %10.4g %10.4g %10.4g %9.2f %9.2f %9.2f\n", fr.rmse_position, fr.rmse_position_settled,

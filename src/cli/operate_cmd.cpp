@@ -125,9 +125,14 @@ void add_operate_command(CLI::App& app) {
         std::printf("error x - x^ (mean, std) over time:");
         for (int i = 0; i < cfg.n; ++i)
             std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean[i], s.error_std[i]);
-        std::printf("\nerror after t = %g s (mean, std):", cfg.settle_time);
-        for (int i = 0; i < cfg.n; ++i)
-            std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean_settled[i], s.error_std_settled[i]);
+        // no step at or after settle_time (a run no longer than it): the line above is the whole run's
+        if (cfg.n > 0 && std::isfinite(s.error_mean_settled[0])) {
+            std::printf("\nerror after t = %g s (mean, std):", cfg.settle_time);
+            for (int i = 0; i < cfg.n; ++i)
+                std::printf(" %s (%.3g, %.3g)", names[i].c_str(), s.error_mean_settled[i], s.error_std_settled[i]);
+        } else {
+            std::printf("\nno step at or after t = %g s (online.settle_time): no settled errors", cfg.settle_time);
+        }
         if (std::isfinite(s.online_hji_violation_fraction))
             std::printf("\nHJI inequality violated (> 1%% of S) at %.2f%% of the on-line steps", 100 * s.online_hji_violation_fraction);
         else

@@ -48,10 +48,14 @@ TEST_CASE("hinf compare writes the table, compare.h5 and compare.csv and rejects
     REQUIRE(p.status == 0);
     CHECK(p.output.find("PNGs in") != std::string::npos);
     CHECK(p.output.find("RMSEpos5 ") != std::string::npos);  // the settled column named by settle_time (5 s)
+    // a 0.05 s run has no step after 5 s: the state columns give the whole run's errors, and the header says so
+    CHECK(p.output.find("errors x - x^ over the whole run (no step at or after t = 5 s)") != std::string::npos);
+    CHECK(p.output.find("nan+-nan") == std::string::npos);
     auto st = run_hinf("compare " + cfg + " --filters ekf --runs 1 --quiet --set online.settle_time=0.02 --out " +
                        (d / "settle"));
     INFO(st.output);
     CHECK(st.output.find("RMSEpos0.02") != std::string::npos);
+    CHECK(st.output.find("errors x - x^ after t = 0.02 s") != std::string::npos);
     CHECK(st.output.find("RMSEpos5") == std::string::npos);
     auto t2 = hinf::test::run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " +
                                       (d / "run/trajectory.h5") + " --out " + (d / "plot"));
