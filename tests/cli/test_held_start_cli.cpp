@@ -71,8 +71,9 @@ bool names_constant_storage(const std::string& checkpoint) {
 // validated lower for the first (0.0021 against the knots' 0.0044) and higher for the second (0.0127 against 0.0053)
 hinf::test::CommandResult train_short_vdp(const std::string& out, const std::string& extra) {
     auto r = run_hinf("train " + hinf::test::source_path("runs/vanderpol.toml") +
-                      " --quiet --threads 1 --set filter.t_final=3 --set online.settle_time=1 --set training.samples=500"
-                      " --set training.batch=100 --set training.acceptance_worst_evals=24 " + extra + " --out " + out);
+                      " --quiet --threads 1 --set filter.t_final=3 --set online.settle_time=1"
+                      " --set training.samples=500 --set training.batch=100 --set training.acceptance_worst_evals=24 " +
+                      extra + " --out " + out);
     INFO(r.output);
     REQUIRE(r.status == 0);
     return r;

@@ -48,7 +48,8 @@ TEST_CASE("the built-in missile keeps its documented defaults", "[config][defaul
     CHECK(c.hidden == std::vector<int>{256, 128, 32});
 }
 
-TEST_CASE("a default settle window shorter than a tenth of the run is none and a named one is kept", "[config][defaults]") {
+TEST_CASE("a default settle window shorter than a tenth of the run is none and a named one is kept",
+          "[config][defaults]") {
     const std::string missile = "[system]\nkind = \"missile\"\n[filter]\nt_final = ";
     CHECK(load_run_config(ConfigDoc::from_text(missile + "70\n", "m.toml")).settle_time == 5.0);
     CHECK(load_run_config(ConfigDoc::from_text(missile + "5.6\n", "m.toml")).settle_time == 5.0);  // 0.6 s of 5.6
