@@ -80,6 +80,13 @@ void add_compare_command(CLI::App& app) {
         for (const auto& o : set.filters) filters.push_back(o.get());
         CompareSummary s = compare_run(cfg, filters, opt);
 
+        // energy_pulse's window is fixed in time (seed 000's manoeuvre): a shorter run meets part of it or none
+        const double span = s.scenario == "energy_pulse" ? energy_pulse_span(cfg, s.steps) : kPulseEnd - kPulseStart;
+        if (span < kPulseEnd - kPulseStart)
+            std::printf("compare: note: energy_pulse's pulse is fixed at %g <= t < %g (seed 000's manoeuvre); this run "
+                        "ends at t = %g, so %s (docs/compare.md)\n", kPulseStart, kPulseEnd, cfg.time_of(s.steps),
+                        span > 0 ? "it is cut short there"
+                                 : "the scenario has no disturbance at all here: its figures are a run without one");
         const auto names = cfg.system->state_names();
         // no step at or after settle_time (a run no longer than it): the state columns give the whole run's errors
         const bool settled = !s.filters.empty() && std::isfinite(s.filters[0].rmse_position_settled);

@@ -713,9 +713,17 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
                                        c.disturbance_scale, false, &c.told_disturbance_weight, &c.told_disturbance_chol);
     c.told_noise_std = told_stds(b, "noise_std", "noise_cov", c.noise_std, c.m, c.output_weight, true,
                                  &c.told_noise_weight, &c.told_noise_chol);
+    // what they are told is [online]'s noise unless [baseline] names its own: the line names the key that was written
+    const bool told_named = b.has("noise_std") || b.has("noise_cov");
+    auto zero_told_noise = [&](const std::string& problem) {
+        if (told_named) b.reject("noise_std", problem + " (the EKF/UKF/PF measurement noise they are told)");
+        on.reject(on.has("noise_cov") ? "noise_cov" : "noise_std",
+                  problem + ": the EKF, UKF and PF are told this noise, and their measurement update needs it > 0; "
+                            "for a sensor with no noise give a small one, or tell them one in [baseline] noise_std");
+    };
     for (double w : c.told_noise_weight)
-        if (w <= 0) b.reject("noise_std", "entries must be > 0 (the EKF/UKF/PF measurement noise they are told)");
-    if (c.told_noise_std <= 0) b.reject("noise_std", "must be > 0 (the EKF/UKF/PF measurement noise they are told)");
+        if (w <= 0) zero_told_noise("entries must be > 0");
+    if (c.told_noise_std <= 0) zero_told_noise("must be > 0");
     c.initial_std = b.get_doubles("initial_std", {}, n);
     for (double v : c.initial_std)
         if (!(v >= 0)) b.reject("initial_std", "entries must be >= 0 (standard deviations of the initial estimate)");

@@ -21,6 +21,7 @@
 #include "io/checkpoint.hpp"
 #include "net/network.hpp"
 #include "par/par.hpp"
+#include "sim/truth.hpp"
 
 namespace hinf {
 
@@ -63,7 +64,10 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     const bool game = !net->step_config().gain.enabled;
     WorstOptions wo;
     wo.random_starts = 2;
-    wo.scenario_starts = {"energy_pulse"};
+    // the pulse scenario's signals as a start, unless they carry nothing: on a run that ends before the pulse
+    // (energy_pulse_span) with noiseless measurements the search would refuse them
+    wo.scenario_starts.clear();
+    if (energy_pulse_span(cfg, K) > 0 || cfg.noise_std > 0) wo.scenario_starts = {"energy_pulse"};
     wo.pieces = int(std::min<std::int64_t>(wo.pieces, K));  // a short horizon has fewer steps than pieces
     wo.game_start = game;
     const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0);

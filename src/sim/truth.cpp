@@ -15,6 +15,10 @@ std::vector<std::string> scenario_names() {
             "n_cov_small", "n_cov_large", "student_t", "bias",        "energy_pulse"};
 }
 
+double energy_pulse_span(const RunConfig& cfg, std::int64_t steps) {
+    return std::max(0.0, std::min(cfg.time_of(steps), kPulseEnd) - kPulseStart);
+}
+
 Scenario scenario_named(const std::string& name) {
     Scenario s;
     s.name = name;
@@ -78,7 +82,7 @@ TruthRun truth_simulate(const RunConfig& cfg, const Scenario& sc, std::uint64_t 
             kern::rng_normal(noise.data(), nv + m, cfg.online_seed, kern::RNG_STREAM_NOISE, run, std::uint64_t(s));
             for (int j = 0; j < nv; ++j) v[j] *= cfg.disturbance_std;
             if (sc.energy_pulse)
-                for (int j = 0; j < nv; ++j) v[j] = (t >= 20.0 && t < 25.0) ? pulse : 0.0;
+                for (int j = 0; j < nv; ++j) v[j] = (t >= kPulseStart && t < kPulseEnd) ? pulse : 0.0;
             if (sc.student_t) {
                 // t_3 = z / sqrt(chi2_3 / 3) has variance 3: scaled by 1/sqrt(3) to unit variance
                 kern::rng_normal(chi.data(), 3 * m, cfg.online_seed, kern::RNG_STREAM_HEAVY_TAIL, run,

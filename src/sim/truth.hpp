@@ -27,6 +27,12 @@ struct Scenario {
 Scenario scenario_named(const std::string& name);
 std::vector<std::string> scenario_names();
 
+/// energy_pulse's window, fixed in the system's time unit: seed 000's manoeuvre at 20 <= t < 25 s of its 70 s
+constexpr double kPulseStart = 20.0, kPulseEnd = 25.0;
+/// How much of that window lies inside a run of `steps` steps (0: the pulse comes after the run ends, and the
+/// scenario then has no disturbance at all)
+double energy_pulse_span(const RunConfig& cfg, std::int64_t steps);
+
 /// Explicit disturbance and noise sequences; when given they replace the random draws (worst-case search, replay).
 struct Signals {
     std::vector<double> v;  // [steps x nv]
