@@ -845,6 +845,16 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                      cfg.output_weight.empty() && cfg.disturbance_scale.empty()
                          ? ""
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
+    // the walk behind rho* covers the horizon's first kGameLevelMaxSteps steps: a longer one can need a larger level
+    if (cfg.rho_auto && par_root() && cfg.steps_until() > kGameLevelMaxSteps)
+        std::fprintf(stderr, "hinf: note: that rho* is the linearised game's over the horizon's first %lld of %lld steps; "
+                             "over the whole horizon it can only be larger, so the level trained may be one no filter "
+                             "keeps there: %s\n",
+                     static_cast<long long>(kGameLevelMaxSteps), static_cast<long long>(cfg.steps_until()),
+                     cfg.system->discrete_time()
+                         ? "name [filter] rho"
+                         : "hinf rho with a coarser --set filter.dt (whole horizon in at most that many steps) gives "
+                           "the whole horizon's, nearly independent of dt; name [filter] rho from it");
     if (par_root()) constant_state_note(cfg);
     if (par_root()) {  // a discrete gain filter whose constant storage cannot exist (docs/method.md section 16.8)
         const std::string note = constant_storage_note(cfg, constant_storage_check(cfg, tr.pool()));

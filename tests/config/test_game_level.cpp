@@ -51,6 +51,19 @@ TEST_CASE("rho* walks at most the horizon's first kGameLevelMaxSteps steps", "[c
     CHECK(game_level_bound(longer).bound == game_level_bound(first).bound);
 }
 
+TEST_CASE("a training at the default level says when rho* covered only the horizon's first part", "[config][rho][cli]") {
+    hinf::test::TempDir d("rho-first-part");
+    for (const char* t_final : {"30", "20"}) {  // 30000 steps, then 20000: walked whole
+        std::ofstream(d / "c.toml") << integrator("continuous", "0.001", t_final, "");
+        const auto r = hinf::test::run_hinf("train " + (d / "c.toml") + " --until 0.002 --quiet --force --out " +
+                                            (d / "run"));
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+        CHECK((r.output.find("over the horizon's first 20000 of 30000 steps") != std::string::npos) ==
+              (std::string(t_final) == "30"));
+    }
+}
+
 TEST_CASE("rho* of a discrete random walk is 2, above its one-step floor", "[config][rho]") {
     // P+ = (1/P + 1 - 1/rho)^-1 + 1 with the a-priori condition 1/P > 1/rho: the stationary P = 1/2 + sqrt(1/4 + 1/u),
     // u = 1 - 1/rho, equals rho exactly at rho = 2; below it the condition fails once P has settled, above it never
