@@ -847,9 +847,9 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     // the walk behind rho* covers the horizon's first kGameLevelMaxSteps steps: a longer one can need a larger level
     if (cfg.rho_auto && par_root() && cfg.steps_until() > kGameLevelMaxSteps)
-        std::fprintf(stderr, "hinf: note: that rho* is the linearised game's over the horizon's first %lld of %lld steps; "
-                             "over the whole horizon it can only be larger, so the level trained may be one no filter "
-                             "keeps there: %s\n",
+        std::fprintf(stderr, "hinf: note: that rho* is the linearised game's over the horizon's first %lld of %lld "
+                             "steps; over the whole horizon it can only be larger, so the level trained may be one no "
+                             "filter keeps there: %s\n",
                      static_cast<long long>(kGameLevelMaxSteps), static_cast<long long>(cfg.steps_until()),
                      cfg.system->discrete_time()
                          ? "name [filter] rho"

@@ -51,7 +51,8 @@ TEST_CASE("rho* walks at most the horizon's first kGameLevelMaxSteps steps", "[c
     CHECK(game_level_bound(longer).bound == game_level_bound(first).bound);
 }
 
-TEST_CASE("a training at the default level says when rho* covered only the horizon's first part", "[config][rho][cli]") {
+TEST_CASE("a training at the default level says when rho* covered only the horizon's first part",
+          "[config][rho][cli]") {
     hinf::test::TempDir d("rho-first-part");
     for (const char* t_final : {"30", "20"}) {  // 30000 steps, then 20000: walked whole
         std::ofstream(d / "c.toml") << integrator("continuous", "0.001", t_final, "");
