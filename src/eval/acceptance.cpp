@@ -619,6 +619,7 @@ AlternativeRun train_alternative(const RunConfig& other, const std::string& alt,
     TrainOptions opt;
     opt.out_dir = alt;
     opt.quiet = quiet;
+    opt.config_notes = false;  // said by the first run
     try {
         a.best = selection_begin(other, alt, /*fresh=*/true, opt);
         a.s = train_start(other, opt);

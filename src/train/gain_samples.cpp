@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "filters/gain_law.hpp"
 #include "hinf/error.hpp"
@@ -159,28 +160,43 @@ void gain_samples_build(GainSamples* s, const RunConfig& cfg, const GainPool& po
     constants(s, cfg, g, N, false);
 }
 
-void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& pool) {
-    g->zlo.clear();
-    g->zhi.clear();
-    if (!(cfg.input_box > 0)) return;
+namespace {
+
+// N estimates drawn as gain_samples_build draws its groups' first samples (no per-sample constants), counter a:
+// x^ = x - x~ [N x n], held in state_bounds as training holds them
+std::vector<double> draw_estimates(const RunConfig& cfg, const kern::GainSpec& g, const GainPool& pool,
+                                   std::int64_t N, std::uint64_t a) {
     const int n = cfg.n;
-    const std::int64_t N = kInputBoxEstimates, R = std::int64_t(pool.runs.size());
-    // the estimates alone, drawn as gain_samples_build draws a group's first sample (no per-sample constants)
+    const std::int64_t R = std::int64_t(pool.runs.size());
     GainSamples s;
     s.xt.resize(static_cast<std::size_t>(N * n));
     std::vector<double> u;
-    draw_errors(&s, cfg, *g, N, kInputBoxCounter, &u);
-    std::vector<double> z(static_cast<std::size_t>(N * n));
+    draw_errors(&s, cfg, g, N, a, &u);
+    std::vector<double> xh(static_cast<std::size_t>(N * n));
     for (std::int64_t i = 0; i < N; ++i) {
         const std::int64_t r = std::min(R - 1, std::int64_t(u[i * 3] * double(R)));
         const std::int64_t k = std::min(pool.steps - 1, std::int64_t(u[i * 3 + 1] * double(pool.steps)));
         const double* x = pool.runs[r].x.data() + k * n;
         for (int j = 0; j < n; ++j) {
-            double xh = x[j] - s.xt[i * n + j];  // held in state_bounds as training holds it
-            if (!cfg.state_lo.empty()) xh = std::min(cfg.state_hi[j], std::max(cfg.state_lo[j], xh));
-            z[i * n + j] = (xh - g->shift[j]) / g->spread[j];
+            double e = x[j] - s.xt[i * n + j];
+            if (!cfg.state_lo.empty()) e = std::min(cfg.state_hi[j], std::max(cfg.state_lo[j], e));
+            xh[i * n + j] = e;
         }
     }
+    return xh;
+}
+
+}  // namespace
+
+void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& pool) {
+    g->zlo.clear();
+    g->zhi.clear();
+    if (!(cfg.input_box > 0)) return;
+    const int n = cfg.n;
+    const std::int64_t N = kInputBoxEstimates;
+    std::vector<double> z = draw_estimates(cfg, *g, pool, N, kInputBoxCounter);
+    for (std::int64_t i = 0; i < N; ++i)
+        for (int j = 0; j < n; ++j) z[i * n + j] = (z[i * n + j] - g->shift[j]) / g->spread[j];
     std::vector<double> col(static_cast<std::size_t>(N)), lo(n), hi(n);
     const double last = double(N - 1);
     for (int j = 0; j < n; ++j) {
@@ -194,6 +210,54 @@ void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& poo
     }
     g->zlo = lo;
     g->zhi = hi;
+}
+
+std::vector<SignCrossing> gain_sign_crossings(const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g) {
+    std::vector<SignCrossing> out;
+    if (!cfg.state_lo.empty() || pool.runs.empty()) return out;
+    const int n = cfg.n;
+    std::vector<double> lo(n, INFINITY), hi(n, -INFINITY);
+    for (const TruthRun& run : pool.runs)
+        for (std::size_t i = 0; i < run.x.size(); ++i) {
+            const int j = int(i % std::size_t(n));
+            lo[j] = std::min(lo[j], run.x[i]);
+            hi[j] = std::max(hi[j], run.x[i]);
+        }
+    const std::int64_t N = kInputBoxEstimates;
+    const std::vector<double> xh = draw_estimates(cfg, g, pool, N, kInputBoxCounter);
+    for (int j = 0; j < n; ++j) {
+        const bool above = lo[j] >= 0 && hi[j] > 0, below = hi[j] <= 0 && lo[j] < 0;
+        if (!above && !below) continue;
+        std::int64_t crossed = 0;
+        for (std::int64_t i = 0; i < N; ++i) crossed += above ? xh[i * n + j] < 0 : xh[i * n + j] > 0;
+        const double share = double(crossed) / double(N);
+        if (share >= kSignCrossingShare) out.push_back({j, above, share});
+    }
+    return out;
+}
+
+std::string gain_sign_note(const RunConfig& cfg, const std::vector<SignCrossing>& crossings) {
+    if (crossings.empty()) return "";
+    const std::vector<std::string> names = cfg.system->state_names();
+    std::string which, bounds;
+    for (std::size_t c = 0; c < crossings.size(); ++c) {
+        const SignCrossing& x = crossings[c];
+        char pct[32];
+        std::snprintf(pct, sizeof pct, "%.1f%%", 100.0 * x.share);
+        which += std::string(c == 0 ? "" : c + 1 == crossings.size() ? " and " : ", ") + names[x.state] +
+                 (x.positive ? " >= 0" : " <= 0") + " (" + pct + " of the estimates cross)";
+    }
+    for (int j = 0; j < cfg.n; ++j) {
+        std::string pair = "[-inf, inf]";
+        for (const SignCrossing& x : crossings)
+            if (x.state == j) pair = x.positive ? "[0, inf]" : "[-inf, 0]";
+        bounds += (j == 0 ? "" : ", ") + pair;
+    }
+    return "hinf: note: every training truth run keeps " + which +
+           ", but the errors training samples around them (docs/method.md section 16.4) put that share of its "
+           "estimates on the other side of 0. If the model means nothing there (a rate divided by a concentration, "
+           "the square root of a level), hold the samples where it holds: [sampling] state_bounds = [" + bounds +
+           "] (docs/method.md section 16.3, \"Where the model holds\")\n";
 }
 
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,

@@ -52,6 +52,21 @@ inline constexpr std::int64_t kInputBoxEstimates = 20000;
 inline constexpr std::uint64_t kInputBoxCounter = std::uint64_t(1) << 63;
 void gain_input_box(kern::GainSpec* g, const RunConfig& cfg, const GainPool& pool);
 
+/// A state that stays on one side of 0 on every training truth run (x >= 0 with some x > 0: positive; or the
+/// mirror) while a share >= kSignCrossingShare of the estimates training samples around the runs (drawn as the
+/// input box draws them) lies on the other side: where a model means nothing there (a concentration, a level), the
+/// user's [sampling] state_bounds should hold the samples. None when the config sets state_bounds.
+struct SignCrossing {
+    int state = 0;
+    bool positive = true;  // the runs keep x >= 0 (else x <= 0)
+    double share = 0;      // of the sampled estimates on the other side
+};
+inline constexpr double kSignCrossingShare = 0.01;
+std::vector<SignCrossing> gain_sign_crossings(const RunConfig& cfg, const GainPool& pool, const kern::GainSpec& g);
+
+/// One line naming the crossings and the state_bounds line that holds them ("" for none).
+std::string gain_sign_note(const RunConfig& cfg, const std::vector<SignCrossing>& crossings);
+
 /// The same for errors around one known estimate x^ (on-line check and retraining): x = x^ + x~, at time t. Their
 /// network input z is the filter's, held in g's box (GainSpec::input); training's is as drawn.
 void gain_samples_at(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, const double* xhat, double t,

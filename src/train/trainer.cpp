@@ -246,6 +246,14 @@ public:
 
     const GainPool& pool() const { return pool_; }  // the gain variant's truth runs (empty for the others)
 
+    // the gain variant's samples across 0 from truth runs that stay on one side of it, in one line ("" for none;
+    // docs/method.md section 16.3, "Where the model holds")
+    std::string sign_note() {
+        if (!gain_ || !cfg_.state_lo.empty()) return "";
+        if (pool_.runs.empty()) build_pool();
+        return gain_sign_note(cfg_, gain_sign_crossings(cfg_, pool_, ck_.net.step.gain));
+    }
+
     // the gain variant's truth runs, and a note (rank 0, once) when some ran away
     void build_pool() {
         pool_ = gain_pool_build(cfg_);
@@ -837,7 +845,8 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
     Trainer<T> tr(cfg, opt.out_dir);
     tr.start_diverged_ = opt.start_diverged;
     tr.start_fresh();
-    if (cfg.rho_auto && par_root())  // after the refusals: a refused run stays one line
+    const bool notes = par_root() && opt.config_notes;
+    if (cfg.rho_auto && notes)  // after the refusals: a refused run stays one line
         std::fprintf(stderr, "hinf: note: [filter] rho is not set: training at rho = %.4g = %g rho*, where rho* = %.4g is "
                              "the smallest level any filter can promise for the linearised system (hinf rho %s%s; "
                              "docs/method.md section 16.12)\n",
@@ -846,7 +855,7 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          ? ""
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     // the walk behind rho* covers the horizon's first kGameLevelMaxSteps steps: a longer one can need a larger level
-    if (cfg.rho_auto && par_root() && cfg.steps_until() > kGameLevelMaxSteps)
+    if (cfg.rho_auto && notes && cfg.steps_until() > kGameLevelMaxSteps)
         std::fprintf(stderr, "hinf: note: that rho* is the linearised game's over the horizon's first %lld of %lld "
                              "steps; over the whole horizon it can only be larger, so the level trained may be one no "
                              "filter keeps there: %s\n",
@@ -855,9 +864,13 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          ? "name [filter] rho"
                          : "hinf rho with a coarser --set filter.dt (whole horizon in at most that many steps) gives "
                            "the whole horizon's, nearly independent of dt; name [filter] rho from it");
-    if (par_root()) constant_state_note(cfg);
-    if (par_root()) {  // a discrete gain filter whose constant storage cannot exist (docs/method.md section 16.8)
+    if (notes) constant_state_note(cfg);
+    if (notes) {  // a discrete gain filter whose constant storage cannot exist (docs/method.md section 16.8)
         const std::string note = constant_storage_note(cfg, constant_storage_check(cfg, tr.pool()));
+        if (!note.empty()) std::fputs(note.c_str(), stderr);
+    }
+    if (notes) {  // samples across 0 where the runs stay on one side (docs/method.md section 16.3)
+        const std::string note = tr.sign_note();
         if (!note.empty()) std::fputs(note.c_str(), stderr);
     }
     tr.on_step_ = opt.on_step;

@@ -22,6 +22,9 @@ struct TrainOptions {
     std::string out_dir = "runs/out/train";
     double until = -1;  // stop at this simulated time [s]; < 0: the config's t_final
     bool quiet = false;
+    // the notes about the config itself (its default level, a constant state, samples across 0): off for a second
+    // run of the same config (the constant-storage alternative), which would repeat them
+    bool config_notes = true;
     // called after each time step (after its checkpoint); an exception thrown here ends the run with the
     // last checkpoint in place
     std::function<void(const TrainStepInfo&)> on_step;

@@ -90,3 +90,59 @@ TEST_CASE("state_bounds are refused in one line where they cannot hold", "[gain]
     doc.set("sampling.state_bounds=[[-inf, inf], [-inf, inf]]");
     CHECK_THROWS_WITH(load_run_config(doc), Catch::Contains("variant = \"gain\" only"));
 }
+
+TEST_CASE("a state the truth runs keep on one side of 0 is named when the samples cross it", "[gain][state_bounds]") {
+    // c stays at 1 and p at -1 on every run (no disturbance reaches them), s wanders around 0 on both sides; the
+    // initial errors of 2 put a share of the sampled estimates of c below 0 and of p above 0
+    const std::string text = R"([system]
+kind = "expr"
+states = ["c", "p", "s"]
+disturbances = 1
+measurements = 3
+f = ["1 - c", "-1 - p", "-s"]
+g = [["0"], ["0"], ["1"]]
+h = ["c", "p", "s"]
+[filter]
+variant = "gain"
+rho = 2.0
+x0 = [1.0, -1.0, 0.0]
+xhat0 = [3.0, -3.0, 0.5]
+dt = 0.01
+t_final = 0.5
+[training]
+samples = 100
+batch = 40
+[sampling]
+trajectories = 3
+[online]
+disturbance_std = 0.5
+noise_std = 0.1
+)";
+    const RunConfig cfg = load_run_config(ConfigDoc::from_text(text, "t.toml"));
+    const GainPool pool = gain_pool_build(cfg);
+    const std::vector<SignCrossing> x = gain_sign_crossings(cfg, pool, network_step_config(cfg).gain);
+    REQUIRE(x.size() == 2);
+    CHECK(x[0].state == 0);
+    CHECK(x[0].positive);
+    CHECK(x[0].share > kSignCrossingShare);
+    CHECK(x[1].state == 1);
+    CHECK_FALSE(x[1].positive);
+    CHECK(x[1].share > kSignCrossingShare);
+    const std::string note = gain_sign_note(cfg, x);
+    CHECK_THAT(note, Catch::Contains("keeps c >= 0"));
+    CHECK_THAT(note, Catch::Contains("and p <= 0"));
+    CHECK_THAT(note, Catch::Contains("state_bounds = [[0, inf], [-inf, 0], [-inf, inf]]"));
+    CHECK(gain_sign_note(cfg, {}).empty());
+
+    // bounds named (the user's choice, whatever it is): no note
+    ConfigDoc doc = ConfigDoc::from_text(text, "t.toml");
+    doc.set("sampling.state_bounds=[[-inf, inf], [-inf, inf], [-inf, inf]]");
+    const RunConfig held = load_run_config(doc);
+    CHECK(gain_sign_crossings(held, gain_pool_build(held), network_step_config(held).gain).empty());
+    // errors too small to reach 0: no note
+    ConfigDoc near = ConfigDoc::from_text(text, "t.toml");
+    near.set("filter.xhat0=[1.01, -1.01, 0.5]");
+    near.set("sampling.error_floor=[0.001, 0.001, 0.1]");
+    const RunConfig small = load_run_config(near);
+    CHECK(gain_sign_crossings(small, gain_pool_build(small), network_step_config(small).gain).empty());
+}
