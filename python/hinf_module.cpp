@@ -107,6 +107,8 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["acceptance_line"] = r.acceptance_line;
     d["acceptance_advice"] = r.acceptance_advice.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_advice));
     d["acceptance_note"] = r.acceptance_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_note));
+    d["acceptance_settle_note"] =
+        r.acceptance_settle_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_settle_note));
     d["acceptance_rmse_settled"] = r.acceptance_rmse_settled;
     d["acceptance_rmse_settled_ekf"] = r.acceptance_rmse_settled_ekf;
     d["acceptance_rms_q_settled"] = r.acceptance_rms_q_settled;

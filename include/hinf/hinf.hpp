@@ -198,6 +198,9 @@ struct TrainReport {
     /// "pass" whose settled error (position, or all states Q-weighted) is above 1.25 times the EKF's on the check's
     /// runs, the level to try for a lower mean error ("acceptance: note: ..."; "" otherwise)
     std::string acceptance, acceptance_checkpoint, acceptance_line, acceptance_advice, acceptance_note;
+    /// where the config names no [online] settle_time and the EKF's error on the check's runs is still falling after
+    /// the default one, so the settled figures hold its transient: the time to name ("acceptance: note: ..."; "" else)
+    std::string acceptance_settle_note;
     /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
     /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
     /// filter's, where a run diverged)

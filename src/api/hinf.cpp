@@ -405,6 +405,7 @@ AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::s
         r.acceptance_line = a.line;
         r.acceptance_advice = a.advice;
         r.acceptance_note = a.note;
+        r.acceptance_settle_note = a.settle_note;
         r.acceptance_rmse_settled = a.rmse_position_settled;
         r.acceptance_rmse_settled_ekf = a.rmse_position_settled_ekf;
         r.acceptance_rms_q_settled = a.rms_q_settled;

@@ -131,6 +131,8 @@ void add_compare_command(CLI::App& app) {
                         "runs count for no filter, in the table and in the files\n",
                         static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs),
                         s.first_truth_escape, truth_escape_cause(cfg).c_str());
+        const std::string settle = settle_note(cfg, s, "compare");
+        if (!settle.empty()) std::printf("%s\n", settle.c_str());
         std::printf("MSEp / MSEf: 10 log10 of the mean over runs of each run's MSE over all states and steps, of the "
                     "one-step prediction x^(k|k-1) / of the filtered estimate x^(k|k) (nan: none)\n");
         bool same = true;

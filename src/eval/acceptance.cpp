@@ -99,6 +99,7 @@ struct AcceptanceVsEkf {
     double dnn = NAN, ekf = NAN;      // position RMSE
     double dnn_q = NAN, ekf_q = NAN;  // Q-weighted RMS over all states
     std::string furthest;             // the two weighted states furthest behind, "om 2.8x, th 2.7x" ("": none)
+    std::string settle_note;          // the EKF still falling in the default settled window (compare.hpp)
     bool settled = true;
     double behind() const { return std::max(dnn / ekf, dnn_q / ekf_q); }  // NaN where either is
 };
@@ -155,6 +156,7 @@ AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& netwo
     a.ekf_q = std::sqrt(q_weighted_ms(cfg, em, es));
     a.furthest = furthest_behind(cfg, dm, ds, em, es);
     if (d.diverged_runs > 0) a.dnn = a.dnn_q = NAN;  // the verdict fails on it already; no mean over the rest
+    a.settle_note = settle_note(cfg, s, "acceptance");
     return a;
 }
 
@@ -379,6 +381,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.rms_q_settled = vs.dnn_q;
     o.rms_q_settled_ekf = vs.ekf_q;
     o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
+    o.settle_note = vs.settle_note;
     if (pass && cfg.variant == "gain" && vs.behind() > kBehindEkf)  // NaN (a diverged run) is no PASS
         o.note = acceptance_behind_note(cfg, path, vs.dnn / vs.ekf, vs.dnn_q / vs.ekf_q, vs.furthest);
     if (!pass) {

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "hinf/config.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
@@ -82,6 +83,61 @@ std::string hex(std::uint64_t h) {
 }
 
 }  // namespace
+
+SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>& ms, double t0) {
+    SettleCheck c;
+    const std::size_t N = std::min(t.size(), ms.size());
+    std::size_t first = 0;
+    while (first < N && t[first] < t0) ++first;
+    if (N - first >= 8) {
+        const std::size_t mid = first + (N - first) / 2;
+        double a = 0, b = 0;
+        for (std::size_t k = first; k < mid; ++k) a += ms[k];
+        for (std::size_t k = mid; k < N; ++k) b += ms[k];
+        a /= double(mid - first);
+        b /= double(N - mid);
+        if (b > 0) c.halves = a / b;
+    }
+    if (N >= 40) {
+        constexpr int kBlocks = 20, kLast = 5;
+        std::vector<double> block(kBlocks, 0.0);
+        auto begin = [N](int i) { return std::size_t(i) * N / kBlocks; };
+        for (int i = 0; i < kBlocks; ++i) {
+            for (std::size_t k = begin(i); k < begin(i + 1); ++k) block[i] += ms[k];
+            block[i] /= double(begin(i + 1) - begin(i));
+        }
+        double level = 0;
+        for (int i = kBlocks - kLast; i < kBlocks; ++i) level += block[i] / kLast;
+        int from = 0;
+        for (int i = 0; i < kBlocks; ++i)
+            if (!(block[i] <= kSettleFactor * level)) from = i + 1;  // NaN counts as not settled
+        if (from < kBlocks) c.settled_after = t[begin(from)];
+    }
+    return c;
+}
+
+std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who) {
+    if (ConfigSection(cfg.doc, "online").has("settle_time")) return "";
+    const CompareFilterResult* ref = nullptr;
+    for (const char* name : {"ekf", "ukf", "pf"})
+        for (const auto& fr : s.filters)
+            if (!ref && fr.name == name) ref = &fr;
+    if (!ref || !(ref->settle_halves > kSettleFactor)) return "";
+    const bool known = std::isfinite(ref->settled_after);
+    const std::string from = known ? ", and it stays within " + format_g(kSettleFactor) +
+                                         " times its level over the run's last quarter from t = " +
+                                         format_g(ref->settled_after) + " s"
+                                   : "";
+    char buf[900];
+    std::snprintf(buf, sizeof buf,
+                  "%s: note: the %s's error is still falling after t = %g s, the default settle_time (the config names "
+                  "none): over the first half of the settled window its mean square error is %.3g times the second "
+                  "half's%s. The settled figures hold that transient; name the time this system settles in, e.g. "
+                  "--set online.settle_time=%.3g (docs/compare.md, \"Settled\")",
+                  who, ref->name == "pf" ? "PF" : ref->name == "ukf" ? "UKF" : "EKF", cfg.settle_time,
+                  ref->settle_halves, from.c_str(), known ? ref->settled_after : cfg.t_final / 2);
+    return buf;
+}
 
 CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                            const CompareOptions& opt) {
@@ -209,6 +265,14 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             est[j] = c > 0 ? std::sqrt(std::max(0.0, s2 / c - emt[j] * emt[j])) : NAN;
         }
 
+        std::vector<double> msq(nsub, 0.0);  // Q-weighted mean square over the kept runs, for the settle check
+        for (std::int64_t t = 0; t < nsub; ++t)
+            for (int j = 0; j < n; ++j)
+                msq[t] += cfg.Q[std::size_t(j) * n + j] * (emt[t * n + j] * emt[t * n + j] + est[t * n + j] * est[t * n + j]);
+        const SettleCheck sc = settle_check(tsub, msq, cfg.settle_time);
+        fr.settle_halves = sc.halves;
+        fr.settled_after = sc.settled_after;
+
         h5::Handle g = h5::create_group(root, fr.name);
         hid_t gid = g.get();
         h5::set_attr(gid, "mode", fr.mode);
@@ -226,6 +290,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         h5::set_attr(gid, "mse_db", fr.mse_db);
         h5::set_attr(gid, "mse_filtered", fr.mse_filtered);
         h5::set_attr(gid, "mse_filtered_db", fr.mse_filtered_db);
+        h5::set_attr(gid, "settle_halves", fr.settle_halves);
+        h5::set_attr(gid, "settled_after", fr.settled_after);
         h5::write_doubles(gid, "mse_per_run", mse_runs.data(), {hsize_t(R)}, "state units^2",
                           "mean over states and steps of (x - x^_{k|k-1})^2 per run (the prediction)");
         h5::write_doubles(gid, "mse_filtered_per_run", msef_runs.data(), {hsize_t(R)}, "state units^2",

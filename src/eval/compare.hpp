@@ -40,6 +40,9 @@ struct CompareFilterResult {
     // them reported anything non-zero (ehf: the steps where its level failed; docs/compare.md)
     std::vector<double> report_sum;
     std::int64_t report_runs = 0;
+    // whether its error has settled in the settled window (settle_check below, over its Q-weighted mean square error
+    // across the kept runs at t_sub)
+    double settle_halves = NAN, settled_after = NAN;
 };
 
 struct CompareSummary {
@@ -52,6 +55,22 @@ struct CompareSummary {
     double wall_seconds = 0;
     std::vector<double> rank_seconds;  // [MPI processes] time each spent on its runs (one entry without mpirun)
 };
+
+/// Whether an error has settled by t0 (docs/compare.md, "Settled"), from its mean square over runs ms[k] at the
+/// increasing times t[k]: `halves`, its mean over the first half of the samples at t >= t0 over its mean over the
+/// second half (NaN with fewer than 8 such samples or a second half of 0); `settled_after`, the run cut into 20 blocks
+/// of equal sample counts (at least 40 samples, else NaN), the start of the first block from which every block's mean
+/// stays within kSettleFactor times the mean of the last 5 blocks.
+struct SettleCheck {
+    double halves = NAN, settled_after = NAN;
+};
+inline constexpr double kSettleFactor = 2.0;
+SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>& ms, double t0);
+
+/// One line when the config names no [online] settle_time and the reference filter of s (ekf, else ukf, else pf)
+/// is still falling in the default window: its halves above kSettleFactor. It names where that filter settles and
+/// the key to set; "" otherwise. `who` starts the line ("compare", "acceptance").
+std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who);
 
 /// Runs every filter (prototypes, cloned per thread) on the same R simulated runs of cfg's system; writes
 /// out_dir/compare.h5 and out_dir/compare.csv. OpenMP over runs; results do not depend on the thread count.
