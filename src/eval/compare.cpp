@@ -267,8 +267,10 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
 
         std::vector<double> msq(nsub, 0.0);  // Q-weighted mean square over the kept runs, for the settle check
         for (std::int64_t t = 0; t < nsub; ++t)
-            for (int j = 0; j < n; ++j)
-                msq[t] += cfg.Q[std::size_t(j) * n + j] * (emt[t * n + j] * emt[t * n + j] + est[t * n + j] * est[t * n + j]);
+            for (int j = 0; j < n; ++j) {
+                const double m = emt[t * n + j], sd = est[t * n + j];
+                msq[t] += cfg.Q[std::size_t(j) * n + j] * (m * m + sd * sd);
+            }
         const SettleCheck sc = settle_check(tsub, msq, cfg.settle_time);
         fr.settle_halves = sc.halves;
         fr.settled_after = sc.settled_after;
