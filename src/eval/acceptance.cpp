@@ -104,12 +104,10 @@ struct AcceptanceVsEkf {
     double behind() const { return std::max(dnn / ekf, dnn_q / ekf_q); }  // NaN where either is
 };
 
-// The Q-weighted mean square error sum_j Q_jj (mean_j^2 + std_j^2) of per-state error means and stds over time: the
+// The Q-weighted mean square error of per-state error means and stds over time (compare.hpp q_weighted_ms): the
 // selection's score (select_score below) and, as its square root, the acceptance's all-state figure
 double q_weighted_ms(const RunConfig& cfg, const std::vector<double>& mean, const std::vector<double>& sd) {
-    double q = 0;
-    for (int j = 0; j < cfg.n; ++j) q += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
-    return q;
+    return q_weighted_ms(cfg, mean.data(), sd.data());
 }
 
 // The (at most) two states with Q_jj > 0 whose RMS error sqrt(mean^2 + std^2) is furthest above the EKF's, as

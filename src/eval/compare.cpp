@@ -84,6 +84,12 @@ std::string hex(std::uint64_t h) {
 
 }  // namespace
 
+double q_weighted_ms(const RunConfig& cfg, const double* mean, const double* sd) {
+    double q = 0;
+    for (int j = 0; j < cfg.n; ++j) q += cfg.Q[std::size_t(j) * cfg.n + j] * (mean[j] * mean[j] + sd[j] * sd[j]);
+    return q;
+}
+
 SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>& ms, double t0) {
     SettleCheck c;
     const std::size_t N = std::min(t.size(), ms.size());
@@ -265,12 +271,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             est[j] = c > 0 ? std::sqrt(std::max(0.0, s2 / c - emt[j] * emt[j])) : NAN;
         }
 
-        std::vector<double> msq(nsub, 0.0);  // Q-weighted mean square over the kept runs, for the settle check
-        for (std::int64_t t = 0; t < nsub; ++t)
-            for (int j = 0; j < n; ++j) {
-                const double m = emt[t * n + j], sd = est[t * n + j];
-                msq[t] += cfg.Q[std::size_t(j) * n + j] * (m * m + sd * sd);
-            }
+        std::vector<double> msq(nsub);  // Q-weighted mean square over the kept runs, for the settle check
+        for (std::int64_t t = 0; t < nsub; ++t) msq[t] = q_weighted_ms(cfg, emt.data() + t * n, est.data() + t * n);
         const SettleCheck sc = settle_check(tsub, msq, cfg.settle_time);
         fr.settle_halves = sc.halves;
         fr.settled_after = sc.settled_after;

@@ -56,6 +56,10 @@ struct CompareSummary {
     std::vector<double> rank_seconds;  // [MPI processes] time each spent on its runs (one entry without mpirun)
 };
 
+/// sum_j Q_jj (mean_j^2 + sd_j^2) over the n states of per-state error means and stds: the Q-weighted mean square
+/// error (the checkpoint selection's score, the acceptance's all-state figure, the settle check's series)
+double q_weighted_ms(const RunConfig& cfg, const double* mean, const double* sd);
+
 /// Whether an error has settled by t0 (docs/compare.md, "Settled"), from its mean square over runs ms[k] at the
 /// increasing times t[k]: `halves`, its mean over the first half of the samples at t >= t0 over its mean over the
 /// second half (NaN with fewer than 8 such samples or a second half of 0); `settled_after`, the run cut into 20 blocks
