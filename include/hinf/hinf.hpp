@@ -237,8 +237,10 @@ ExportReport export_c99(const std::vector<std::string>& checkpoints, const std::
 /// a constant storage in out_dir/alternative and keeps the run that validates lower in out_dir (docs/method.md
 /// section 16.7, "Held at once"). Where a `gain` run at the default level with plain [online] stds keeps no validated
 /// checkpoint, it also trains the game in units of each channel's noise there and keeps it if it validates ("No
-/// validated checkpoint"; its config then gives noise_std as a list, and Filter converts measurements for it). The
-/// report describes the kept run.
+/// validated checkpoint"; its config then gives noise_std as a list, and Filter converts measurements for it). Where
+/// its acceptance check finds a run with knots settled beyond twice the EKF's error, it trains a constant storage
+/// too, and first flat knots where the Riccati start was held after its first knot, keeping the lowest validation
+/// ("Far behind the EKF"). The report describes the kept run.
 TrainReport train(const Config& cfg, const TrainSettings& settings);
 /// Continues the run of a checkpoint into its directory (as `hinf resume`); settings.out_dir is ignored.
 TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings);

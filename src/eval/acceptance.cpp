@@ -640,34 +640,47 @@ bool keep_alternative(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection
     return true;
 }
 
-// The second run of a choice between a run's storage and a constant one (network.storage_knots = 0, the same config
-// otherwise) in DIR/alternative: trained, its best checkpoint's validation score against the first run's, the run that
-// scored lower kept in DIR. `first` names the first run's storage in the notes. false: the first run stays (the
-// second diverged, could not be trained, scored no lower, or was interrupted: s->status then its status).
-bool choose_constant_storage(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
-                             const std::string& dir, bool quiet, const char* first) {
+// A storage as the notes name it: "with flat knots", "keeps the flat knots"
+struct StorageName {
+    const char* with;
+    const char* kept;
+};
+constexpr StorageName kKnots{"knots", "knots"}, kRiccatiStart{"the Riccati start", "Riccati start"},
+    kFlatKnots{"flat knots", "flat knots"}, kConstant{"a constant storage", "constant storage"};
+
+// The second run of a choice between a run's storage and another (`other`: the same config, the storage's keys
+// changed; `second` names it in the notes) in DIR/alternative: trained, its best checkpoint's validation score against
+// the first run's, the run that scored lower kept in DIR. `first` names the first run's storage in the notes. false:
+// the first run stays (the second diverged, could not be trained, scored no lower, or was interrupted: s->status then
+// its status).
+bool choose_storage(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
+                    bool quiet, StorageName first, RunConfig other, StorageName second) {
     const std::string alt = dir + "/alternative";
-    ConfigDoc doc = cfg->doc;
-    doc.set("network.storage_knots=0");
-    RunConfig other = load_run_config(doc);  // the config the first run trained, one key changed: it loads
     AlternativeRun a = train_alternative(other, alt, quiet);
     if (!a.error.empty() || a.s.status != 0) {  // the first run stays in DIR
         if (a.s.status >= 128) {
             s->status = a.s.status;  // interrupted: the caller stops as after an interrupted first run
         } else {
-            std::fprintf(stderr, "hinf: note: the run with a constant storage %s (%s); %s keeps the %s\n",
+            std::fprintf(stderr, "hinf: note: the run with %s %s (%s); %s keeps the %s\n", second.with,
                          a.error.empty() ? "diverged" : ("was not trained: " + a.error).c_str(), alt.c_str(),
-                         dir.c_str(), first);
+                         dir.c_str(), first.kept);
         }
         return false;
     }
     const bool keep_other = a.best && a.best->step >= 0 && a.best->score < (*best)->score;
     std::fprintf(stderr,
-                 "hinf: note: best validated settled Q-weighted MSE %.4g with %s, %.4g with a constant storage: "
-                 "%s keeps the %s, %s the other run\n",
-                 (*best)->score, first, a.best && a.best->step >= 0 ? a.best->score : NAN, dir.c_str(),
-                 keep_other ? "constant storage" : first, alt.c_str());
+                 "hinf: note: best validated settled Q-weighted MSE %.4g with %s, %.4g with %s: %s keeps the %s, %s "
+                 "the other run\n",
+                 (*best)->score, first.with, a.best && a.best->step >= 0 ? a.best->score : NAN, second.with,
+                 dir.c_str(), keep_other ? second.kept : first.kept, alt.c_str());
     return keep_other && keep_alternative(cfg, s, best, dir, alt, std::move(other), std::move(a));
+}
+
+// The same config with a constant storage (network.storage_knots = 0): loads, one key changed
+RunConfig constant_storage_config(const RunConfig& cfg) {
+    ConfigDoc doc = cfg.doc;
+    doc.set("network.storage_knots=0");
+    return load_run_config(doc);
 }
 
 // a run that trained up to t_final (fresh, or resumed: as one run uninterrupted) with a kept best checkpoint, on one
@@ -690,7 +703,7 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
                  "in %s/alternative) and keeps the run whose best checkpoint validates lower (docs/method.md section "
                  "16.7, \"Held at once: both storages trained\")\n",
                  dir.c_str());
-    return choose_constant_storage(cfg, s, best, dir, quiet, "flat knots");
+    return choose_storage(cfg, s, best, dir, quiet, kFlatKnots, constant_storage_config(*cfg), kConstant);
 }
 
 bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
@@ -700,6 +713,25 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
     if (!(a.ran && behind > kFarBehindEkf && cfg->variant == "gain" && cfg->storage_knots > 0 &&
           storage_was_hinfs(*cfg, *s, *best) && !riccati_start_held_at_once(*cfg)))
         return false;  // (held at once: choose_held_start trained both already)
+    const RunConfig constant = constant_storage_config(*cfg);  // the first run's config: a flat one names its start
+    const double held = cfg->storage_init == "riccati" ? riccati_start_held_later(*cfg) : -1.0;
+    if (held >= 0) {
+        std::fprintf(stderr,
+                     "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error. "
+                     "Its knots started on the game's Riccati solution along the noise-free trajectory, held at the "
+                     "storage's floor from t = %.4g s; where the runs drift from that trajectory (a spiking neuron's "
+                     "spikes shift in time) flat knots settled 14-28 times closer to the EKF, so hinf trains them "
+                     "too, then a constant storage (network.storage_knots = 0), each in %s/alternative, and keeps the "
+                     "run whose best checkpoint validates lowest (docs/method.md section 16.7, \"Far behind the EKF, "
+                     "held later: flat knots tried\")\n",
+                     behind, held, dir.c_str());
+        const bool flat =
+            choose_storage(cfg, s, best, dir, quiet, kRiccatiStart, flat_start_config(*cfg), kFlatKnots);
+        if (s->status != 0) return flat;  // interrupted: the caller stops
+        const bool constant_kept =
+            choose_storage(cfg, s, best, dir, quiet, flat ? kFlatKnots : kRiccatiStart, constant, kConstant);
+        return flat || constant_kept;
+    }
     std::fprintf(stderr,
                  "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error. Its "
                  "storage S(t) changes with time on knots (started, unless flat, on the game's solution along the "
@@ -709,7 +741,7 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
                  "(network.storage_knots = 0, in %s/alternative) and keeps the run whose best checkpoint validates "
                  "lower (docs/method.md section 16.7, \"Far behind the EKF: a constant storage tried\")\n",
                  behind, dir.c_str());
-    return choose_constant_storage(cfg, s, best, dir, quiet, "knots");
+    return choose_storage(cfg, s, best, dir, quiet, kKnots, constant, kConstant);
 }
 
 bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,

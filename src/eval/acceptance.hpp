@@ -135,8 +135,11 @@ AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir,
 /// config names none of network.storage_knots, network.storage_init and network.knot_ratio, and its start was not
 /// held at once (choose_held_start trained both there), this trains the same config with network.storage_knots = 0
 /// in DIR/alternative and keeps the run whose best checkpoint validated lower in DIR, as choose_held_start does.
-/// true: the constant storage is kept, cfg, s and best describe it, and its acceptance check is yet to run (the
-/// caller's `a` is the other run's). Prints its notes; does nothing (false) elsewhere. An interrupted second run keeps
+/// Where the run's knots started on a Riccati solution held at the floor after the first knot
+/// (riccati_start_held_later; "Far behind the EKF, held later: flat knots tried"), flat knots are trained and chosen
+/// first, then the constant storage against the run kept (DIR/alternative: the other run of the last choice).
+/// true: another storage is kept, cfg, s and best describe it, and its acceptance check is yet to run (the
+/// caller's `a` is the first run's). Prints its notes; does nothing (false) elsewhere. An interrupted second run keeps
 /// the first and sets s->status (128 + signal).
 bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
                                const std::string& dir, bool quiet, const AcceptanceOutcome& a);

@@ -421,6 +421,15 @@ bool riccati_start_held_at_once(const RunConfig& cfg) {
     return held_at_once(riccati_knots(knots.data(), cfg, step.gain), step.gain);
 }
 
+double riccati_start_held_later(const RunConfig& cfg) {
+    if (!(cfg.variant == "gain" && cfg.storage_knots > 0 && cfg.storage_init == "riccati")) return -1.0;
+    const kern::StepConfig step = network_step_config(cfg);
+    if (!step.gain.enabled || step.gain.knots <= 0) return -1.0;
+    std::vector<double> knots(static_cast<std::size_t>(step.gain.storage_params(cfg.n)), 0.0);
+    const RiccatiStart r = riccati_knots(knots.data(), cfg, step.gain);
+    return r.held >= 0 && !held_at_once(r, step.gain) ? r.held : -1.0;
+}
+
 template <typename T>
 Network<T> network_create(const RunConfig& cfg) {
     Network<T> net = network_shell<T>(cfg);

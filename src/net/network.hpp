@@ -31,6 +31,9 @@ Network<T> network_shell(const RunConfig& cfg);
 /// the storage's floor before its first knot (docs/method.md section 16.7, "Initial knots"): a gain run with knots
 /// and network.storage_init = "riccati". One walk of the Riccati recursion; no network is drawn.
 bool riccati_start_held_at_once(const RunConfig& cfg);
+/// Where the Riccati start is held at the storage's floor later than that (the knots keep it, the later ones at the
+/// floor): the time it is first held; -1 where it is not held, is held at once, or the config has no Riccati start.
+double riccati_start_held_later(const RunConfig& cfg);
 
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);

@@ -32,10 +32,6 @@
 
 namespace hinf {
 
-namespace {
-
-// The run's config with the storage's knots started flat instead of on the Riccati solution, recorded in its text, at
-// the margin the run trains with (a config naming the flat start would read the other default margin)
 RunConfig flat_start_config(const RunConfig& cfg) {
     RunConfig flat = cfg;
     flat.storage_init = "flat";
@@ -45,6 +41,8 @@ RunConfig flat_start_config(const RunConfig& cfg) {
     flat.doc.set(margin);
     return flat;
 }
+
+namespace {
 
 // Whether hinf may replace the run's Riccati start by the flat one (docs/method.md section 16.7, "A start that
 // diverges"): a gain run with S(t) whose config does not name network.storage_init

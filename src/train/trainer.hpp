@@ -73,6 +73,10 @@ struct TrainSummary {
 /// CLI calls it from its SIGINT/SIGTERM handler.
 void train_request_stop(int signal);
 
+/// The run's config with the storage's knots started flat instead of on the Riccati solution, recorded in its text,
+/// at the margin the run trains with (a config naming the flat start would read the other default margin).
+RunConfig flat_start_config(const RunConfig& cfg);
+
 /// Starts a run from the config (creates out_dir/trajectory.h5, out_dir/checkpoint.h5).
 TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt);
 /// Continues from a checkpoint into its directory (the trajectory is cut back to the checkpoint).
