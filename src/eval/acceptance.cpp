@@ -719,9 +719,9 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
         std::fprintf(stderr,
                      "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error. "
                      "Its knots started on the game's Riccati solution along the noise-free trajectory, held at the "
-                     "storage's floor from t = %.4g s; where the runs drift from that trajectory (a spiking neuron's "
-                     "spikes shift in time) flat knots settled 14-28 times closer to the EKF, so hinf trains them "
-                     "too, then a constant storage (network.storage_knots = 0), each in %s/alternative, and keeps the "
+                     "storage's floor from t = %.4g s; where the runs drift from that trajectory (a Hodgkin-Huxley "
+                     "neuron, its spikes shifted in time) flat knots settled at 1.6 times the EKF where that start "
+                     "gave 29, so hinf trains them too, then a constant storage (network.storage_knots = 0), each in %s/alternative, and keeps the "
                      "run whose best checkpoint validates lowest (docs/method.md section 16.7, \"Far behind the EKF, "
                      "held later: flat knots tried\")\n",
                      behind, held, dir.c_str());
