@@ -43,6 +43,7 @@ struct AcceptanceWorst {
     double ratio = NAN, ekf_ratio = NAN;  // the largest ratio found for the DNN filter and for the EKF
     std::int64_t evals = 0;               // the DNN filter's objective evaluations, all its restarts
     bool diverged = false;                // the DNN filter diverged under its worst signals (replay)
+    std::string outside;                  // worst_outside_training under those signals ("": inside)
     double wall_seconds = 0;
     std::string skipped;                  // why no search ran ("" when it ran)
 };
@@ -85,6 +86,10 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     for (const auto& rs : r.filters[0].restarts) a.evals += rs.evals;
     a.diverged = r.cross.diverged_at[0] >= 0;  // row 0 (the DNN filter's worst set), column 0 (the DNN filter)
     a.wall_seconds = r.wall_seconds;
+    if (!game) {  // where those signals drove the true state (the truth does not depend on the filters' start)
+        const TruthRun tr = truth_simulate(cfg, Scenario{}, 0, K, &r.filters[0].worst.signals);
+        a.outside = worst_outside_training(net->step_config().gain, cfg.system->state_names(), tr.x, cfg.n);
+    }
     return a;
 }
 
@@ -210,6 +215,40 @@ std::string advice_config(const RunConfig& cfg) {
 
 }  // namespace
 
+std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
+                                   const std::vector<double>& x, int n) {
+    if (g.zlo.empty() || n <= 0) return "";
+    const std::int64_t K = std::int64_t(x.size()) / n;
+    int worst = -1;
+    double beyond = 1.0, value = 0;  // the largest excursion past the box, in box widths (> 1 to be said)
+    for (int i = 0; i < n && i < int(g.zlo.size()); ++i) {
+        const double lo = g.shift[i] + g.spread[i] * g.zlo[i], hi = g.shift[i] + g.spread[i] * g.zhi[i];
+        const double w = hi - lo;
+        if (!(w > 0)) continue;
+        for (std::int64_t k = 0; k < K; ++k) {
+            const double v = x[k * n + i];
+            const double past = !std::isfinite(v) ? INFINITY : std::max(v - hi, lo - v) / w;
+            if (past > beyond) {
+                beyond = past;
+                worst = i;
+                value = v;
+            }
+        }
+    }
+    if (worst < 0) return "";
+    const double lo = g.shift[worst] + g.spread[worst] * g.zlo[worst];
+    const double hi = g.shift[worst] + g.spread[worst] * g.zhi[worst];
+    char buf[256];
+    const std::string name = std::size_t(worst) < names.size() ? names[std::size_t(worst)] : std::to_string(worst + 1);
+    if (std::isfinite(value))
+        std::snprintf(buf, sizeof buf, "%s reached %.4g where training's estimates spanned [%.4g, %.4g]", name.c_str(),
+                      value, lo, hi);
+    else
+        std::snprintf(buf, sizeof buf, "%s ran away where training's estimates spanned [%.4g, %.4g]", name.c_str(), lo,
+                      hi);
+    return buf;
+}
+
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search) {
     std::string a = "acceptance: next:";
     char buf[640];
@@ -256,6 +295,16 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       " the worst-case search found a ratio of %.4g above rho = %.4g: a higher level, a weaker promise, "
                       "is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
                       search.ratio, cfg.rho, higher, label);
+        a += buf;
+    }
+    if (!lost && search.ran && !search.outside.empty() && (search.diverged || search.ratio > cfg.rho)) {
+        std::snprintf(buf, sizeof buf,
+                      " under those signals the true state left the region training covered (%s, more than the "
+                      "region's width beyond it): the filter's gain there is the region's edge's (network.input_box), "
+                      "and the search measures the system driven out of it by the nominal noise's energy; where the "
+                      "system is not meant to go there, measure inside it with a smaller budget (hinf worst --energy) "
+                      "beside the EKF's, else train over it (docs/byos.md section 4);",
+                      search.outside.c_str());
         a += buf;
     }
     const std::int64_t steps = cfg.steps_until(), updates = steps * cfg.adam_steps;
@@ -387,6 +436,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
         found.ran = search && w.skipped.empty();
         found.ratio = w.ratio;
         found.diverged = w.diverged;
+        found.outside = w.outside;
         found.nominal_diverged = s.diverged_runs;
         found.nominal_runs = s.runs;
         found.behind_ekf = vs.behind();

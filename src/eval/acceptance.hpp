@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "config/run_config.hpp"
+#include "gain_params.hpp"
 #include "train/trainer.hpp"
 
 namespace hinf {
@@ -117,7 +118,16 @@ struct AcceptanceSearch {
     // the DNN filter's settled error over the EKF's on those runs, the larger of the position and the all-state
     // Q-weighted ratio (NaN: a run diverged, or no EKF figure)
     double behind_ekf = std::numeric_limits<double>::quiet_NaN();
+    // where the true state went under the DNN filter's worst signals, if beyond the region training's estimates
+    // covered (worst_outside_training): "vy reached 88.5 where training's estimates spanned [-2.6, 2.5]"; "" if not
+    std::string outside;
 };
+/// Where a `gain` network's input box (network.input_box: the box of training's estimates, docs/method.md section
+/// 16.10) is known: the state whose true values along `x` [K x n] went furthest beyond it, by more than the box's own
+/// width, said as "vy reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite
+/// value); "" where none did or the network has no box.
+std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
+                                   const std::vector<double>& x, int n);
 /// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's
 /// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);

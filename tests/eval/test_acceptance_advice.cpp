@@ -1,7 +1,8 @@
 // The line after a FAILed acceptance check ("acceptance: next: ..."): each branch from what the check measured.
 // The level against rho* (hinf rho), the run's Adam updates, and what the worst-case search found: a ratio above a
 // feasible rho (a higher level suggested), a divergence (said; on a discrete-time system with the direct gain head,
-// the Kalman-form head offered), nothing found (no level advice).
+// the Kalman-form head offered), nothing found (no level advice); where the worst signals drove the true state far
+// beyond the region training's estimates covered, that said (worst_outside_training).
 #include <catch2/catch.hpp>
 #include <cmath>
 
@@ -172,4 +173,41 @@ TEST_CASE("acceptance advice at a level below rho* names rho* and not a higher m
     INFO(a);
     CHECK(has(a, "rho = 0.01 is at or below rho* = "));
     CHECK_FALSE(has(a, "higher level"));
+}
+
+TEST_CASE("the true state far beyond training's region under the worst signals is named in the advice",
+          "[acceptance]") {
+    kern::GainSpec g;  // two states; boxes in x units: [-1, 3] (width 4) and [10, 20] (width 10)
+    g.shift = {1.0, 15.0};
+    g.spread = {2.0, 5.0};
+    g.zlo = {-1.0, -1.0};
+    g.zhi = {1.0, 1.0};
+    const std::vector<std::string> names = {"p", "v"};
+    // inside, and beyond by less than a width (p to 6.9: 3.9 past 3 with a width of 4): nothing said
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 6.9, 19.0, -4.9, 10.0}, 2).empty());
+    // v to 41 is 21 past 20 with a width of 10 (2.1 widths), p to 12 is 9 past 3 (2.25 widths): p is named
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 12.0, 41.0}, 2) ==
+          "p reached 12 where training's estimates spanned [-1, 3]");
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 1.0, -15.0}, 2) ==
+          "v reached -15 where training's estimates spanned [10, 20]");
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, NAN, 12.0}, 2) ==
+          "p ran away where training's estimates spanned [-1, 3]");
+    kern::GainSpec none = g;  // a network without an input box: nothing to compare with
+    none.zlo.clear();
+    none.zhi.clear();
+    CHECK(worst_outside_training(none, names, {0.0, 12.0, 100.0, 100.0}, 2).empty());
+
+    const RunConfig c = scalar("2", "adam_steps = 200\n");
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 7.9;
+    s.outside = "p reached 12 where training's estimates spanned [-1, 3]";
+    const std::string a = acceptance_advice(c, "best.h5", s);
+    CHECK(has(a, "the true state left the region training covered (p reached 12 where"));
+    CHECK(has(a, "hinf worst --energy"));
+    s.ratio = 1.5;  // the level kept: nothing to explain
+    CHECK(!has(acceptance_advice(c, "best.h5", s), "left the region"));
+    s.ratio = NAN;  // or diverged
+    s.diverged = true;
+    CHECK(has(acceptance_advice(c, "best.h5", s), "left the region"));
 }
