@@ -411,23 +411,30 @@ bool held_at_once(const RiccatiStart& r, const kern::GainSpec& g) {
     return r.held >= 0 && r.held_knot <= 1 && 1.0 + g.eps > r.floor;
 }
 
-}  // namespace
-
-bool riccati_start_held_at_once(const RunConfig& cfg) {
+// The Riccati start's walk for a config that has one (a gain run with knots and storage_init = "riccati"): its
+// RiccatiStart, and `at_once` as network_create's rule reads it; false where the config has no such start
+bool riccati_start_walk(const RunConfig& cfg, RiccatiStart* r, bool* at_once) {
     if (!(cfg.variant == "gain" && cfg.storage_knots > 0 && cfg.storage_init == "riccati")) return false;
     const kern::StepConfig step = network_step_config(cfg);
     if (!step.gain.enabled || step.gain.knots <= 0) return false;
     std::vector<double> knots(static_cast<std::size_t>(step.gain.storage_params(cfg.n)), 0.0);
-    return held_at_once(riccati_knots(knots.data(), cfg, step.gain), step.gain);
+    *r = riccati_knots(knots.data(), cfg, step.gain);
+    *at_once = held_at_once(*r, step.gain);
+    return true;
+}
+
+}  // namespace
+
+bool riccati_start_held_at_once(const RunConfig& cfg) {
+    RiccatiStart r;
+    bool at_once = false;
+    return riccati_start_walk(cfg, &r, &at_once) && at_once;
 }
 
 double riccati_start_held_later(const RunConfig& cfg) {
-    if (!(cfg.variant == "gain" && cfg.storage_knots > 0 && cfg.storage_init == "riccati")) return -1.0;
-    const kern::StepConfig step = network_step_config(cfg);
-    if (!step.gain.enabled || step.gain.knots <= 0) return -1.0;
-    std::vector<double> knots(static_cast<std::size_t>(step.gain.storage_params(cfg.n)), 0.0);
-    const RiccatiStart r = riccati_knots(knots.data(), cfg, step.gain);
-    return r.held >= 0 && !held_at_once(r, step.gain) ? r.held : -1.0;
+    RiccatiStart r;
+    bool at_once = false;
+    return riccati_start_walk(cfg, &r, &at_once) && r.held >= 0 && !at_once ? r.held : -1.0;
 }
 
 template <typename T>
