@@ -360,6 +360,14 @@ std::string default_variant(const std::string& type, int n, int m, int nv) {
 }
 
 RunConfig load_run_config(ConfigDoc doc, bool need_level) {
+    {  // seed 002's delay systems have their own commands: say so before their sections read as unknown
+        ConfigSection sys(doc, "system");
+        if (sys.has("kind") && sys.get_string("kind", "") == "ito_delay")
+            sys.reject("kind", "\"ito_delay\" is a delay system of the LMI route (docs/method_lmi.md): `hinf lmi " +
+                                   doc.source() + "` designs its filter and `hinf operate " + doc.source() +
+                                   "` runs it; the other commands take a system of [system] kind = \"expr\", "
+                                   "\"missile\" or \"maneuvering_missile\"");
+    }
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
     RunConfig c;
     c.system = make_system(doc);

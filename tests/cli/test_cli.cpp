@@ -11,6 +11,7 @@ using hinf::test::TempDir;
 
 using hinf::test::expect_one_line_error;
 using hinf::test::tiny_missile_config;
+using hinf::test::source_path;
 using hinf::test::write_file;
 
 TEST_CASE("hinf --help and subcommand --help", "[cli]") {
@@ -82,6 +83,10 @@ TEST_CASE("bad inputs give one line and a non-zero exit", "[cli][errors]") {
     expect_one_line_error("operate " + good + " --network " + good, "is not an HDF5 file");
     expect_one_line_error("operate " + good + " --network " + (d / "none.h5"), "cannot open");
     expect_one_line_error("operate " + good, "operate needs --network");
+    // a delay system of the LMI route: its commands named, not its sections called unknown
+    const std::string delay = source_path("runs/delay_hinf.toml");
+    for (const char* cmd : {"train ", "rho ", "compare "})
+        expect_one_line_error(cmd + delay, "is a delay system of the LMI route (docs/method_lmi.md): `hinf lmi ");
     // an existing run is never overwritten silently
     REQUIRE(run_hinf("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet").status == 0);
     expect_one_line_error("train " + good + " --out " + (d / "run") + " --until 0.01 --quiet", "already holds a run");
