@@ -180,6 +180,21 @@ void add_worst_command(CLI::App& app) {
                         median, best_start, fr.restarts[fr.best].start.c_str(), fr.restarts.size());
         }
         print_cross(r.cross);
+        // a gain network's filter: where its worst signals drove the truth far beyond training's region, its gain
+        // there is the region's edge's (network.input_box), and the ratio measures that, not what training shaped
+        for (std::size_t i = 0; i < filters.size(); ++i)
+            for (std::size_t j = 0; j < nets.size(); ++j) {
+                if (filters[i]->name().rfind(prefixes[j], 0) != 0 || !nets[j]->step_config().gain.enabled) continue;
+                const std::string out_of = worst_truth_outside_training(cfg, nets[j]->step_config().gain,
+                                                                        r.filters[i].worst.signals, r.steps);
+                if (!out_of.empty())
+                    std::printf("note: under %s's worst signals the true state left the region training covered (%s, "
+                                "more than the region's width beyond it): the filter's gain there is the region's "
+                                "edge's; where the system is not meant to go there, a smaller --energy measures "
+                                "inside it, else train over it (docs/byos.md section 4)\n",
+                                filters[i]->name().c_str(), out_of.c_str());
+                break;
+            }
         std::printf("wall %.1f s; file: %s/worst.h5; replay: hinf worst %s --replay %s/worst.h5 --filters ...\n",
                     r.wall_seconds, out.c_str(), a->config.c_str(), out.c_str());
         if (a->plot) plot(out + "/worst.h5", out);

@@ -122,12 +122,6 @@ struct AcceptanceSearch {
     // covered (worst_outside_training): "vy reached 88.5 where training's estimates spanned [-2.6, 2.5]"; "" if not
     std::string outside;
 };
-/// Where a `gain` network's input box (network.input_box: the box of training's estimates, docs/method.md section
-/// 16.10) is known: the state whose true values along `x` [K x n] went furthest beyond it, by more than the box's own
-/// width, said as "vy reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite
-/// value); "" where none did or the network has no box.
-std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
-                                   const std::vector<double>& x, int n);
 /// After a FAIL: what to try, one line "acceptance: next: ...", from the level against rho* (hinf rho), the run's
 /// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);

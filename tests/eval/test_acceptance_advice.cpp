@@ -8,6 +8,7 @@
 
 #include "config/game_level.hpp"
 #include "eval/acceptance.hpp"
+#include "eval/worst.hpp"
 
 using namespace hinf;
 
