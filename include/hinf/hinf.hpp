@@ -51,6 +51,12 @@ public:
     /// nothing to check (continuous time, another variant, every error seen within a step) or no verdict from the
     /// solver.
     double constant_storage_violation() const;
+    /// Per state: the share of the open-loop predictor's error variance that the EKF's covariance equation keeps over
+    /// the run's second half along the noise-free run, told every measurement with a thousandth of its noise
+    /// (docs/method.md 16.18; computed on each call, as `hinf rho`). From 0.9 on, the outputs tell next to nothing
+    /// about that state and no filter does much better there than the model's own prediction; NaN: nothing to tell
+    /// (no error there without the outputs either); empty where the covariance equation left the finite numbers.
+    std::vector<double> unseen_share() const;
     std::string system() const;                    ///< "missile", "maneuvering_missile" or "expr"
     std::vector<std::string> state_names() const;  ///< n names
     std::vector<std::string> state_units() const;  ///< n units

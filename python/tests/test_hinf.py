@@ -283,6 +283,16 @@ def test_constant_storage_violation_matches_hinf_rho():
     assert math.isnan(hinf.Config(VANDERPOL).constant_storage_violation)  # continuous time: nothing to check
 
 
+def test_unseen_share_matches_hinf_rho():
+    """The states the outputs tell next to nothing about, as `hinf rho` names them (method 16.18)."""
+    motor_path = os.path.join(ROOT, "examples", "systems", "dc_motor.toml")
+    share = hinf.Config(motor_path).unseen_share
+    assert len(share) == 3 and share[0] < 0.1 and share[2] >= 0.9  # the encoder; the current, masked
+    out = subprocess.run([hinf_cli(), "rho", motor_path], capture_output=True, text=True, check=True).stdout
+    assert "the outputs tell next to nothing about cur" in out
+    assert max(hinf.Config(VANDERPOL).unseen_share) < 0.1
+
+
 def test_ensemble_of_copies_is_the_network(trained, record):
     """ensemble=True: one dnn filter with the mean gain; two copies of one network filter as that network, bit for bit,
     and one network alone is refused in hinf's one line."""

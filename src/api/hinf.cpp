@@ -14,6 +14,7 @@
 #include "eval/acceptance.hpp"
 #include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
+#include "eval/observability.hpp"
 #include "export/export_c.hpp"
 #include "filters/factory.hpp"
 #include "hinf/config.hpp"
@@ -77,6 +78,10 @@ double Config::constant_storage_violation() const {
     if (cfg.variant != "gain" || !cfg.system->discrete_time()) return NAN;
     const StorageCheck c = constant_storage_check(cfg, gain_pool_build(cfg));
     return c.ran && c.solved && c.q_scale > 0 ? c.mu_lower / c.q_scale : NAN;
+}
+std::vector<double> Config::unseen_share() const {
+    const StateInformation s = state_information(run_config(*this));
+    return s.ran ? s.ratio : std::vector<double>{};
 }
 std::string Config::system() const { return run_config(*this).system->name(); }
 std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }

@@ -1,11 +1,15 @@
-// `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp), and
-// for a discrete-time gain config the constant-storage check (src/train/storage_check.hpp).
+// `hinf rho CONFIG [--rho R]`: the smallest attenuation level of the linearised game (src/config/game_level.cpp), what
+// the outputs tell about each state (src/eval/observability.hpp), and for a discrete-time gain config the
+// constant-storage check (src/train/storage_check.hpp).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "config/game_level.hpp"
+#include "eval/observability.hpp"
 #include "train/gain_samples.hpp"
 #include "train/storage_check.hpp"
 
@@ -57,6 +61,22 @@ void add_rho_command(CLI::App& app) {
             std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)\n",
                         cfg.rho, kAutoRhoFactor);
         else std::printf("the config's rho = %g\n", cfg.rho);
+        {  // what the outputs tell about each state (docs/method.md section 16.18)
+            const StateInformation info = state_information(cfg);
+            const std::string note = unseen_states_note(cfg, info);
+            if (!note.empty()) std::printf("%s\n", note.c_str() + std::strlen("hinf: note: "));
+            else if (info.ran) {
+                int most = -1;  // the state the outputs tell least about (NaN: nothing to tell, left out)
+                for (int i = 0; i < cfg.n; ++i)
+                    if (std::isfinite(info.ratio[std::size_t(i)]) &&
+                        (most < 0 || info.ratio[std::size_t(i)] > info.ratio[std::size_t(most)]))
+                        most = i;
+                if (most >= 0) std::printf("the outputs see every state: along the noise-free run the EKF's covariance "
+                            "equation, told every measurement with a thousandth of its noise, keeps at most %.3g %% of "
+                            "the open-loop predictor's error variance (%s) over the run's second half\n",
+                            100 * info.ratio[std::size_t(most)], cfg.system->state_names()[std::size_t(most)].c_str());
+            }
+        }
         if (cfg.variant == "gain" && cfg.system->discrete_time()) {  // docs/method.md section 16.8
             const StorageCheck sc = constant_storage_check(cfg, gain_pool_build(cfg));
             if (sc.infeasible()) std::fputs(constant_storage_note(cfg, sc).c_str(), stdout);

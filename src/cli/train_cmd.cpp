@@ -11,6 +11,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "eval/acceptance.hpp"
+#include "eval/observability.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
 #include "par/par.hpp"
@@ -104,6 +105,10 @@ void add_train_commands(CLI::App& app) {
                        "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
+        if (par_root()) {  // a state the outputs do not see: said before the training's time is spent
+            const std::string note = unseen_states_note(cfg, state_information(cfg));
+            if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
+        }
         std::shared_ptr<Selection> best = selection_begin(cfg, opt.out_dir, /*fresh=*/true, opt);
         install_stop_handlers();
         TrainSummary s = train_start(cfg, opt);

@@ -210,6 +210,17 @@ TEST_CASE("library: constant_storage_violation says what hinf rho says about a d
     CHECK(std::isnan(hinf::Config::from_text(kTinyMissile, "tiny.toml").constant_storage_violation()));
 }
 
+TEST_CASE("library: unseen_share says what hinf rho says about the states the outputs tell nothing about", "[api]") {
+    // the DC motor's encoder: the current's effect on the angle is masked by the disturbance on the speed (0.95 when
+    // written); Van der Pol's position sensor sees the velocity
+    const hinf::Config motor = hinf::Config::load(hinf::test::source_path("examples/systems/dc_motor.toml"));
+    const std::vector<double> m = motor.unseen_share();
+    REQUIRE(m.size() == 3u);
+    CHECK(m[0] < 0.1);
+    CHECK(m[2] >= 0.9);
+    for (double r : hinf::Config::load(hinf::test::source_path("runs/vanderpol.toml")).unseen_share()) CHECK(r < 0.1);
+}
+
 TEST_CASE("library: a Filter is told the P0 hinf filter tells it (options, then [baseline] initial_std, then the error)",
           "[api]") {
     const std::string text =
