@@ -102,6 +102,10 @@ inline constexpr double kBehindEkf = 1.25;
 /// behind it, docs/byos.md section 4; Lorenz-96 PASSed at 4 rho* 7x behind it, docs/method.md section 16.7); beyond
 /// it, a run with knots also trains a constant storage (choose_storage_far_behind)
 inline constexpr double kFarBehindEkf = 2.0;
+/// Between this ratio and kFarBehindEkf on the check's runs, choose_storage_far_behind decides on
+/// kFarBehindRecheckRuns runs (the check's among them) rather than on the check's few
+inline constexpr double kFarBehindRecheck = 1.5;
+inline constexpr std::int64_t kFarBehindRecheckRuns = 25;
 /// That note: a higher level, a weaker promise, lets the gain trade worst case for mean error (docs/method.md
 /// section 16.12, "Kept, and behind the EKF"), and beyond kFarBehindEkf the EKF or UKF is the filter; `position`
 /// and `all_q` the settled position RMSE and the all-state Q-weighted RMS error over the EKF's, the larger said first;
@@ -134,8 +138,8 @@ AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir,
 
 /// Far behind the EKF (docs/method.md section 16.7, "Far behind the EKF: a constant storage tried"): where the
 /// acceptance check `a` of a `gain` run with a time-varying storage (network.storage_knots > 0) found it settled above
-/// kFarBehindEkf times the EKF's error, the run trained (fresh or resumed) to t_final with a kept best checkpoint on
-/// one process, its
+/// kFarBehindEkf times the EKF's error (between kFarBehindRecheck and kFarBehindEkf: on kFarBehindRecheckRuns runs),
+/// the run trained (fresh or resumed) to t_final with a kept best checkpoint on one process, its
 /// config names none of network.storage_knots, network.storage_init and network.knot_ratio, and its start was not
 /// held at once (choose_held_start trained both there), this trains the same config with network.storage_knots = 0
 /// in DIR/alternative and keeps the run whose best checkpoint validated lower in DIR, as choose_held_start does.
