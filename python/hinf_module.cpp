@@ -239,6 +239,9 @@ PYBIND11_MODULE(_hinf, m) {
                                })
         .def_property_readonly("innovation_rms", [](const hinf::FilterTrace& t) { return to_array(t.innovation_rms); })
         .def_property_readonly("innovation_mean", [](const hinf::FilterTrace& t) { return to_array(t.innovation_mean); })
+        .def_readonly("note", &hinf::FilterTrace::note,
+                      "What the filter met on the record that the arrays do not say, or '' (a DNN gain filter: its "
+                      "estimate went far beyond the region its network was trained on)")
         .def("__repr__", [](const hinf::FilterTrace& t) {
             return "<hinf.FilterTrace " + t.name + " steps=" + std::to_string(t.steps) +
                    (t.diverged_at >= 0 ? " diverged" : "") + ">";

@@ -120,6 +120,9 @@ struct FilterTrace {
     std::vector<double> xhat_final;    ///< [n] the estimate of x(t_{K-1} + dt) after the last measurement
     double diverged_at = -1;           ///< time [s] the filter diverged at (frozen after it); < 0: never
     std::vector<double> innovation_rms, innovation_mean;  ///< [m] over the steps before a divergence
+    /// What the filter met on the record that the arrays do not say, or "" (a DNN gain filter: its estimate went far
+    /// beyond the region its network was trained on, where its gain is the region's edge's)
+    std::string note;
 };
 
 /// One on-line filter: dnn (a trained network, measured mode), ekf, ukf, pf, ehf, glf or open_loop. A Filter is a

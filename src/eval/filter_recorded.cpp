@@ -127,6 +127,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             h5::set_attr(g.get(), "us_per_step", r.us_per_step);
             h5::set_attr(g.get(), "innovation_rms", r.innovation_rms);
             h5::set_attr(g.get(), "innovation_mean", r.innovation_mean);
+            if (!r.note.empty()) h5::set_attr(g.get(), "note", r.note);  // what the figures do not say
             h5::write_doubles(g.get(), "xhat", p.xhat.data(), {hsize_t(K), hsize_t(n)}, units,
                               "estimate of x(t_k) from y(t_0..t_{k-1}); frozen after a divergence");
             h5::write_doubles(g.get(), "xhat_final", p.xhat_final.data(), {hsize_t(n)}, units,
@@ -214,6 +215,7 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
     }, [&](std::int64_t, const double* xf) { p.xhat_filtered.insert(p.xhat_filtered.end(), xf, xf + n); });
     r.diverged_at = sr.diverged_at;
     const double seconds = sr.seconds;
+    r.note = f.run_note();
     p.xhat_final.assign(f.estimate(), f.estimate() + n);
     for (int j = 0; j < m; ++j) {
         r.innovation_mean[j] /= double(std::max<std::int64_t>(used, 1));

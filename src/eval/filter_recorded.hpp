@@ -27,6 +27,7 @@ struct RecordedResult {
     std::vector<double> innovation_rms;  // [m] sqrt(mean_k (y_k - C(x^_k))^2), per output, before divergence
     std::vector<double> innovation_mean;  // [m]
     double us_per_step = 0;
+    std::string note;  // OnlineFilter::run_note() after the record ("": nothing to say)
 };
 
 /// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt.

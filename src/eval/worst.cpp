@@ -736,36 +736,10 @@ std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& c
 
 std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
                                    const std::vector<double>& x, int n) {
-    if (g.zlo.empty() || n <= 0) return "";
-    const std::int64_t K = std::int64_t(x.size()) / n;
-    int worst = -1;
-    double beyond = 1.0, value = 0;  // the largest excursion past the box, in box widths (> 1 to be said)
-    for (int i = 0; i < n && i < int(g.zlo.size()); ++i) {
-        const double lo = g.shift[i] + g.spread[i] * g.zlo[i], hi = g.shift[i] + g.spread[i] * g.zhi[i];
-        const double w = hi - lo;
-        if (!(w > 0)) continue;
-        for (std::int64_t k = 0; k < K; ++k) {
-            const double v = x[k * n + i];
-            const double past = !std::isfinite(v) ? INFINITY : std::max(v - hi, lo - v) / w;
-            if (past > beyond) {
-                beyond = past;
-                worst = i;
-                value = v;
-            }
-        }
-    }
-    if (worst < 0) return "";
-    const double lo = g.shift[worst] + g.spread[worst] * g.zlo[worst];
-    const double hi = g.shift[worst] + g.spread[worst] * g.zhi[worst];
-    char buf[256];
-    const std::string name = std::size_t(worst) < names.size() ? names[std::size_t(worst)] : std::to_string(worst + 1);
-    if (std::isfinite(value))
-        std::snprintf(buf, sizeof buf, "%s reached %.4g where training's estimates spanned [%.4g, %.4g]", name.c_str(),
-                      value, lo, hi);
-    else
-        std::snprintf(buf, sizeof buf, "%s ran away where training's estimates spanned [%.4g, %.4g]", name.c_str(), lo,
-                      hi);
-    return buf;
+    if (n <= 0) return "";
+    BoxExcursion far;
+    far.see(g, x.data(), std::int64_t(x.size()) / n, n);
+    return far.text(names);
 }
 
 std::string worst_truth_outside_training(const RunConfig& cfg, const kern::GainSpec& g, const Signals& s,

@@ -85,12 +85,23 @@ public:
     GainFilter(const FilterModel& model, std::vector<std::unique_ptr<FrozenNetwork>> nets, std::string name)
         : model_(model), nets_(std::move(nets)), name_(std::move(name)) {}
     std::string name() const override { return name_; }
-    void reset(const FilterStart& start) override { xhat_ = start.xhat0; }
+    void reset(const FilterStart& start) override {
+        xhat_ = start.xhat0;
+        far_ = BoxExcursion();
+    }
     bool uses_true_state() const override { return false; }
+    std::string run_note() const override {
+        const std::string where = far_.text(model_.system->state_names());
+        if (where.empty()) return "";
+        return "its estimate went far beyond the region its network was trained on (" + where +
+               ", more than the region's width beyond it): its gain there is the one at the region's edge "
+               "(docs/method.md section 16.10)";
+    }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
         const int n = sys.state_dim(), m = sys.output_dim();
         std::vector<double> a(n), ch(m), e(m), k(static_cast<std::size_t>(n) * m);
+        for (const auto& net : nets_) far_.see(net->step_config().gain, xhat_.data(), 1, n);  // the input it holds
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
         if (in.y != nullptr) sys.output_difference(e.data(), in.y, ch.data());  // missing: e = 0, no correction
@@ -126,6 +137,7 @@ private:
     std::vector<std::unique_ptr<FrozenNetwork>> nets_;
     std::string name_;
     std::vector<double> xhat_, xf_;  // x^_{k+1}, and x^_k corrected by y_k (filtered())
+    BoxExcursion far_;               // how far the estimates went beyond the networks' input boxes since reset()
 };
 
 }  // namespace

@@ -89,6 +89,7 @@ public:
     const double* covariance() const override { return inner_->covariance(); }
     bool uses_true_state() const override { return inner_->uses_true_state(); }
     std::vector<double> run_report() const override { return inner_->run_report(); }
+    std::string run_note() const override { return inner_->run_note(); }
     std::unique_ptr<OnlineFilter> clone() const override {
         return std::make_unique<OutputsReweighted>(inner_->clone(), w_cfg_, w_net_, m_);
     }

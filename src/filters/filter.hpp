@@ -115,6 +115,9 @@ public:
     /// Figures a filter keeps about its own run since reset() (e.g. the retraining gain filter's check and trigger
     /// counts, train/online_retrain.hpp); the Monte Carlo engine keeps them in FilterRunStats::reported. Most: none.
     virtual std::vector<double> run_report() const { return {}; }
+    /// A sentence on what the filter met in its own run since reset() that its estimates and figures do not say, or
+    /// "" (the gain filter: its estimate went far beyond the region its network was trained on, method.md 16.10).
+    virtual std::string run_note() const { return ""; }
     /// An independent copy (own workspace) for another thread.
     virtual std::unique_ptr<OnlineFilter> clone() const = 0;
 };

@@ -503,6 +503,39 @@ Network<T> network_create(const RunConfig& cfg) {
     return net;
 }
 
+void BoxExcursion::see(const kern::GainSpec& g, const double* x, std::int64_t count, int n) {
+    if (g.zlo.empty()) return;
+    for (int i = 0; i < n && i < int(g.zlo.size()); ++i) {
+        const double a = g.shift[i] + g.spread[i] * g.zlo[i], b = g.shift[i] + g.spread[i] * g.zhi[i];
+        const double w = b - a;
+        if (!(w > 0)) continue;
+        for (std::int64_t k = 0; k < count; ++k) {
+            const double v = x[k * n + i];
+            const double past = !std::isfinite(v) ? INFINITY : std::max(v - b, a - v) / w;
+            if (past > widths) {
+                widths = past;
+                state = i;
+                value = v;
+                lo = a;
+                hi = b;
+            }
+        }
+    }
+}
+
+std::string BoxExcursion::text(const std::vector<std::string>& names) const {
+    if (state < 0) return "";
+    const std::string name = std::size_t(state) < names.size() ? names[std::size_t(state)] : std::to_string(state + 1);
+    char buf[256];
+    if (std::isfinite(value))
+        std::snprintf(buf, sizeof buf, "%s reached %.4g where training's estimates spanned [%.4g, %.4g]", name.c_str(),
+                      value, lo, hi);
+    else
+        std::snprintf(buf, sizeof buf, "%s ran away where training's estimates spanned [%.4g, %.4g]", name.c_str(), lo,
+                      hi);
+    return buf;
+}
+
 void FrozenNetwork::gain(double*, double*, double*, const double*, double, const System&, std::int64_t) {
     HINF_FAIL("this network is not of variant \"gain\": it has no gain K(x^) (train with [filter] variant = \"gain\")");
 }

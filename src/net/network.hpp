@@ -70,6 +70,22 @@ std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* 
                                         const std::vector<double>* mean = nullptr,
                                         const std::vector<double>* sd = nullptr);
 
+/// How far a path of states went beyond the box of training's estimates (network.input_box, docs/method.md
+/// section 16.10), where a gain network's filter holds its input at the box's edge: the state furthest beyond it, in
+/// box widths, and its value there. Only an excursion of more than the box's own width is kept (the box leaves a
+/// share q of training's estimates outside on each side, so a short step past its edge is routine).
+struct BoxExcursion {
+    int state = -1;      // the state furthest beyond the box (-1: none more than a width beyond)
+    double widths = 1;   // how far beyond, in widths of the box (inf: a non-finite value)
+    double value = 0;    // its value there
+    double lo = 0, hi = 0;  // the box of that state, in state units
+    /// Takes the states x [count x n] into account; a gain without a box changes nothing.
+    void see(const kern::GainSpec& g, const double* x, std::int64_t count, int n);
+    /// "v reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite value), with
+    /// the states' names; "" where no state went more than a width beyond.
+    std::string text(const std::vector<std::string>& names) const;
+};
+
 /// A frozen network as a function, whatever its precision: for the on-line phase.
 class FrozenNetwork {
 public:
