@@ -9,6 +9,7 @@
 #include "helpers.hpp"
 #include "hinf/config.hpp"
 #include "hinf/h5.hpp"
+#include "filters/dnn.hpp"
 #include "io/checkpoint.hpp"
 #include "train/gain_samples.hpp"
 #include "train/trainer.hpp"
@@ -91,6 +92,22 @@ TEST_CASE("input_box: training is unchanged, and the filter holds the network's 
     const std::vector<double> k_far = gain_at(*box, cfg, far), k_edge = gain_at(*none, cfg, edge);
     for (std::size_t i = 0; i < k_far.size(); ++i) CHECK(k_far[i] == Approx(k_edge[i]).epsilon(1e-12));
     CHECK(gain_at(*none, cfg, far) != k_far);
+
+    // the filter says when its estimate went more than the box's width beyond it (hinf filter's note), and a reset
+    // forgets it; an estimate inside says nothing
+    std::unique_ptr<OnlineFilter> filter = make_gain_filter(filter_model(cfg), *box, "dnn_gain_measured");
+    auto note_from = [&](const std::vector<double>& x0) {
+        FilterStart start;
+        start.xhat0 = x0;
+        filter->reset(start);
+        FilterInput in;  // no measurement: the estimate the network sees is x0
+        filter->step(in);
+        return filter->run_note();
+    };
+    const std::string said = note_from(far);
+    CHECK(said.find(" reached ") != std::string::npos);
+    CHECK(said.find("where training's estimates spanned [") != std::string::npos);
+    CHECK(note_from(mid).empty());
 
     // the bounds travel with the network
     h5::Handle f = h5::open_file(d / "held/checkpoint.h5", false);
