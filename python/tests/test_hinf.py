@@ -156,6 +156,17 @@ def test_step_by_step_equals_run(trained, record):
         assert np.array_equal(f.estimate, cfg.initial_estimate)
 
 
+def test_gain_trace_notes_an_estimate_far_beyond_training(trained, record):
+    """FilterTrace.note: empty on a run inside the box of training's estimates, the state and the span named on a run
+    started far beyond it (docs/method.md 16.10), as hinf filter prints it; a filter without a network says nothing."""
+    cfg, ckpt, _, _, _ = trained
+    t, Y, _ = record
+    assert hinf.Filter(cfg, "dnn", network=ckpt).run(t, Y).note == ""
+    far = hinf.Filter(cfg, "dnn", network=ckpt, initial_estimate=np.array([400.0, -400.0])).run(t, Y)
+    assert " reached " in far.note and "where training's estimates spanned [" in far.note
+    assert hinf.Filter(cfg, "ekf", initial_estimate=np.array([400.0, -400.0])).run(t, Y).note == ""
+
+
 def test_network_gain_shapes(trained):
     """The default variant, gain: K(x^, t) [n x m] from the estimate alone; the error's gradient is refused."""
     _, ckpt, _, _, _ = trained

@@ -208,6 +208,27 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     INFO(fl.output);
     CHECK(fl.status == 0);
     CHECK(fl.output.find("dnn_gain_measured") != std::string::npos);
+    CHECK(fl.output.find("note: dnn_gain_measured: ") == std::string::npos);  // the record's estimates stay inside
+    {  // started far beyond the box of training's estimates (docs/method.md 16.10): one note line, kept in the file
+        auto far_start = run_hinf("filter " + cfg + " --measurements " + (d / "rec.csv") + " --network " + net +
+                                  " --filters dnn,ekf --initial-estimate 400,-400 --out " + (d / "filtfar"));
+        INFO(far_start.output);
+        CHECK(far_start.status == 0);
+        const std::string line = "note: dnn_gain_measured: ";
+        const std::size_t at = far_start.output.find(line);
+        REQUIRE(at != std::string::npos);
+        CHECK(far_start.output.find(line, at + 1) == std::string::npos);
+        CHECK(far_start.output.find("If the system does go there, train over it") != std::string::npos);
+        CHECK(far_start.output.find("note: ekf: ") == std::string::npos);
+        hinf::h5::Handle f = hinf::h5::open_file(d / "filtfar/estimates.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), "dnn_gain_measured");
+        REQUIRE(hinf::h5::has_attr(g.get(), "note"));
+        const std::string note = hinf::h5::get_attr_string(g.get(), "note");
+        CHECK(note.find(" reached ") != std::string::npos);
+        CHECK(far_start.output.find(note) != std::string::npos);  // the file keeps what was printed
+        hinf::h5::Handle e = hinf::h5::open_group(f.get(), "ekf");
+        CHECK_FALSE(hinf::h5::has_attr(e.get(), "note"));
+    }
     // resume continues the same run
     auto r = run_hinf("resume " + net + " --quiet");
     CHECK(r.status == 0);
