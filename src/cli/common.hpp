@@ -2,6 +2,7 @@
 #pragma once
 #include <omp.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
 #include "config/run_config.hpp"
+#include "filters/filter.hpp"
 
 namespace hinf::cli {
 
@@ -28,6 +30,22 @@ inline void apply_threads(int threads) {
 /// runs/out/<config file stem>/<suffix>
 inline std::string default_out_dir(const std::string& config_path, const std::string& suffix) {
     return "runs/out/" + std::filesystem::path(config_path).stem().string() + (suffix.empty() ? "" : "/" + suffix);
+}
+
+/// A filter's note after its run(s) (OnlineFilter::run_note: a gain filter's estimate far beyond the region its
+/// network was trained on), with what to do about it, on one line. `runs`: "" for one record, else e.g.
+/// "in 3 of 50 run(s) (the first: run 7), ".
+inline void print_filter_note(const std::string& filter, const std::string& runs, const std::string& note) {
+    std::printf("note: %s: %s%s. If the system does go there, train over it (the config's x0, xhat0, t_final or "
+                "[online] disturbance_std: docs/byos.md section 4); compare with --filters ekf,ukf\n",
+                filter.c_str(), runs.c_str(), note.c_str());
+}
+
+/// "in K of R run(s) (the first: run r), " for print_filter_note ("" for none).
+inline std::string runs_with_note(const RunNotes& notes, std::int64_t runs) {
+    if (notes.runs == 0) return "";
+    return "in " + std::to_string(notes.runs) + " of " + std::to_string(runs) + " run(s) (the first: run " +
+           std::to_string(notes.first_run) + "), ";
 }
 
 }  // namespace hinf::cli

@@ -136,10 +136,7 @@ void add_filter_command(CLI::App& app) {
             std::printf("  %9.2f\n", r.us_per_step);
         }
         for (const auto& r : res)
-            if (!r.note.empty())
-                std::printf("note: %s: %s. If the system does go there, train over it (the config's x0, xhat0, t_final "
-                            "or [online] disturbance_std: docs/byos.md section 4); compare with --filters ekf,ukf\n",
-                            r.name.c_str(), r.note.c_str());
+            if (!r.note.empty()) print_filter_note(r.name, "", r.note);
         std::printf("files: %s/estimates.h5, estimates_<filter>.csv (xhat[k] estimates x(t_k) from y before t_k)\n",
                     opt.out_dir.c_str());
     });

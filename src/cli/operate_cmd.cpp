@@ -110,6 +110,7 @@ void add_operate_command(CLI::App& app) {
                         "runs count for no figure below\n",
                         static_cast<long long>(s.truth_escaped_runs), static_cast<long long>(s.runs),
                         s.first_truth_escape, truth_escape_cause(cfg).c_str());
+        if (s.notes.runs > 0) print_filter_note("dnn", runs_with_note(s.notes, s.runs), s.notes.first);
         if (s.diverged_runs > 0)
             std::printf("DIVERGED: %lld of %lld run(s); the first at t = %.2f s (ratios below are infinite)\n",
                         static_cast<long long>(s.diverged_runs), static_cast<long long>(s.runs), s.first_divergence);

@@ -212,6 +212,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
                 any = any || rep[j] != 0;
             }
             fr.report_runs += any ? 1 : 0;
+            fr.notes.see(r, er.runs[k][r].note);
             if (runs[r].diverged_at >= 0) ++fr.diverged_runs;
             else kept.push_back(r);
         }
@@ -296,6 +297,11 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         h5::set_attr(gid, "mse_filtered_db", fr.mse_filtered_db);
         h5::set_attr(gid, "settle_halves", fr.settle_halves);
         h5::set_attr(gid, "settled_after", fr.settled_after);
+        if (fr.notes.runs > 0) {  // what the figures do not say (OnlineFilter::run_note)
+            h5::set_attr(gid, "note", fr.notes.first);
+            h5::set_attr(gid, "note_runs", fr.notes.runs);
+            h5::set_attr(gid, "note_first_run", fr.notes.first_run);
+        }
         h5::write_doubles(gid, "mse_per_run", mse_runs.data(), {hsize_t(R)}, "state units^2",
                           "mean over states and steps of (x - x^_{k|k-1})^2 per run (the prediction)");
         h5::write_doubles(gid, "mse_filtered_per_run", msef_runs.data(), {hsize_t(R)}, "state units^2",

@@ -40,6 +40,7 @@ struct CompareFilterResult {
     // them reported anything non-zero (ehf: the steps where its level failed; docs/compare.md)
     std::vector<double> report_sum;
     std::int64_t report_runs = 0;
+    RunNotes notes;  // OnlineFilter::run_note() over the same runs (a gain filter: its estimate far beyond its box)
     // whether its error has settled in the settled window (settle_check below, over its Q-weighted mean square error
     // across the kept runs at t_sub)
     double settle_halves = NAN, settled_after = NAN;

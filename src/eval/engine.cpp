@@ -134,6 +134,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     r.seconds = sr.seconds;
     if (obs != nullptr) r.observed = obs->end();
     r.reported = f.run_report();
+    r.note = f.run_note();
     return r;
 }
 
@@ -145,6 +146,7 @@ void put_stats(ParBytesOut& w, const FilterRunStats& s) {
     for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
                           &s.err_sq_filtered, &s.reported})
         w.put(*v);
+    w.put(s.note);
 }
 
 FilterRunStats get_stats(ParBytesIn& rd) {
@@ -156,6 +158,7 @@ FilterRunStats get_stats(ParBytesIn& rd) {
     for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
                     &s.err_sq_filtered, &s.reported})
         *v = rd.get_vector();
+    s.note = rd.get_string();
     return s;
 }
 

@@ -104,6 +104,7 @@ struct FilterRunStats {
     std::vector<double> xhat;       // run 0 only: [K x n]
     std::vector<double> observed;   // StepObserver::end() of this (filter, run)
     std::vector<double> reported;   // OnlineFilter::run_report() after the run
+    std::string note;               // OnlineFilter::run_note() after the run ("": nothing to say)
 };
 
 struct EngineOptions {

@@ -290,6 +290,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
             chk_v[e] += D[r].observed[4 * e + 2];
             chk_n[e] += D[r].observed[4 * e + 3];
         }
+        sum.notes.see(r, D[r].note);
         if (cfg.retrain) {  // the retraining filter's own check, with its network of the moment
             const OnlineRetrainCounts c = OnlineRetrainCounts::from_vector(D[r].reported);
             chk_v[0] += c.check_violations;
@@ -378,6 +379,11 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
         h5::write_doubles(root, "online_hji_violation_fraction_per_network",
                           sum.online_hji_violation_fraction_per_network.data(), {hsize_t(E)}, "1",
                           "the same at the true x~: share of the steps violating (14.1) by more than 1 % of its scale");
+    }
+    if (sum.notes.runs > 0) {  // what the figures do not say (OnlineFilter::run_note)
+        h5::set_attr(root, "note", sum.notes.first);
+        h5::set_attr(root, "note_runs", sum.notes.runs);
+        h5::set_attr(root, "note_first_run", sum.notes.first_run);
     }
     h5::set_attr(root, "online_retrain", std::int64_t(cfg.retrain ? 1 : 0));
     if (cfg.retrain) {

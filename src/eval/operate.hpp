@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "filters/filter.hpp"
 #include "net/network.hpp"
 #include "config/run_config.hpp"
 
@@ -52,6 +53,7 @@ struct OperateSummary {
     double retrain_triggers = 0, retrain_adam_steps = 0, retrain_rejected = 0;  // totals over runs
     double retrain_eps_before = NAN, retrain_eps_after = NAN;  // mean over triggers of max_j H_j/S_j before/after
     std::string online_checkpoint;  // run 0's final on-line network ("" when not written)
+    RunNotes notes;  // the DNN filter's OnlineFilter::run_note() over the counted runs (method.md 16.10)
 };
 
 /// Runs the frozen network of `network` on the system of `cfg`; writes out_dir/operate.h5.

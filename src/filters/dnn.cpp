@@ -90,13 +90,7 @@ public:
         far_ = BoxExcursion();
     }
     bool uses_true_state() const override { return false; }
-    std::string run_note() const override {
-        const std::string where = far_.text(model_.system->state_names());
-        if (where.empty()) return "";
-        return "its estimate went far beyond the region its network was trained on (" + where +
-               ", more than the region's width beyond it): its gain there is the one at the region's edge "
-               "(docs/method.md section 16.10)";
-    }
+    std::string run_note() const override { return far_.filter_note(model_.system->state_names()); }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
         const int n = sys.state_dim(), m = sys.output_dim();

@@ -122,6 +122,20 @@ public:
     virtual std::unique_ptr<OnlineFilter> clone() const = 0;
 };
 
+/// The runs on which a filter had something to say (FilterRunStats::note), for a summary: how many, and the first.
+struct RunNotes {
+    std::int64_t runs = 0;        // runs with a note
+    std::int64_t first_run = -1;  // the first of them (its index)
+    std::string first;            // its note
+    void see(std::int64_t run, const std::string& note) {
+        if (note.empty()) return;
+        if (runs++ == 0) {
+            first_run = run;
+            first = note;
+        }
+    }
+};
+
 /// true when every entry is finite and |x| < 1e12 (the divergence bound of eval/operate.cpp).
 inline bool filter_estimate_ok(const double* x, int n) {
     for (int i = 0; i < n; ++i)

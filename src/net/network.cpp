@@ -536,6 +536,14 @@ std::string BoxExcursion::text(const std::vector<std::string>& names) const {
     return buf;
 }
 
+std::string BoxExcursion::filter_note(const std::vector<std::string>& names) const {
+    const std::string where = text(names);
+    if (where.empty()) return "";
+    return "its estimate went far beyond the region its network was trained on (" + where +
+           ", more than the region's width beyond it): its gain there is the one at the region's edge "
+           "(docs/method.md section 16.10)";
+}
+
 void FrozenNetwork::gain(double*, double*, double*, const double*, double, const System&, std::int64_t) {
     HINF_FAIL("this network is not of variant \"gain\": it has no gain K(x^) (train with [filter] variant = \"gain\")");
 }

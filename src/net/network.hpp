@@ -84,6 +84,8 @@ struct BoxExcursion {
     /// "v reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite value), with
     /// the states' names; "" where no state went more than a width beyond.
     std::string text(const std::vector<std::string>& names) const;
+    /// What a gain filter says after its run (OnlineFilter::run_note): text() in a sentence; "" where text() is.
+    std::string filter_note(const std::vector<std::string>& names) const;
 };
 
 /// A frozen network as a function, whatever its precision: for the on-line phase.

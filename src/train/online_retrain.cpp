@@ -7,6 +7,7 @@
 #include "filters/gain_law.hpp"
 #include "gain.hpp"
 #include "hinf/error.hpp"
+#include "net/network.hpp"
 
 namespace hinf {
 
@@ -84,6 +85,7 @@ public:
         run_ = start.run;
         next_step_ = 0;
         counts_ = OnlineRetrainCounts();
+        far_ = BoxExcursion();
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
@@ -99,6 +101,7 @@ public:
         std::fill(e_.begin(), e_.end(), 0.0);  // missing: no correction
         if (in.y != nullptr) sys.output_difference(e_.data(), in.y, ch_.data());
         next_step_ = in.step + 1;
+        far_.see(net_.step.gain, xhat_.data(), 1, n);  // the input it holds (retraining changes theta, not the box)
         if (!filter_estimate_ok(xhat_.data(), n)) return FILTER_DIVERGED;
         // 1. the on-line check (docs/method.md section 16.5): kOnlineCheckErrors errors around x^, current network
         const kern::GainSpec& g = net_.step.gain;
@@ -126,6 +129,7 @@ public:
     }
     const double* estimate() const override { return xhat_.data(); }
     std::vector<double> run_report() const override { return counts_.to_vector(); }
+    std::string run_note() const override { return far_.filter_note(model_.system->state_names()); }
     std::unique_ptr<OnlineFilter> clone() const override {
         return std::make_unique<RetrainGainFilter<T>>(model_, cfg_, origin_, origin_cfg_, st_, name_);
     }
@@ -223,6 +227,7 @@ private:
     std::uint64_t run_ = 0;
     std::int64_t next_step_ = 0;
     OnlineRetrainCounts counts_;
+    BoxExcursion far_;  // how far the estimates went beyond the network's input box since reset()
 };
 
 template <typename T>

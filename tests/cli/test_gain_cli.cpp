@@ -157,6 +157,35 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
     INFO(cmp.output);
     CHECK(cmp.status == 0);
     CHECK(cmp.output.find("dnn_gain_measured") != std::string::npos);
+    CHECK(cmp.output.find("note: dnn_gain_measured: ") == std::string::npos);  // the config's start: inside the box
+    {  // every run started far beyond the box of training's estimates (method.md 16.10): said once, with the count,
+       // by compare and operate (the retraining filter too), and kept in their files
+        const std::string far0 = " --set filter.xhat0=[400,-400] --runs 2 --quiet";
+        auto c = run_hinf("compare " + cfg + " --network " + net + " --filters dnn,ekf --out " + (d / "cmpfar") + far0);
+        INFO(c.output);
+        REQUIRE(c.status == 0);
+        CHECK(c.output.find("note: dnn_gain_measured: in 2 of 2 run(s) (the first: run 0), its estimate went far "
+                            "beyond the region its network was trained on (w reached ") != std::string::npos);
+        CHECK(c.output.find("note: ekf: ") == std::string::npos);
+        hinf::h5::Handle f = hinf::h5::open_file(d / "cmpfar/compare.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), "dnn_gain_measured");
+        CHECK(hinf::h5::get_attr_int(g.get(), "note_runs") == 2);
+        CHECK(hinf::h5::get_attr_int(g.get(), "note_first_run") == 0);
+        CHECK(c.output.find(hinf::h5::get_attr_string(g.get(), "note")) != std::string::npos);
+        hinf::h5::Handle e = hinf::h5::open_group(f.get(), "ekf");
+        CHECK_FALSE(hinf::h5::has_attr(e.get(), "note"));
+        for (const std::string retrain : {"false", "true"}) {
+            auto o = run_hinf("operate " + cfg + " --network " + net + " --mode measured --out " + (d / "opfar") +
+                              far0 + " --set online.retrain=" + retrain);
+            INFO(o.output);
+            REQUIRE(o.status == 0);
+            CHECK(o.output.find("note: dnn: in 2 of 2 run(s) (the first: run 0), its estimate went far beyond")
+                  != std::string::npos);
+            hinf::h5::Handle h = hinf::h5::open_file(d / "opfar/operate.h5", false);
+            CHECK(hinf::h5::get_attr_int(h.get(), "note_runs") == 2);
+        }
+        CHECK_FALSE(hinf::h5::has_attr(hinf::h5::open_file(d / "op/operate.h5", false).get(), "note"));
+    }
     {  // --ensemble of two copies of one network: one filter, dnn_gain_ensemble, with that network's figures
         auto ens = run_hinf("compare " + cfg + " --network " + net + " --network " + net +
                             " --ensemble --filters dnn,ukf --runs 2 --out " + (d / "cmpe"));
