@@ -319,7 +319,28 @@ struct RiccatiStart {
     double floor = 0;     // the floor, in S's scale (the flat start is 1 + eps there)
     double stopped = -1;  // time the recursion stopped (a non-finite trajectory or Jacobian, a singular step): the
                           // later knots keep the last knot's values (negative: it ran to the end)
+    // the same recursion without the floor, along the same trajectory: the first time its information lost positive
+    // definiteness (no H-infinity filter of level rho from this start for the linearisation), negative where it kept
+    // it as far as the walk went; followed = false where it stopped without a verdict (a singular step)
+    double lost = -1;
+    bool followed = true;
 };
+
+// Why a Riccati start was held at its floor, for the notes below: the unfloored equation's verdict
+std::string riccati_held_why(const RiccatiStart& r, double rho) {
+    char buf[320];
+    if (r.lost >= 0)
+        std::snprintf(buf, sizeof buf, "without the floor its information loses positive definiteness at t = %.4g s: "
+                      "no H-infinity filter of level rho = %g from this start for the linearised system", r.lost, rho);
+    else if (r.followed && r.stopped < 0)
+        std::snprintf(buf, sizeof buf, "without the floor it stays positive definite to the end of the run: the floor "
+                      "is the sampled-data cap on the gain's step (objective.max_step_correction), not a lost level "
+                      "rho = %g", rho);
+    else
+        std::snprintf(buf, sizeof buf, "no H-infinity filter of level rho = %g from this start for the linearised "
+                      "system, or none whose gain stays within the sampled-data cap", rho);
+    return buf;
+}
 template <typename T>
 RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec& g) {
     using Mat = Eigen::MatrixXd;
@@ -350,6 +371,7 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
     };
     Mat P = Mat::Zero(n, n);
     for (int a = 0; a < n; ++a) P(a, a) = rho * ds[a] * ds[a] / (c * (1.0 + g.eps));
+    Mat Pu = P;  // the unfloored recursion (RiccatiStart::lost)
     const std::int64_t steps = cfg.steps_until();
     std::vector<double> x = cfg.x0;
     RowMat H(m, n), F(n, n), G(n, nv);
@@ -357,6 +379,18 @@ RiccatiStart riccati_knots(T* knots, const RunConfig& cfg, const kern::GainSpec&
         const double t = cfg.time_of(k);
         sys.measurement_jacobian(H.data(), x.data(), t);
         system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, dt);
+        if (r.lost < 0 && r.followed) {
+            Eigen::LLT<Mat> lu(Pu);
+            const Mat Yu = lu.info() == Eigen::Success
+                               ? Mat(lu.solve(Mat::Identity(n, n)) + dt * (Mat(H.transpose() * H) - Q / rho))
+                               : Mat();
+            Eigen::SelfAdjointEigenSolver<Mat> eu;
+            if (lu.info() == Eigen::Success && Yu.allFinite()) eu.compute(0.5 * (Yu + Yu.transpose()));
+            if (lu.info() != Eigen::Success || !Yu.allFinite() || eu.info() != Eigen::Success) r.followed = false;
+            else if (eu.eigenvalues().minCoeff() <= 0) r.lost = t;
+            else Pu = F * Yu.llt().solve(Mat::Identity(n, n)) * F.transpose() + G * G.transpose() / dt;
+            Pu = 0.5 * (Pu + Pu.transpose()).eval();
+        }
         Eigen::LLT<Mat> lp(P);
         if (lp.info() != Eigen::Success) {
             r.stopped = t;
@@ -437,6 +471,13 @@ double riccati_start_held_later(const RunConfig& cfg) {
     return riccati_start_walk(cfg, &r, &at_once) && r.held >= 0 && !at_once ? r.held : -1.0;
 }
 
+double riccati_start_lost(const RunConfig& cfg) {
+    RiccatiStart r;
+    bool at_once = false;
+    if (!riccati_start_walk(cfg, &r, &at_once)) return NAN;
+    return r.lost >= 0 ? r.lost : r.followed && r.stopped < 0 ? -1.0 : NAN;
+}
+
 template <typename T>
 Network<T> network_create(const RunConfig& cfg) {
     Network<T> net = network_shell<T>(cfg);
@@ -478,11 +519,11 @@ Network<T> network_create(const RunConfig& cfg) {
             std::fill(knots, knots + g.storage_params(cfg.n), T(0));
             std::fprintf(stderr,
                          "hinf: note: network.storage_init = \"riccati\": the game's Riccati equation falls to the "
-                         "storage's floor from t = %.4g s, before its first knot (t = %.4g s): no H-infinity filter of "
-                         "level rho = %g from this start for the linearised system, or none whose gain stays within the "
-                         "sampled-data cap. The knots start flat instead; a larger rho, or network.storage_knots = 0 (a "
-                         "constant storage), may do better on this system (docs/method.md section 16.7)\n",
-                         r.held, g.knot_time(1), cfg.rho);
+                         "storage's floor from t = %.4g s, before its first knot (t = %.4g s; %s). The knots start "
+                         "flat instead; %snetwork.storage_knots = 0 (a constant storage) may do better on this system "
+                         "(docs/method.md section 16.7)\n",
+                         r.held, g.knot_time(1), riccati_held_why(r, cfg.rho).c_str(),
+                         r.lost >= 0 ? "a larger rho, or " : "");
             return net;
         }
         if (r.stopped >= 0)
@@ -494,11 +535,10 @@ Network<T> network_create(const RunConfig& cfg) {
         if (r.held >= 0)
             std::fprintf(stderr,
                          "hinf: note: network.storage_init = \"riccati\": from t = %.4g s the game's Riccati equation "
-                         "falls to the storage's floor (on its way to losing definiteness: no H-infinity filter of level "
-                         "rho = %g from this start for the linearised system, or a gain beyond the sampled-data cap); "
-                         "it is held there. Where the filter does poorly, compare network.storage_init = \"flat\" and "
-                         "network.storage_knots = 0 (a constant storage) (docs/method.md section 16.7)\n",
-                         r.held, cfg.rho);
+                         "falls to the storage's floor (%s); it is held there. Where the filter does poorly, compare "
+                         "network.storage_init = \"flat\" and network.storage_knots = 0 (a constant storage) "
+                         "(docs/method.md section 16.7)\n",
+                         r.held, riccati_held_why(r, cfg.rho).c_str());
     }
     return net;
 }

@@ -34,6 +34,10 @@ bool riccati_start_held_at_once(const RunConfig& cfg);
 /// Where the Riccati start is held at the storage's floor later than that (the knots keep it, the later ones at the
 /// floor): the time it is first held; -1 where it is not held, is held at once, or the config has no Riccati start.
 double riccati_start_held_later(const RunConfig& cfg);
+/// The game's Riccati equation of that start without the storage's floor, along the same trajectory: the first time
+/// its information loses positive definiteness (no H-infinity filter of level rho from this start for the linearised
+/// system); -1 where it keeps it over the run; NaN where it could not be followed or the config has no Riccati start.
+double riccati_start_lost(const RunConfig& cfg);
 
 /// The same StepConfig a config implies (used to check a checkpoint against its config).
 kern::StepConfig network_step_config(const RunConfig& cfg);

@@ -233,6 +233,19 @@ TEST_CASE("storage_init = riccati: where the game's Riccati equation loses defin
         }
         CHECK(std::fabs(S[1]) < 1e-9 * S[0]);
     }
+    // held from 1.01 s; the same equation without the floor loses definiteness a little later (t = 1.11 s)
+    const double held = hinf::riccati_start_held_later(c), lost = hinf::riccati_start_lost(c);
+    CHECK(held > 0.5);
+    CHECK(lost > held);
+    CHECK(lost < 1.5);
+    // a short run's large rate puts the floor max(2 eps, rate dt / kappa) above S(0) itself: held from the start,
+    // while without the floor the equation (Q / rho = 0.25) stays positive definite -- the floor is the gain's cap
+    std::string capped = riccati_config(4.0, 1.0);
+    capped.replace(capped.find("t_final = 2.0"), 13, "t_final = 0.1");
+    const hinf::RunConfig cc = config_from_text(capped);
+    CHECK(hinf::riccati_start_held_later(cc) == 0.0);
+    CHECK(hinf::riccati_start_lost(cc) == -1.0);
+    CHECK(hinf::riccati_start_lost(config_from_text(riccati_config(4.0, 1.0))) == -1.0);  // never held, never lost
     // "flat" starts every knot at S(0) and keeps the margin of before
     std::string text = riccati_config(0.5, 0.6);
     text.replace(text.find("\"riccati\""), 9, "\"flat\"");
@@ -252,6 +265,11 @@ TEST_CASE("storage_init = riccati: held at its floor before the first knot, the 
     REQUIRE(c.storage_init == "riccati");
     const hinf::Network<double> net = hinf::network_create<double>(c);
     for (std::size_t e = net.step.shape.param_count(); e < net.theta.size(); ++e) CHECK(net.theta[e] == 0.0);
+    CHECK(hinf::riccati_start_held_at_once(c));
+    CHECK(hinf::riccati_start_lost(c) == 0.0);  // without the floor: indefinite at the first step
+    std::string text = riccati_config(0.5, 100.0);
+    text.replace(text.find("\"riccati\""), 9, "\"flat\"");
+    CHECK(std::isnan(hinf::riccati_start_lost(config_from_text(text))));  // no Riccati start: nothing to say
 }
 
 TEST_CASE("storage_init = riccati: a noise-free trajectory that escapes stops the recursion, the knots stay finite",
