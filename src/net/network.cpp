@@ -326,16 +326,20 @@ struct RiccatiStart {
     bool followed = true;
 };
 
-// Why a Riccati start was held at its floor, for the notes below: the unfloored equation's verdict
-std::string riccati_held_why(const RiccatiStart& r, double rho) {
+// Why a Riccati start was held at its floor, for the notes below: the unfloored equation's verdict, and which term
+// of the floor max(2 eps, rate dt / kappa) held it where that verdict is "still definite"
+std::string riccati_held_why(const RiccatiStart& r, const kern::GainSpec& g, double rho) {
     char buf[320];
     if (r.lost >= 0)
         std::snprintf(buf, sizeof buf, "without the floor its information loses positive definiteness at t = %.4g s: "
                       "no H-infinity filter of level rho = %g from this start for the linearised system", r.lost, rho);
-    else if (r.followed && r.stopped < 0)
+    else if (r.followed && r.stopped < 0 && r.floor > 2.0 * g.eps)
         std::snprintf(buf, sizeof buf, "without the floor it stays positive definite to the end of the run: the floor "
                       "is the sampled-data cap on the gain's step (objective.max_step_correction), not a lost level "
                       "rho = %g", rho);
+    else if (r.followed && r.stopped < 0)
+        std::snprintf(buf, sizeof buf, "without the floor it stays positive definite to the end of the run, below the "
+                      "least the storage's form holds (2 network.eps in its scale): not a lost level rho = %g", rho);
     else
         std::snprintf(buf, sizeof buf, "no H-infinity filter of level rho = %g from this start for the linearised "
                       "system, or none whose gain stays within the sampled-data cap", rho);
@@ -522,7 +526,7 @@ Network<T> network_create(const RunConfig& cfg) {
                          "storage's floor from t = %.4g s, before its first knot (t = %.4g s; %s). The knots start "
                          "flat instead; %snetwork.storage_knots = 0 (a constant storage) may do better on this system "
                          "(docs/method.md section 16.7)\n",
-                         r.held, g.knot_time(1), riccati_held_why(r, cfg.rho).c_str(),
+                         r.held, g.knot_time(1), riccati_held_why(r, g, cfg.rho).c_str(),
                          r.lost >= 0 ? "a larger rho, or " : "");
             return net;
         }
@@ -538,7 +542,7 @@ Network<T> network_create(const RunConfig& cfg) {
                          "falls to the storage's floor (%s); it is held there. Where the filter does poorly, compare "
                          "network.storage_init = \"flat\" and network.storage_knots = 0 (a constant storage) "
                          "(docs/method.md section 16.7)\n",
-                         r.held, riccati_held_why(r, cfg.rho).c_str());
+                         r.held, riccati_held_why(r, g, cfg.rho).c_str());
     }
     return net;
 }
