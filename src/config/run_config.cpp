@@ -113,16 +113,17 @@ void check_system_finite_at_start(const RunConfig& c, const ConfigSection& f) {
                 if (!std::isfinite(v[k])) {
                     value = v[k];
                     const int r = int(k) / cols, col = int(k) % cols;
-                    bad = what + "[" + std::to_string(r + 1) + "]" +
-                          (cols > 1 || per_state_col ? "[" + std::to_string(col + 1) + "]" : "") +
-                          (per_state_col ? " (d/d" + names[std::size_t(col)] + ")" : "");
+                    bad = per_state_col ? "Jacobian entry d" + what + "[" + std::to_string(r + 1) + "]/d" +
+                                              names[std::size_t(col)]
+                                        : what + "[" + std::to_string(r + 1) + "]" +
+                                              (cols > 1 ? "[" + std::to_string(col + 1) + "]" : "");
                 }
         };
         look(a, 1, "f", false);
         look(B, nv, "g", false);
         look(y, 1, "h", false);
-        look(J, n, "the Jacobian of f", true);
-        look(H, n, "the Jacobian of h", true);
+        look(J, n, "f", true);
+        look(H, n, "h", true);
         if (!bad.empty())
             f.reject(key, "the system's " + bad + " is " + format_g(value) + " at this initial state (t = 0): an "
                           "expression is singular there (e.g. 1/p at p = 0, log of a negative number, 1/t at t = 0); "
