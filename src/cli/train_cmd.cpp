@@ -7,6 +7,8 @@
 #include <functional>
 #include <memory>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
@@ -83,6 +85,35 @@ AcceptanceOutcome check_run(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Sel
     return a;
 }
 
+// `hinf sweep --worst`: each value's level against what hinf worst's full search found on its checkpoint, and the
+// smallest level kept
+void print_sweep_levels(const std::string& key, const std::vector<SweepRow>& rows) {
+    std::printf("\nthe level each value's filter keeps (hinf worst's full search on the checkpoint its acceptance "
+                "check judged; DIR/<value>/worst/worst.h5):\n");
+    std::printf("%-24s %10s %12s %10s %10s %10s\n", key.c_str(), "rho", "worst found", "EKF", "UKF", "keeps rho");
+    const SweepRow* smallest = nullptr;
+    bool unsearched = false;
+    for (const auto& r : rows) {
+        const SweepVerdict& v = r.verdict;
+        const std::string keeps = v.keeps_level();
+        std::printf("%-24s %10.4g %11.4g%s %10.4g %10.4g %10s\n", r.value.c_str(), v.rho, v.search_ratio,
+                    v.search_diverged == 1 ? "!" : " ", v.search_ratio_ekf, v.search_ratio_ukf, keeps.c_str());
+        unsearched = unsearched || keeps == "-";
+        if (keeps == "yes" && (!smallest || v.rho < smallest->verdict.rho)) smallest = &r;
+    }
+    if (smallest)
+        std::printf("the smallest level kept: rho = %.6g (%s = %s; worst ratio found %.4g); the search is a lower "
+                    "bound on each filter's worst case (docs/compare.md)\n", smallest->verdict.rho, key.c_str(),
+                    smallest->value.c_str(), smallest->verdict.search_ratio);
+    else
+        std::printf("no value's filter keeps its level under the search: a higher filter.rho is a weaker promise, "
+                    "easier to keep (hinf rho gives the smallest level any filter can keep)\n");
+    if (unsearched)
+        std::printf("(-: no search, as no acceptance check ran: the value's run did not reach t_final, ran in a group "
+                    "of more than one process, was finished by an earlier job, or training.acceptance_runs = 0; ! = "
+                    "the filter diverged under its worst signals)\n");
+}
+
 }  // namespace
 
 void add_train_commands(CLI::App& app) {
@@ -135,6 +166,7 @@ void add_train_commands(CLI::App& app) {
 
     auto sw = std::make_shared<TrainArgs>();
     auto vary = std::make_shared<std::string>();
+    auto search = std::make_shared<bool>(false);
     CLI::App* sweep = app.add_subcommand(
         "sweep", "Train one config for several values of one key as one job (mpirun: one training per process group), "
                  "each ending as `hinf train` does (best.h5, the acceptance check); choose by the validation MSE");
@@ -144,7 +176,11 @@ void add_train_commands(CLI::App& app) {
     sweep->add_option("--until", sw->until, "Stop each training at this simulated time [s]");
     sweep->add_option("--threads", sw->threads, "OpenMP threads per process");
     sweep->add_option("--set", sw->sets, "Override a config key for every value (repeatable)");
-    sweep->callback([sw, vary]() {
+    sweep->add_flag("--worst", *search,
+                    "After each value's acceptance check, run hinf worst's full search (its defaults: dnn, ekf, ukf) "
+                    "on the checkpoint it judged and say whether the filter keeps that value's rho (e.g. --vary "
+                    "filter.rho=...: the smallest level kept); DIR/<value>/worst/worst.h5");
+    sweep->callback([sw, vary, search]() {
         apply_threads(sw->threads);
         SweepOptions opt;
         const std::size_t eq = vary->find('=');
@@ -161,9 +197,11 @@ void add_train_commands(CLI::App& app) {
                     opt.key.c_str(), std::max(groups, 1), par_world_size() / std::max(groups, 1));
         std::fflush(stdout);
         // each value ends as `hinf train` does: the checkpoint selection during training, the acceptance check after
-        opt.around = [](const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions o,
-                        const SweepTrain& train, TrainSummary& s) {
+        const bool full_search = *search;
+        opt.around = [full_search](const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions o,
+                                   const SweepTrain& train, TrainSummary& s) {
             SweepVerdict v;
+            v.rho = cfg.rho;
             const std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/!resumed, o);
             s = train(o);
             if (best && best->step >= 0) {
@@ -179,6 +217,14 @@ void add_train_commands(CLI::App& app) {
                 v.rmse_settled_ekf = a.rmse_position_settled_ekf;
                 v.rms_q_settled = a.rms_q_settled;
                 v.rms_q_settled_ekf = a.rms_q_settled_ekf;
+                // the level kept: the acceptance's search is short; hinf worst's, on the checkpoint it judged
+                if (full_search) {
+                    const LevelSearch l = level_search(cfg, a.file, dir + "/worst", /*quiet=*/true);
+                    v.search_ratio = l.dnn;
+                    v.search_ratio_ekf = l.ekf;
+                    v.search_ratio_ukf = l.ukf;
+                    v.search_diverged = l.diverged ? 1 : 0;
+                }
             }
             return v;
         };
@@ -195,6 +241,7 @@ void add_train_commands(CLI::App& app) {
                         v.acceptance.c_str(), v.rmse_position, v.worst_ratio, v.behind_ekf(),
                         r.summary.runaway_step >= 0 ? std::to_string(r.summary.runaway_step).c_str() : "-");
         }
+        if (*search) print_sweep_levels(opt.key, rows);
         std::printf("files: %s/sweep.csv and one directory per value (checkpoint.h5, trajectory.h5, summary.csv, "
                     "best.h5 where the selection runs; valid. MSE: best.h5's settled Q-weighted MSE on the validation "
                     "noise, the one to choose by; x EKF: the acceptance runs' settled error over the EKF's on the same "

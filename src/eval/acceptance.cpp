@@ -27,11 +27,18 @@ namespace hinf {
 
 namespace {
 
-// The two filters both checks run: the checkpoint's DNN filter (`measured`) first, then the EKF told the nominal
-// statistics
-FilterSet dnn_and_ekf(const RunConfig& cfg, const std::string& network) {
+// The filters the checks run: the checkpoint's DNN filter (`measured`) first, then the Bayesian filters of `others`
+// told the nominal statistics
+FilterSet dnn_and(const RunConfig& cfg, const std::string& network, const std::string& others = "ekf") {
     const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
-    return build_filter_set(cfg, FilterSetArgs{"dnn,ekf", {network}, "measured", 1, 0.0, 8}, told, exact);
+    return build_filter_set(cfg, FilterSetArgs{"dnn," + others, {network}, "measured", 1, 0.0, 8}, told, exact);
+}
+
+// The game's own worst case as a start for the DNN filter (filters[0]) where its network gives dV/dx~ (not gain)
+std::vector<WorstGame> dnn_game(const FrozenNetwork& net, double rho, std::size_t filters) {
+    std::vector<WorstGame> games(filters);
+    if (!net.step_config().gain.enabled) games[0] = WorstGame{&net, rho};
+    return games;
 }
 
 // The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
@@ -74,12 +81,10 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0);
     wo.evals = int(std::max<std::int64_t>(1, cfg.acceptance_worst_evals / restarts));
     wo.quiet = quiet;
-    const FilterSet set = dnn_and_ekf(cfg, network);
+    const FilterSet set = dnn_and(cfg, network);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
-    std::vector<WorstGame> games(filters.size());
-    if (game) games[0] = WorstGame{net.get(), ncfg.rho};  // filters[0]: the DNN filter (dnn before ekf)
-    const WorstResult r = worst_search(cfg, filters, games, wo);
+    const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
     worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
     a.ratio = r.filters[0].worst.ratio;
     a.ekf_ratio = r.filters[1].worst.ratio;
@@ -136,7 +141,7 @@ std::string furthest_behind(const RunConfig& cfg, const std::vector<double>& dm,
 }
 
 AcceptanceVsEkf acceptance_vs_ekf(const RunConfig& cfg, const std::string& network, const std::string& out_dir) {
-    const FilterSet set = dnn_and_ekf(cfg, network);
+    const FilterSet set = dnn_and(cfg, network);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
     CompareOptions co;
@@ -213,6 +218,26 @@ std::string advice_config(const RunConfig& cfg) {
 }
 
 }  // namespace
+
+LevelSearch level_search(const RunConfig& cfg, const std::string& network, const std::string& out_dir, bool quiet) {
+    RunConfig ncfg;
+    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
+    WorstOptions wo;  // hinf worst's defaults
+    wo.quiet = quiet;
+    const FilterSet set = dnn_and(cfg, network, "ekf,ukf");
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
+    std::filesystem::create_directories(out_dir);
+    worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
+    LevelSearch l;
+    l.dnn = r.filters[0].worst.ratio;
+    l.ekf = r.filters[1].worst.ratio;
+    l.ukf = r.filters[2].worst.ratio;
+    l.diverged = r.cross.diverged_at[0] >= 0;
+    l.wall_seconds = r.wall_seconds;
+    return l;
+}
 
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search) {
     std::string a = "acceptance: next:";

@@ -130,6 +130,20 @@ struct AcceptanceSearch {
 /// Adam updates, and what the search found (docs/byos.md section 4); `path` is the judged checkpoint.
 std::string acceptance_advice(const RunConfig& cfg, const std::string& path, const AcceptanceSearch& search);
 
+/// The level a trained filter keeps, searched as `hinf worst` searches with its defaults (WorstOptions{}: random,
+/// scenario and cross starts, 200 evaluations a restart, the nominal draws' energy): the checkpoint `network`'s DNN
+/// filter (`measured`) beside the EKF and the UKF told the nominal statistics, from x^(0) = x(0); written to
+/// out_dir/worst.h5. `hinf sweep --worst` runs it for each value: the acceptance's short search is a lower bound too
+/// weak to tell levels a few per cent apart (docs/method.md section 16.7b, "Which level the trained filter keeps").
+struct LevelSearch {
+    double dnn = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found for each filter
+    double ekf = std::numeric_limits<double>::quiet_NaN();
+    double ukf = std::numeric_limits<double>::quiet_NaN();
+    bool diverged = false;  // the DNN filter diverged under its own worst signals
+    double wall_seconds = 0;
+};
+LevelSearch level_search(const RunConfig& cfg, const std::string& network, const std::string& out_dir, bool quiet);
+
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
 /// trained at least one step), on one process (or a sweep's group of one), with cfg.acceptance_runs > 0; its
 /// verdict and figures are written into the judged checkpoint's root attributes, its runs into DIR/acceptance/.

@@ -20,10 +20,11 @@ const char* kSummaryHeader =
     "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
     "fraction_steps_violation_ok,mean_cosine,best_step,select_score,acceptance,acceptance_rmse_position,"
     "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,knot_runaway_step,"
-    "acceptance_rms_q_settled,acceptance_rms_q_settled_ekf";
+    "acceptance_rms_q_settled,acceptance_rms_q_settled_ekf,rho,search_ratio,search_ratio_ekf,search_ratio_ukf,"
+    "search_diverged";
 // older summary lines: the trainer's 11 fields alone (before the selection and acceptance columns), 16 (before the
-// comparison with the EKF and the knot run-away), and 19 (before the all-state comparison)
-constexpr std::size_t kFieldsBefore = 11, kFieldsVerdict = 16, kFieldsEkf = 19, kFields = 21;
+// comparison with the EKF and the knot run-away), 19 (before the all-state comparison) and 21 (before --worst)
+constexpr std::size_t kFieldsBefore = 11, kFieldsVerdict = 16, kFieldsEkf = 19, kFieldsQ = 21, kFields = 26;
 
 // one CSV line per value (values with a comma are refused up front)
 std::string row_line(const SweepRow& r) {
@@ -36,7 +37,8 @@ std::string row_line(const SweepRow& r) {
     const SweepVerdict& v = r.verdict;
     o << ',' << v.best_step << ',' << v.select_score << ',' << v.acceptance << ',' << v.rmse_position << ','
       << v.worst_ratio << ',' << v.rmse_settled << ',' << v.rmse_settled_ekf << ',' << s.runaway_step << ','
-      << v.rms_q_settled << ',' << v.rms_q_settled_ekf;
+      << v.rms_q_settled << ',' << v.rms_q_settled_ekf << ',' << v.rho << ',' << v.search_ratio << ','
+      << v.search_ratio_ekf << ',' << v.search_ratio_ukf << ',' << v.search_diverged;
     return o.str();
 }
 
@@ -44,7 +46,8 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
     std::vector<std::string> f;
     std::stringstream in(line);
     for (std::string cell; std::getline(in, cell, ',');) f.push_back(cell);
-    HINF_CHECK(f.size() == kFields || f.size() == kFieldsEkf || f.size() == kFieldsVerdict || f.size() == kFieldsBefore,
+    HINF_CHECK(f.size() == kFields || f.size() == kFieldsQ || f.size() == kFieldsEkf || f.size() == kFieldsVerdict ||
+                   f.size() == kFieldsBefore,
                where + ": not a sweep summary line (delete the file to train that value again)");
     SweepRow r;
     r.value = f[0];
@@ -72,9 +75,16 @@ SweepRow parse_line(const std::string& line, const std::string& where) {
         r.verdict.rmse_settled_ekf = std::stod(f[17]);
         s.runaway_step = std::stoll(f[18]);
     }
-    if (f.size() == kFields) {
+    if (f.size() >= kFieldsQ) {
         r.verdict.rms_q_settled = std::stod(f[19]);
         r.verdict.rms_q_settled_ekf = std::stod(f[20]);
+    }
+    if (f.size() == kFields) {
+        r.verdict.rho = std::stod(f[21]);
+        r.verdict.search_ratio = std::stod(f[22]);
+        r.verdict.search_ratio_ekf = std::stod(f[23]);
+        r.verdict.search_ratio_ukf = std::stod(f[24]);
+        r.verdict.search_diverged = std::stoi(f[25]);
     }
     return r;
 }

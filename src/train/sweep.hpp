@@ -29,6 +29,17 @@ struct SweepVerdict {
     double rmse_settled = NAN, rmse_settled_ekf = NAN;
     // the same over all states weighted by Q (AcceptanceOutcome::rms_q_settled, _ekf; NaN in a row written before)
     double rms_q_settled = NAN, rms_q_settled_ekf = NAN;
+    // `hinf sweep --worst`: the value's level and the full worst-case search of its checkpoint (eval LevelSearch:
+    // the DNN filter's, the EKF's and the UKF's largest ratio found; NaN where none ran), 1 where the DNN filter
+    // diverged under its worst signals (0 where it did not, -1 where no search ran)
+    double rho = NAN, search_ratio = NAN, search_ratio_ekf = NAN, search_ratio_ukf = NAN;
+    int search_diverged = -1;
+    /// "yes" where the search ran and found the DNN filter at or below its level without diverging, "no" where it
+    /// found it above, "-" where none ran
+    const char* keeps_level() const {
+        if (search_diverged < 0 || std::isnan(search_ratio)) return "-";
+        return search_diverged == 0 && search_ratio <= rho ? "yes" : "no";
+    }
     /// The settled error over the EKF's: the larger of the position and the all-state ratio, as the acceptance's note
     /// keys on (the position ratio alone for a row without the all-state figures)
     double behind_ekf() const {

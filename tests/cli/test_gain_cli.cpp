@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 #include "helpers.hpp"
 #include "eval/acceptance.hpp"
@@ -614,4 +615,82 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     CHECK(v16[0].at("acceptance_rmse_position_settled") == "nan");
     CHECK(v16[0].at("acceptance_rms_q_settled") == "nan");
     CHECK(v16[0].at("knot_runaway_step") == "-1");
+}
+
+TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst does and names the smallest level kept",
+          "[cli][gain][sweep]") {
+    hinf::test::TempDir d("gainsweepworst");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << kVdp;
+    const std::string sets = " --set filter.xhat0=[2.0,0.0]";
+    auto sw = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,5 --worst --out " + (d / "sweep") + sets);
+    INFO(sw.output);
+    REQUIRE(sw.status == 0);
+    const auto rows = hinf::test::read_csv_rows(d / "sweep/sweep.csv");
+    REQUIRE(rows.size() == 2);
+    CHECK(std::stod(rows[0].at("rho")) == 1e-9);
+    CHECK(std::stod(rows[1].at("rho")) == 5);
+    bool any_kept = false;
+    for (const auto& r : rows) {
+        INFO(r.at("value"));
+        const double ratio = std::stod(r.at("search_ratio"));
+        REQUIRE(std::isfinite(ratio));
+        CHECK(ratio > 0);
+        CHECK(std::isfinite(std::stod(r.at("search_ratio_ekf"))));
+        CHECK(std::isfinite(std::stod(r.at("search_ratio_ukf"))));
+        REQUIRE((r.at("search_diverged") == "0" || r.at("search_diverged") == "1"));
+        // the value's worst.h5 holds the search the table reports
+        const std::string dir = d / ("sweep/filter.rho=" + r.at("value"));
+        hinf::h5::Handle w = hinf::h5::open_file(dir + "/worst/worst.h5", false);
+        hinf::h5::Handle g = hinf::h5::open_group(w.get(), "filters/dnn_gain_measured");
+        CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), ratio));
+        CHECK(hinf::h5::exists(w.get(), "filters/ukf"));
+        any_kept = any_kept || (r.at("search_diverged") == "0" && ratio <= std::stod(r.at("rho")));
+    }
+    CHECK(std::stod(rows[0].at("search_ratio")) > 1e-9);  // no filter keeps a level of 1e-9
+    const bool kept5 = rows[1].at("search_diverged") == "0" && std::stod(rows[1].at("search_ratio")) <= 5;
+    CHECK(sw.output.find("keeps rho") != std::string::npos);
+    CHECK((sw.output.find("the smallest level kept: rho = 5 ") != std::string::npos) == kept5);
+    CHECK((sw.output.find("no value's filter keeps its level") != std::string::npos) == !any_kept);
+    // the search is hinf worst's with its defaults on the checkpoint the value's acceptance judged (best.h5)
+    const std::string best = d / "sweep/filter.rho=5/best.h5";
+    auto w = run_hinf("worst " + cfg + sets + " --set filter.rho=5 --network " + best +
+                      " --filters dnn,ekf,ukf --mode measured --quiet --out " + (d / "worst"));
+    INFO(w.output);
+    REQUIRE(w.status == 0);
+    hinf::h5::Handle f = hinf::h5::open_file(d / "worst/worst.h5", false);
+    for (const auto& [name, column] : {std::pair<std::string, std::string>{"dnn_gain_measured", "search_ratio"},
+                                       {"ekf", "search_ratio_ekf"}, {"ukf", "search_ratio_ukf"}}) {
+        INFO(name);
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), "filters/" + name);
+        CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), std::stod(rows[1].at(column))));
+    }
+    // without --worst: no search, its columns empty, no level table
+    auto plain = run_hinf("sweep " + cfg + " --vary filter.rho=5 --out " + (d / "plain") + sets);
+    INFO(plain.output);
+    REQUIRE(plain.status == 0);
+    const auto p = hinf::test::read_csv_rows(d / "plain/sweep.csv");
+    REQUIRE(p.size() == 1);
+    CHECK(p[0].at("search_ratio") == "nan");
+    CHECK(p[0].at("search_diverged") == "-1");
+    CHECK(std::stod(p[0].at("rho")) == 5);
+    CHECK(plain.output.find("keeps rho") == std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(d / "plain/filter.rho=5/worst"));
+    // a value finished before these columns existed (21 fields): read back, no level, no search
+    std::ofstream(d / "plain/filter.rho=5/summary.csv")
+        << "value,how,status,first_step,last_step,wall_seconds,final_loss,median_rel_residual,fraction_steps_rel_ok,"
+           "fraction_steps_violation_ok,mean_cosine,best_step,select_score,acceptance,acceptance_rmse_position,"
+           "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,"
+           "knot_runaway_step,acceptance_rms_q_settled,acceptance_rms_q_settled_ekf\n"
+           "5,trained,0,0,50,1.5,0.25,0.5,0,0,0.75,40,0.125,pass,0.5,3.5,0.25,0.125,-1,0.375,0.25\n";
+    auto old = run_hinf("sweep " + cfg + " --vary filter.rho=5 --worst --out " + (d / "plain") + sets);
+    INFO(old.output);
+    REQUIRE(old.status == 0);
+    const auto o = hinf::test::read_csv_rows(d / "plain/sweep.csv");
+    REQUIRE(o.size() == 1);
+    CHECK(o[0].at("how") == "done before");
+    CHECK(o[0].at("acceptance_rms_q_settled") == "0.375");
+    CHECK(o[0].at("rho") == "nan");
+    CHECK(o[0].at("search_diverged") == "-1");
+    CHECK(old.output.find("(-: no search") != std::string::npos);
 }
