@@ -665,16 +665,23 @@ TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst doe
         hinf::h5::Handle g = hinf::h5::open_group(f.get(), "filters/" + name);
         CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), std::stod(rows[1].at(column))));
     }
+    // one value, rho = 5, swept into d/plain: its output and its row of sweep.csv
+    std::string output;
+    const auto sweep_five = [&](const std::string& flags) {
+        auto r = run_hinf("sweep " + cfg + " --vary filter.rho=5" + flags + " --out " + (d / "plain") + sets);
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+        output = r.output;
+        const auto csv = hinf::test::read_csv_rows(d / "plain/sweep.csv");
+        REQUIRE(csv.size() == 1);
+        return csv[0];
+    };
     // without --worst: no search, its columns empty, no level table
-    auto plain = run_hinf("sweep " + cfg + " --vary filter.rho=5 --out " + (d / "plain") + sets);
-    INFO(plain.output);
-    REQUIRE(plain.status == 0);
-    const auto p = hinf::test::read_csv_rows(d / "plain/sweep.csv");
-    REQUIRE(p.size() == 1);
-    CHECK(p[0].at("search_ratio") == "nan");
-    CHECK(p[0].at("search_diverged") == "-1");
-    CHECK(std::stod(p[0].at("rho")) == 5);
-    CHECK(plain.output.find("keeps rho") == std::string::npos);
+    const auto p = sweep_five("");
+    CHECK(p.at("search_ratio") == "nan");
+    CHECK(p.at("search_diverged") == "-1");
+    CHECK(std::stod(p.at("rho")) == 5);
+    CHECK(output.find("keeps rho") == std::string::npos);
     CHECK_FALSE(std::filesystem::exists(d / "plain/filter.rho=5/worst"));
     // a value finished before these columns existed (21 fields): read back, no level, no search
     std::ofstream(d / "plain/filter.rho=5/summary.csv")
@@ -683,14 +690,10 @@ TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst doe
            "acceptance_worst_ratio,acceptance_rmse_position_settled,acceptance_rmse_position_settled_ekf,"
            "knot_runaway_step,acceptance_rms_q_settled,acceptance_rms_q_settled_ekf\n"
            "5,trained,0,0,50,1.5,0.25,0.5,0,0,0.75,40,0.125,pass,0.5,3.5,0.25,0.125,-1,0.375,0.25\n";
-    auto old = run_hinf("sweep " + cfg + " --vary filter.rho=5 --worst --out " + (d / "plain") + sets);
-    INFO(old.output);
-    REQUIRE(old.status == 0);
-    const auto o = hinf::test::read_csv_rows(d / "plain/sweep.csv");
-    REQUIRE(o.size() == 1);
-    CHECK(o[0].at("how") == "done before");
-    CHECK(o[0].at("acceptance_rms_q_settled") == "0.375");
-    CHECK(o[0].at("rho") == "nan");
-    CHECK(o[0].at("search_diverged") == "-1");
-    CHECK(old.output.find("(-: no search") != std::string::npos);
+    const auto o = sweep_five(" --worst");
+    CHECK(o.at("how") == "done before");
+    CHECK(o.at("acceptance_rms_q_settled") == "0.375");
+    CHECK(o.at("rho") == "nan");
+    CHECK(o.at("search_diverged") == "-1");
+    CHECK(output.find("(-: no search") != std::string::npos);
 }
