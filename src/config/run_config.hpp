@@ -76,7 +76,7 @@ struct TrainingConfig {
     std::int64_t select_runs = 5;        // its validation Monte Carlo's runs
     std::string select_rule = "one_se";  // "one_se": the latest checkpoint within one paired standard error of the
                                          // lowest score; "lowest": the lowest score (docs/method.md section 16.9)
-    std::int64_t acceptance_worst_evals = 240;  // the acceptance's worst-case search: evaluations per filter (0: none)
+    std::int64_t acceptance_worst_evals = 600;  // the acceptance's worst-case search: evaluations per filter (0: none)
 
     // [sampling]
     double local_fraction = 0.5, local_spread = 0.1, radius_decades = 4.0;
