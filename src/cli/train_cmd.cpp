@@ -109,9 +109,10 @@ void print_sweep_levels(const std::string& key, const std::vector<SweepRow>& row
         std::printf("no value's filter keeps its level under the search: a higher filter.rho is a weaker promise, "
                     "easier to keep (hinf rho gives the smallest level any filter can keep)\n");
     if (unsearched)
-        std::printf("(-: no search, as no acceptance check ran: the value's run did not reach t_final, ran in a group "
-                    "of more than one process, was finished by an earlier job, or training.acceptance_runs = 0; ! = "
-                    "the filter diverged under its worst signals)\n");
+        std::printf("(-: no search: no acceptance check ran (the value's run did not reach t_final, ran in a group "
+                    "of more than one process, was finished by an earlier job, or training.acceptance_runs = 0), or "
+                    "the run has no energy budget or under two time steps; ! = the filter diverged under its worst "
+                    "signals)\n");
 }
 
 }  // namespace
@@ -223,7 +224,7 @@ void add_train_commands(CLI::App& app) {
                     v.search_ratio = l.dnn;
                     v.search_ratio_ekf = l.ekf;
                     v.search_ratio_ukf = l.ukf;
-                    v.search_diverged = l.diverged ? 1 : 0;
+                    if (l.skipped.empty()) v.search_diverged = l.diverged ? 1 : 0;
                 }
             }
             return v;

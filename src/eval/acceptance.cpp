@@ -55,18 +55,20 @@ struct AcceptanceWorst {
     std::string skipped;                  // why no search ran ("" when it ran)
 };
 
+// Why no worst-case search can run for cfg ("" where one can): a horizon under two steps, or no energy budget
+std::string search_skipped(const RunConfig& cfg) {
+    if (cfg.steps_until() < 2) return "skipped: the horizon is shorter than two time steps";
+    if (!(cfg.disturbance_std * cfg.disturbance_std * cfg.nv + cfg.noise_std * cfg.noise_std * cfg.m > 0))
+        return "skipped: no energy budget ([online] disturbance_std and noise_std are 0)";
+    return "";
+}
+
 AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir,
                                  bool quiet) {
     AcceptanceWorst a;
     const std::int64_t K = cfg.steps_until();
-    if (K < 2) {
-        a.skipped = "skipped: the horizon is shorter than two time steps";
-        return a;
-    }
-    if (!(cfg.disturbance_std * cfg.disturbance_std * cfg.nv + cfg.noise_std * cfg.noise_std * cfg.m > 0)) {
-        a.skipped = "skipped: no energy budget ([online] disturbance_std and noise_std are 0)";
-        return a;
-    }
+    a.skipped = search_skipped(cfg);
+    if (!a.skipped.empty()) return a;
     RunConfig ncfg;
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
     const bool game = !net->step_config().gain.enabled;
@@ -220,6 +222,9 @@ std::string advice_config(const RunConfig& cfg) {
 }  // namespace
 
 LevelSearch level_search(const RunConfig& cfg, const std::string& network, const std::string& out_dir, bool quiet) {
+    LevelSearch l;
+    l.skipped = search_skipped(cfg);
+    if (!l.skipped.empty()) return l;
     RunConfig ncfg;
     std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
     WorstOptions wo;  // hinf worst's defaults
@@ -230,7 +235,6 @@ LevelSearch level_search(const RunConfig& cfg, const std::string& network, const
     const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
     std::filesystem::create_directories(out_dir);
     worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
-    LevelSearch l;
     l.dnn = r.filters[0].worst.ratio;
     l.ekf = r.filters[1].worst.ratio;
     l.ukf = r.filters[2].worst.ratio;

@@ -141,6 +141,7 @@ struct LevelSearch {
     double ukf = std::numeric_limits<double>::quiet_NaN();
     bool diverged = false;  // the DNN filter diverged under its own worst signals
     double wall_seconds = 0;
+    std::string skipped;  // why no search ran, as the acceptance's ("" when it ran; the ratios then NaN)
 };
 LevelSearch level_search(const RunConfig& cfg, const std::string& network, const std::string& out_dir, bool quiet);
 

@@ -549,7 +549,8 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     const std::string cfg = d / "vdp.toml";
     std::ofstream(cfg) << kVdp;
     // rho far below any filter's ratio fails (as in the require_acceptance test above), rho = 5 passes
-    const std::string sets = " --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true";
+    const std::string sets = " --set filter.xhat0=[2.0,0.0] --set training.require_acceptance=true"
+                             " --set training.acceptance_worst_evals=240";  // the budget is not what is tested
     auto sw = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,5 --out " + (d / "sweep") + sets);
     INFO(sw.output);
     CHECK(sw.status == 0);  // one value passed
@@ -621,7 +622,7 @@ TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst doe
           "[cli][gain][sweep]") {
     hinf::test::TempDir d("gainsweepworst");
     const std::string cfg = d / "vdp.toml";
-    std::ofstream(cfg) << kVdp;
+    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("0.2");  // 20 steps: the full search runs three filters
     const std::string sets = " --set filter.xhat0=[2.0,0.0]";
     auto sw = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,5 --worst --out " + (d / "sweep") + sets);
     INFO(sw.output);

@@ -27,7 +27,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// 30 time steps, a checkpoint every 4: several checkpoints, a partial last interval.
+// 30 time steps, a checkpoint every 4: several checkpoints, a partial last interval. (The acceptance's search at its
+// budget of before 2026-12-02: these tests are about checkpoints, and each completed run ends with the check.)
 const char* kCrashConfig = R"([system]
 kind = "missile"
 [filter]
@@ -40,6 +41,7 @@ samples = 200
 batch = 80
 adam_steps = 3
 checkpoint_every = 4
+acceptance_worst_evals = 240
 )";
 
 using Clock = std::chrono::steady_clock;
@@ -228,6 +230,7 @@ samples = 200
 batch = 80
 adam_steps = 3
 checkpoint_every = 25
+acceptance_worst_evals = 240
 )";
 
 void wait_until_exists(const std::string& path, double timeout_s) {
