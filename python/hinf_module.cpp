@@ -140,6 +140,7 @@ PYBIND11_MODULE(_hinf, m) {
         .def_property_readonly("t_final", &hinf::Config::t_final)
         .def_property_readonly("rho", &hinf::Config::rho)
         .def_property_readonly("rho_bound", &hinf::Config::rho_bound)
+        .def_property_readonly("rho_run_on", &hinf::Config::rho_run_on)
         .def_property_readonly("constant_storage_violation", &hinf::Config::constant_storage_violation)
         .def_property_readonly("unseen_share", &hinf::Config::unseen_share)
         .def_property_readonly("system", &hinf::Config::system)

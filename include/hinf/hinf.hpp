@@ -44,6 +44,9 @@ public:
     /// rho*, the smallest level any filter can promise for the system linearised along its noise-free trajectory
     /// (docs/method.md 16.12; computed on each call, as `hinf rho`); 0 where no level brackets
     double rho_bound() const;
+    /// rho*_on >= rho*, the smallest level where the run goes on past t_final, which a gain of the estimate alone
+    /// needs (docs/method.md 16.12, "Where the run ends"; computed on each call, as `hinf rho`); 0 where none brackets
+    double rho_run_on() const;
     /// A discrete-time `gain` config: the least violation any constant storage S leaves of the one-step inequality
     /// along the errors the outputs do not see, over the Q term's size there (docs/method.md 16.8, "Errors the
     /// outputs do not see"; computed on each call, as `hinf rho`). Above 1e-6: no constant storage exists, training

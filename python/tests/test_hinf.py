@@ -280,6 +280,11 @@ def test_rho_and_its_bound_match_hinf_rho():
     text = open(VANDERPOL).read().replace("rho = 0.5", "")
     own = hinf.Config.from_text(text, "no_rho.toml")
     assert own.rho == 1.25 * own.rho_bound  # a config naming no rho: 1.25 rho*
+    # Van der Pol's game settles within its horizon: no higher level where the run goes on (hinf rho says so)
+    assert cfg.rho_run_on == cfg.rho_bound
+    assert "rho*_on = rho*:" in out
+    motor = hinf.Config(os.path.join(ROOT, "examples", "systems", "dc_motor.toml"))
+    assert 0.96 < motor.rho_run_on < 1.0 and motor.rho_bound < 0.7  # the encoder's angle: slow noise passes at gain 1
     assert "rho = " in own.text  # written into the effective config
 
 

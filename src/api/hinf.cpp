@@ -73,6 +73,7 @@ double Config::dt() const { return run_config(*this).dt; }
 double Config::t_final() const { return run_config(*this).t_final; }
 double Config::rho() const { return run_config(*this).rho; }
 double Config::rho_bound() const { return game_level_rho_star(run_config(*this)); }
+double Config::rho_run_on() const { return game_level_rho_run_on(run_config(*this)); }
 double Config::constant_storage_violation() const {
     const RunConfig& cfg = run_config(*this);
     if (cfg.variant != "gain" || !cfg.system->discrete_time()) return NAN;

@@ -55,11 +55,31 @@ void add_rho_command(CLI::App& app) {
             std::printf("rho* > %.4g: the linearised game has no filter of any level up to there\n", g.bound);
         else
             std::printf("rho* < 1e-12: the linearised game has a filter of every level tried\n");
+        if (g.bracketed) {  // the level a filter needs when the run does not end at t_final (section 16.12)
+            const GameLevel s = cfg.rho_auto && cfg.rho > 0
+                                    ? GameLevel{std::max(cfg.rho_run_on, g.bound), cfg.rho_run_on > 0}
+                                    : game_level_sustained(cfg, g.bound);
+            if (s.bracketed && s.bound > g.bound)
+                std::printf("rho*_on = %.4g: where the run goes on past t_final (the walk run on over the horizon's "
+                            "second half, %d horizons in all) the game needs a higher level; between rho* and it only a "
+                            "filter that knows when the run ends keeps the level, not a gain of the estimate alone "
+                            "(docs/method.md section 16.12, \"Where the run ends\")\n",
+                            s.bound, kRunOnRepeats / 2 + 1);
+            else if (s.bracketed)
+                std::printf("rho*_on = rho*: where the run goes on past t_final (the walk run on over the horizon's "
+                            "second half, %d horizons in all) the game needs no higher level\n", kRunOnRepeats / 2 + 1);
+            else
+                std::printf("rho*_on: where the run goes on past t_final the game has no filter of any level tried "
+                            "(up to 1e15)\n");
+        }
         if (cfg.rho_auto && cfg.rho <= 0)
             std::printf("the config names no rho, and no default follows from rho*: train refuses it until it names one\n");
         else if (cfg.rho_auto)
-            std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)\n",
-                        cfg.rho, kAutoRhoFactor);
+            std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)%s\n",
+                        cfg.rho, kAutoRhoFactor,
+                        cfg.rho_run_on >= cfg.rho
+                            ? ", at or below rho*_on: a gain of the estimate alone is not expected to keep it"
+                            : "");
         else std::printf("the config's rho = %g\n", cfg.rho);
         {  // what the outputs tell about each state (docs/method.md section 16.18)
             const StateInformation info = state_information(cfg);
@@ -92,7 +112,13 @@ void add_rho_command(CLI::App& app) {
         }
         if (rho->count() > 0) {
             const double at = game_level_lost_at(cfg, a->rho);
-            if (at < 0) std::printf("rho = %g: a filter of this level exists for the linearised game\n", a->rho);
+            const double on = at < 0 ? game_level_lost_at(cfg, a->rho, kRunOnRepeats) : -1;
+            if (at < 0 && on >= 0)
+                std::printf("rho = %g: a filter of this level exists for the linearised game over the horizon, but "
+                            "where the run goes on its Riccati equation loses definiteness at t = %g %s of the walk run "
+                            "on (above rho*_on it does not)\n",
+                            a->rho, on, horizon);
+            else if (at < 0) std::printf("rho = %g: a filter of this level exists for the linearised game\n", a->rho);
             else
                 std::printf("rho = %g: the Riccati equation loses definiteness at t = %g s: no filter of this level "
                             "for the linearised game\n",

@@ -9,7 +9,7 @@
 
 namespace hinf {
 
-double game_level_lost_at(const ProblemConfig& c, double rho) {
+double game_level_lost_at(const ProblemConfig& c, double rho, int repeats) {
     using Mat = Eigen::MatrixXd;
     using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int n = c.n, m = c.m, nv = c.nv;
@@ -20,10 +20,16 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
     const Mat I = Mat::Identity(n, n);
     Mat P = Mat::Zero(n, n);
     RowMat H(m, n), F(n, n), G(n, nv);
-    std::vector<double> x = c.x0;
-    const std::int64_t steps = std::min(c.steps_until(), kGameLevelMaxSteps);
-    for (std::int64_t k = 0; k < steps; ++k) {
-        const double t = c.time_of(k);
+    std::vector<double> x = c.x0, x_half;
+    const std::int64_t steps = std::min(c.steps_until(), kGameLevelMaxSteps), half = steps / 2;
+    // repeats > 0: then the walk's second half again that many times, from the state and the time at its middle, P
+    // carried over (not its first half: a transient from x0 the run does not meet again)
+    const std::int64_t total = steps + std::max(repeats, 0) * (steps - half);
+    for (std::int64_t kk = 0; kk < total; ++kk) {
+        const std::int64_t k = kk < steps ? kk : half + (kk - steps) % (steps - half);
+        if (kk == half) x_half = x;
+        else if (k == half) x = x_half;
+        const double t = c.time_of(k), t_walk = c.time_of(kk);
         // a factor P = R R': Cholesky where P is positive definite; the symmetric square root where it is singular
         // (P(0) = 0, and G G' in general). Any factor gives the same conditions (R = P^1/2 U with U orthogonal: the
         // matrices below change by the congruence U) and the same P+ = R (I + w R'(H'H - Q/rho) R)^-1 R'
@@ -39,12 +45,12 @@ double game_level_lost_at(const ProblemConfig& c, double rho) {
         }
         // the existence condition at step k: no error direction whose weight Q/rho outgrows what P allows
         Eigen::LLT<Mat> cond(I - w * R.transpose() * Qr * R);
-        if (cond.info() != Eigen::Success) return t;
+        if (cond.info() != Eigen::Success) return t_walk;
         sys.measurement_jacobian(H.data(), x.data(), t);
         system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, c.dt);
         if (!H.allFinite() || !F.allFinite() || !G.allFinite()) return -1;
         Eigen::LLT<Mat> z(I + w * R.transpose() * (Mat(H.transpose() * H) - Qr) * R);
-        if (z.info() != Eigen::Success) return t;
+        if (z.info() != Eigen::Success) return t_walk;
         P = F * (R * z.solve(Mat(R.transpose()))) * F.transpose() + G * G.transpose() / w;
         P = 0.5 * (P + P.transpose()).eval();
         if (!P.allFinite()) return -1;
@@ -103,12 +109,17 @@ double game_level_rho_star(const ProblemConfig& c) {
     return g.bracketed ? g.bound : 0.0;
 }
 
-GameLevel game_level_bound(const ProblemConfig& c, double rel_tol) {
+GameLevel game_level_bound(const ProblemConfig& c, double rel_tol, int repeats, double from) {
     GameLevel r;
-    auto holds = [&](double rho) { return game_level_lost_at(c, rho) < 0; };
-    // bracket by factors of 4 from 1, then bisect in log(rho)
-    double lo = 1.0, hi = 1.0;
-    if (holds(1.0)) {
+    auto holds = [&](double rho) { return game_level_lost_at(c, rho, repeats) < 0; };
+    if (from > 0 && holds(from)) {  // a level known to hold on one walk is the lowest the repeated one can give
+        r.bound = from;
+        r.bracketed = true;
+        return r;
+    }
+    // bracket by factors of 4 from 1 (or from `from`, where it fails), then bisect in log(rho)
+    double lo = from > 0 ? from : 1.0, hi = lo;
+    if (from <= 0 && holds(1.0)) {
         while (lo > 1e-12 && holds(lo / 4)) lo /= 4;
         if (lo <= 1e-12) return r;  // holds at every level: no bound found
         hi = lo;
@@ -129,6 +140,18 @@ GameLevel game_level_bound(const ProblemConfig& c, double rel_tol) {
     r.bound = hi;
     r.bracketed = true;
     return r;
+}
+
+GameLevel game_level_sustained(const ProblemConfig& c, double rho_star) {
+    return game_level_bound(c, 0.01, kRunOnRepeats, rho_star);
+}
+
+double game_level_rho_run_on(const ProblemConfig& c) {
+    if (c.rho_auto) return c.rho_run_on;
+    const double star = game_level_rho_star(c);
+    if (!(star > 0)) return 0.0;
+    const GameLevel g = game_level_sustained(c, star);
+    return g.bracketed ? g.bound : 0.0;
 }
 
 }  // namespace hinf

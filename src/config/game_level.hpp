@@ -15,8 +15,10 @@ namespace hinf {
 /// time), and checks the predictor's existence condition I - w R'(Q/rho) R > 0 at every step (Hassibi, Sayed and
 /// Kailath's a-priori condition P^-1 - Q/rho > 0, here in a form that needs no inverse of a singular P).
 /// Returns the first time it fails, or a negative number when it holds over the horizon walked. A non-finite
-/// trajectory, Jacobian or P ends the walk there (counted as holding).
-double game_level_lost_at(const ProblemConfig& c, double rho);
+/// trajectory, Jacobian or P ends the walk there (counted as holding). repeats > 0 walks on over the horizon's second
+/// half that many times more, each from the trajectory's state and time at the middle, P carried over (the returned
+/// time counts along the whole walk: past t_final where a repeat fails).
+double game_level_lost_at(const ProblemConfig& c, double rho, int repeats = 0);
 
 /// The first time the noise-free trajectory from x0 leaves the finite numbers over the walk's horizon (-1: never):
 /// where it does, the walk's Jacobians run away with it and no level brackets.
@@ -34,7 +36,22 @@ struct GameLevel {
 /// The smallest level rho* for which game_level_lost_at holds, bisected in log(rho) to a relative tolerance: a lower
 /// bound, for signals small enough that system and filter act as their linearisations, on the worst-case attenuation
 /// ratio of every smooth filter (the discrete one also >= lambda_max(B'Q B), the floor of the one-step game).
-GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01);
+/// repeats > 0: the level of the walk run on (game_level_lost_at); from > 0: a level known to hold on the walk without
+/// repeats, where the search starts (the longer walk's level is never below it).
+GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01, int repeats = 0, double from = 0);
+
+/// rho*_on, the level a filter needs when the run does not end at t_final: the walk of rho* run on over the horizon's
+/// second half kRunOnRepeats times more (4 horizons in all), never below rho*. Over [0, t_final] the game's filter may
+/// spend its margin knowing when the run ends (its P reaches its escape only after the end); a filter that does not
+/// know it -- a gain K(x^) of the estimate alone, a stationary filter -- cannot (docs/method.md section 16.12, "Where
+/// the run ends"). For a marginally stable measured state (a shaft angle, a position) it tends to the floor Q_ii that
+/// measurement noise of low frequency passes at a DC gain of 1.
+constexpr int kRunOnRepeats = 6;
+GameLevel game_level_sustained(const ProblemConfig& c, double rho_star);
+
+/// rho*_on of a loaded config, 0 where none is bracketed: the value loading computed for a config naming no rho
+/// (rho_auto), else game_level_sustained's from game_level_rho_star's.
+double game_level_rho_run_on(const ProblemConfig& c);
 
 /// rho* of a loaded config, 0 where no level is bracketed: the value loading computed for a config naming no rho
 /// (rho_auto), else game_level_bound's (one walk per level tried).

@@ -256,6 +256,17 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       cfg.rho, bound, kAutoRhoFactor * bound, kAutoRhoFactor);
         a += buf;
     }
+    const double on = below ? 0.0 : game_level_rho_run_on(cfg);
+    const bool below_on = on > 0 && cfg.rho <= on;
+    if (below_on) {  // keepable over [0, t_final] only by a filter that knows when the run ends (method.md 16.12)
+        std::snprintf(buf, sizeof buf,
+                      " [filter] rho = %.4g is at or below rho*_on = %.4g, the smallest level where the run goes on past "
+                      "t_final (hinf rho): a gain of the estimate alone does not know when the run ends and cannot keep "
+                      "it; a level above it can be kept, e.g. --set filter.rho=%.4g (%.4g rho*_on), but is not always "
+                      "the more robust filter: compare both best.h5 (docs/method.md section 16.12);",
+                      cfg.rho, on, kAutoRhoFactor * on, kAutoRhoFactor);
+        a += buf;
+    }
     if (search.nominal_diverged > 0) {  // before any level or budget: it fails on the noise it was trained for
         std::snprintf(buf, sizeof buf,
                       " the filter diverged in %lld of the check's %lld runs on the [online] noise itself: do not use "
@@ -282,7 +293,7 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
         if (cfg.variant == "gain" && cfg.system != nullptr && cfg.system->discrete_time() && cfg.gain_head != "kalman")
             a += " a gain that divides by the sensor's slope cannot over-correct a steep sensor: train with "
                  "--set network.gain_head=kalman (the Kalman-form head, docs/method.md section 16.16) and compare both;";
-    } else if (!lost && search.ran && search.ratio > cfg.rho && !below) {
+    } else if (!lost && search.ran && search.ratio > cfg.rho && !below && !below_on) {
         const char* label = "";
         const double higher = higher_level(cfg, bound, &label);
         std::snprintf(buf, sizeof buf,

@@ -5,6 +5,7 @@
 // beyond the region training's estimates covered, that said (worst_outside_training).
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdio>
 
 #include "config/game_level.hpp"
 #include "eval/acceptance.hpp"
@@ -45,8 +46,10 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK_FALSE(has(a, "Adam updates"));
     CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
 
-    // a level just above rho*: 4 rho* is the larger suggestion
-    const RunConfig near = scalar(std::to_string(1.1 * star), "adam_steps = 200\n");
+    // a level not far above rho* (1.8 rho*, above rho*_on = 1.58 rho* of this 2 s horizon): 4 rho* is the larger
+    // suggestion
+    const RunConfig near = scalar(std::to_string(1.8 * star), "adam_steps = 200\n");
+    REQUIRE(near.rho > game_level_rho_run_on(near));
     const std::string b = acceptance_advice(near, "run/best.h5", s);
     INFO(b);
     CHECK(has(b, "(4 rho*, hinf rho)"));
@@ -211,4 +214,36 @@ TEST_CASE("the true state far beyond training's region under the worst signals i
     s.ratio = NAN;  // or diverged
     s.diverged = true;
     CHECK(has(acceptance_advice(c, "best.h5", s), "left the region"));
+}
+
+TEST_CASE("acceptance advice says when the level is below rho*_on and names a level above it", "[acceptance]") {
+    // x' = v, y = x + n over 2 s: rho* = 0.619, rho*_on = 0.963 (tests/config/test_game_level.cpp); at rho = 0.8 the
+    // game has a filter over the horizon, but not one a gain of the estimate alone can be
+    const auto integrator = [](const std::string& rho) {
+        return load_run_config(ConfigDoc::from_text(
+            "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"0\"]\n"
+            "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nvariant = \"gain\"\nrho = " + rho +
+                "\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\ndt = 0.01\nt_final = 2\n[online]\ndisturbance_std = 1\n"
+                "noise_std = 1\n",
+            "integrator.toml"));
+    };
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 0.97;
+    const RunConfig c = integrator("0.8");
+    const double on = game_level_rho_run_on(c);
+    REQUIRE(on > 0.95);
+    REQUIRE(on < 0.97);
+    const std::string a = acceptance_advice(c, "run/best.h5", s);
+    INFO(a);
+    CHECK(has(a, "[filter] rho = 0.8 is at or below rho*_on = "));
+    char level[32];
+    std::snprintf(level, sizeof level, "--set filter.rho=%.4g (1.25 rho*_on)", 1.25 * on);
+    CHECK(has(a, level));
+    CHECK_FALSE(has(a, "at or below rho* ="));
+    CHECK_FALSE(has(a, "the worst-case search found a ratio of"));  // the level is the point, not another doubling
+    // above rho*_on: the plain advice
+    const std::string b = acceptance_advice(integrator("1.2"), "run/best.h5", s);
+    INFO(b);
+    CHECK_FALSE(has(b, "rho*_on"));
 }
