@@ -146,9 +146,9 @@ GameLevel game_level_sustained(const ProblemConfig& c, double rho_star) {
     return game_level_bound(c, 0.01, kRunOnRepeats, rho_star);
 }
 
-double game_level_rho_run_on(const ProblemConfig& c) {
+double game_level_rho_run_on(const ProblemConfig& c, double rho_star) {
     if (c.rho_auto) return c.rho_run_on;
-    const double star = game_level_rho_star(c);
+    const double star = rho_star > 0 ? rho_star : game_level_rho_star(c);
     if (!(star > 0)) return 0.0;
     const GameLevel g = game_level_sustained(c, star);
     return g.bracketed ? g.bound : 0.0;

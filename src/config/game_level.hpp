@@ -50,8 +50,8 @@ constexpr int kRunOnRepeats = 6;
 GameLevel game_level_sustained(const ProblemConfig& c, double rho_star);
 
 /// rho*_on of a loaded config, 0 where none is bracketed: the value loading computed for a config naming no rho
-/// (rho_auto), else game_level_sustained's from game_level_rho_star's.
-double game_level_rho_run_on(const ProblemConfig& c);
+/// (rho_auto), else game_level_sustained's from rho_star (> 0: game_level_rho_star's, known to the caller; else computed).
+double game_level_rho_run_on(const ProblemConfig& c, double rho_star = 0);
 
 /// rho* of a loaded config, 0 where no level is bracketed: the value loading computed for a config naming no rho
 /// (rho_auto), else game_level_bound's (one walk per level tried).

@@ -256,7 +256,7 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       cfg.rho, bound, kAutoRhoFactor * bound, kAutoRhoFactor);
         a += buf;
     }
-    const double on = below ? 0.0 : game_level_rho_run_on(cfg);
+    const double on = below || !(bound > 0) ? 0.0 : game_level_rho_run_on(cfg, bound);  // rho* not walked again
     const bool below_on = on > 0 && cfg.rho <= on;
     if (below_on) {  // keepable over [0, t_final] only by a filter that knows when the run ends (method.md 16.12)
         std::snprintf(buf, sizeof buf,
