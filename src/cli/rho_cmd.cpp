@@ -35,6 +35,7 @@ void add_rho_command(CLI::App& app) {
         // a config naming no rho has walked the game on load (rho_auto): its rho* is not walked again (the walk is
         // n^3 a step: seconds for a large system)
         const GameLevel g = cfg.rho_auto && cfg.rho > 0 ? GameLevel{cfg.rho_bound, true} : game_level_bound(cfg);
+        double run_on = 0;  // rho*_on, where rho* is bracketed
         const char* horizon = cfg.system->discrete_time() ? "steps" : "s";
         const std::int64_t walked = std::min(cfg.steps_until(), kGameLevelMaxSteps);
         const double span = cfg.system->discrete_time() ? double(walked) : cfg.time_of(walked);
@@ -56,9 +57,8 @@ void add_rho_command(CLI::App& app) {
         else
             std::printf("rho* < 1e-12: the linearised game has a filter of every level tried\n");
         if (g.bracketed) {  // the level a filter needs when the run does not end at t_final (section 16.12)
-            const GameLevel s = cfg.rho_auto && cfg.rho > 0
-                                    ? GameLevel{std::max(cfg.rho_run_on, g.bound), cfg.rho_run_on > 0}
-                                    : game_level_sustained(cfg, g.bound);
+            const GameLevel s = game_level_sustained(cfg, g.bound);
+            run_on = s.bracketed ? s.bound : 0.0;
             if (s.bracketed && s.bound > g.bound)
                 std::printf("rho*_on = %.4g: where the run goes on past t_final (the walk run on over the horizon's "
                             "second half, %d horizons in all) the game needs a higher level; between rho* and it only a "
@@ -77,7 +77,7 @@ void add_rho_command(CLI::App& app) {
         else if (cfg.rho_auto)
             std::printf("the config names no rho: it trains at %g = %g rho* (the default for a system of one's own)%s\n",
                         cfg.rho, kAutoRhoFactor,
-                        cfg.rho_run_on >= cfg.rho
+                        run_on >= cfg.rho
                             ? ", at or below rho*_on: a gain of the estimate alone is not expected to keep it"
                             : "");
         else std::printf("the config's rho = %g\n", cfg.rho);

@@ -147,7 +147,6 @@ GameLevel game_level_sustained(const ProblemConfig& c, double rho_star) {
 }
 
 double game_level_rho_run_on(const ProblemConfig& c, double rho_star) {
-    if (c.rho_auto) return c.rho_run_on;
     const double star = rho_star > 0 ? rho_star : game_level_rho_star(c);
     if (!(star > 0)) return 0.0;
     const GameLevel g = game_level_sustained(c, star);

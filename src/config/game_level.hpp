@@ -49,8 +49,9 @@ GameLevel game_level_bound(const ProblemConfig& c, double rel_tol = 0.01, int re
 constexpr int kRunOnRepeats = 6;
 GameLevel game_level_sustained(const ProblemConfig& c, double rho_star);
 
-/// rho*_on of a loaded config, 0 where none is bracketed: the value loading computed for a config naming no rho
-/// (rho_auto), else game_level_sustained's from rho_star (> 0: game_level_rho_star's, known to the caller; else computed).
+/// rho*_on of a loaded config, 0 where none is bracketed: game_level_sustained's from rho_star (> 0: game_level_rho_star's,
+/// known to the caller; else game_level_rho_star's). Computed when asked, not on load: it walks four horizons per level
+/// tried, which the commands that only read a config (filter, worst, operate, the library's load) do not need.
 double game_level_rho_run_on(const ProblemConfig& c, double rho_star = 0);
 
 /// rho* of a loaded config, 0 where no level is bracketed: the value loading computed for a config naming no rho

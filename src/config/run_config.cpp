@@ -460,12 +460,6 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
         c.rho_auto = true;
         c.rho_bound = g.bracketed ? g.bound : 0.0;
         c.rho = g.bracketed ? kAutoRhoFactor * g.bound : 0.0;
-        // and the level where the run goes on past t_final, for training's note where the default is below it: a gain
-        // of the estimate alone does not know when the run ends (docs/method.md section 16.12, "Where the run ends")
-        if (g.bracketed) {
-            const GameLevel on = game_level_sustained(c, g.bound);
-            c.rho_run_on = on.bracketed ? on.bound : 0.0;
-        }
         // no level brackets: no default follows from the system. Only what designs at a level (train, the GLF) needs
         // one, so those refuse; compare, filter, worst with the other filters run
         const double escape = g.bracketed ? -1.0 : noise_free_escape_time(c);

@@ -23,8 +23,6 @@ struct ProblemConfig {
     bool q_auto = false;                   // an expr system naming no Q: Q = I (written into the effective config)
     bool rho_auto = false;                 // an expr system naming no rho: rho = 1.25 rho_bound (config/game_level.hpp)
     double rho_bound = 0;                  // rho*, the linearised game's smallest level (set where rho_auto)
-    double rho_run_on = 0;                 // rho*_on >= rho*: the level where the run goes on past t_final (0: none
-                                           // bracketed; set where rho_auto; config/game_level.hpp)
     std::string rho_unset;                 // rho_auto with no level bracketed (rho = 0): why; train and the GLF refuse
     std::vector<double> Q;                 // n x n
     std::vector<double> x0, xhat0;         // n

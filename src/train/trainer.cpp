@@ -853,14 +853,15 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          ? ""
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     // a default below rho*_on: kept over [0, t_final] only by a filter that knows when the run ends
-    if (cfg.rho_auto && notes && cfg.rho_run_on >= cfg.rho)
+    const double run_on = cfg.rho_auto && notes ? game_level_rho_run_on(cfg) : 0.0;
+    if (run_on >= cfg.rho && run_on > 0)
         std::fprintf(stderr, "hinf: note: that level is at or below rho*_on = %.4g, the smallest one where the run goes "
                              "on past t_final: a gain of the estimate alone does not know when the run ends, so its "
                              "worst-case ratio is not expected below rho*_on, and the acceptance check will likely FAIL the "
                              "level. --set filter.rho=%.4g (%g rho*_on) can be kept, but a higher level is not always "
                              "the more robust filter: train both and compare them (docs/method.md section 16.12, "
                              "\"Where the run ends\")\n",
-                     cfg.rho_run_on, kAutoRhoFactor * cfg.rho_run_on, kAutoRhoFactor);
+                     run_on, kAutoRhoFactor * run_on, kAutoRhoFactor);
     // the walk behind rho* covers the horizon's first kGameLevelMaxSteps steps: a longer one can need a larger level
     if (cfg.rho_auto && notes && cfg.steps_until() > kGameLevelMaxSteps)
         std::fprintf(stderr, "hinf: note: that rho* is the linearised game's over the horizon's first %lld of %lld "

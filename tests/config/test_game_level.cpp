@@ -78,15 +78,16 @@ TEST_CASE("a default level below rho*_on is said by train and by hinf rho", "[co
         const RunConfig c = config_from_text(integrator("continuous", "0.01", t_final, ""));
         REQUIRE(c.rho_auto);
         CHECK(c.rho == kAutoRhoFactor * c.rho_bound);  // the default stays 1.25 rho* (section 16.12)
-        CHECK(c.rho_run_on >= c.rho_bound);
+        const double run_on = game_level_rho_run_on(c);  // from the rho* loading walked
+        CHECK(run_on >= c.rho_bound);
         const bool below = std::string(t_final) == "2";
-        CHECK((c.rho_run_on >= c.rho) == below);
+        CHECK((run_on >= c.rho) == below);
         const auto r = hinf::test::run_hinf("train " + (d / "c.toml") + " --until 0.02 --quiet --force --out " +
                                             (d / "run"));
         INFO(r.output);
         REQUIRE(r.status == 0);
         char on[32];
-        std::snprintf(on, sizeof on, "%.4g", c.rho_run_on);
+        std::snprintf(on, sizeof on, "%.4g", run_on);
         CHECK((r.output.find(std::string("that level is at or below rho*_on = ") + on) != std::string::npos) == below);
         const auto rho = hinf::test::run_hinf("rho " + (d / "c.toml"));
         INFO(rho.output);
