@@ -69,6 +69,28 @@ TEST_CASE("rho*_on of a system whose game settles within the horizon is rho*", "
     CHECK(game_level_sustained(walk, g.bound).bound == g.bound);
 }
 
+TEST_CASE("rho*_on of a system with an unseen unstable state is not bracketed and hinf rho says so", "[config][rho][cli]") {
+    // a' = a + v1 grows unseen (y = b + n): over [0, T] its error's energy is finite, rho* ~ e^(2T) (2e6 at T = 8), but
+    // over four horizons e^(8T) passes every level tried (1e15): no filter keeps a level where the run goes on
+    const std::string text = "[system]\nkind = \"expr\"\nstates = [\"a\", \"b\"]\ndisturbances = 2\nmeasurements = 1\n"
+                             "f = [\"a\", \"-b\"]\ng = [[\"1\", \"0\"], [\"0\", \"1\"]]\nh = [\"b\"]\n[filter]\n"
+                             "Q = [1.0, 1.0]\nx0 = [0.0, 1.0]\nxhat0 = [0.0, 0.0]\ndt = 0.01\nt_final = 8\n"
+                             "[online]\ndisturbance_std = 0.1\nnoise_std = 0.1\n";
+    const RunConfig c = config_from_text(text);
+    REQUIRE(c.rho_auto);
+    REQUIRE(c.rho_bound > 1e5);
+    CHECK(c.rho_bound < 1e8);
+    CHECK(game_level_rho_run_on(c) == 0.0);
+    hinf::test::TempDir d("rho-run-on-none");
+    std::ofstream(d / "c.toml") << text;
+    const auto r = run_hinf("rho " + (d / "c.toml"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("rho*_on: where the run goes on past t_final the game has no filter of any level tried") !=
+          std::string::npos);
+    CHECK(r.output.find("the outputs tell next to nothing about a") != std::string::npos);
+}
+
 TEST_CASE("a default level below rho*_on is said by train and by hinf rho", "[config][rho][cli]") {
     // the integrator over T = 2 s: rho* = 1/(1 + pi^2/16) = 0.619, the default 1.25 rho* = 0.773 is below rho*_on =
     // 1/(1 + pi^2/256) = 0.963; over T = 10 s the default 1.22 is above rho*_on = 0.998: no note
