@@ -24,6 +24,7 @@ struct WorstArgs {
     std::vector<std::string> networks, sets;
     std::int64_t particles = 2000;
     int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
+    int linear_pieces = 20;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
     bool keep_initial_error = false, no_game_start = false, no_cross_starts = false, quiet = false, plot = false;
     bool ensemble = false;
@@ -78,6 +79,9 @@ void add_worst_command(CLI::App& app) {
     c->add_flag("--no-game-start", a->no_game_start, "Do not start DNN filters from the game's v* = B'p/(2 rho), n* = -dC");
     c->add_flag("--no-cross-starts", a->no_cross_starts,
                 "Do not search on from another filter's worst signals where they beat a filter's own best");
+    c->add_option("--linear-pieces", a->linear_pieces,
+                  "The linear start: each filter's small-signal worst case over piecewise-constant signals of this many "
+                  "pieces a channel, searched on from there (default 20; 0: none; docs/compare.md \"The linear start\")");
     c->add_option("--evals", a->evals, "Objective evaluations per restart (default 200)");
     c->add_option("--algorithm", a->algorithm, "NLopt algorithm: " + worst_algorithms() + " (default LN_SBPLX)");
     c->add_flag("--keep-initial-error", a->keep_initial_error,
@@ -109,6 +113,7 @@ void add_worst_command(CLI::App& app) {
         for (const auto& s : opt.scenario_starts) scenario_named(s);  // names checked before any work
         opt.game_start = !a->no_game_start;
         opt.cross_starts = !a->no_cross_starts;
+        opt.linear_pieces = a->linear_pieces;
         opt.evals = a->evals;
         opt.algorithm = a->algorithm;
         opt.keep_initial_error = a->keep_initial_error;
@@ -178,6 +183,13 @@ void add_worst_command(CLI::App& app) {
             for (const auto& rs : fr.restarts) best_start = std::max(best_start, rs.start_ratio);
             std::printf("%-26s %12.4g %12.4g %12.4g %12.4g  %-24s %8zu\n", fr.name.c_str(), fr.worst.ratio, v.front(),
                         median, best_start, fr.restarts[fr.best].start.c_str(), fr.restarts.size());
+        }
+        if (opt.linear_pieces > 0) {  // the exact small-signal figure beside what the search found from it
+            std::printf("small signals (the linear start, %d pieces a channel), the ratio they reach:", opt.linear_pieces);
+            for (const auto& fr : r.filters)
+                if (std::isfinite(fr.linear_gain)) std::printf(" %s %.4g", fr.name.c_str(), fr.linear_gain);
+                else std::printf(" %s -", fr.name.c_str());
+            std::printf("\n");
         }
         print_cross(r.cross);
         // a gain network's filter: where its worst signals drove the truth far beyond training's region, its gain

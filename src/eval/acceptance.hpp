@@ -73,7 +73,8 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
 /// The acceptance check's outcome.
 struct AcceptanceOutcome {
     bool ran = false;   // it ran (the run reached t_final on one process, training.acceptance_runs > 0)
-    bool pass = false;  // no run diverged, attenuation ratio <= rho, worst ratio found <= rho without divergence
+    bool pass = false;  // no run diverged, attenuation ratio <= rho, worst ratio found <= rho without divergence, and
+                        // the small-signal worst ratio <= rho (docs/compare.md "The linear start")
     std::string file;   // the checkpoint judged: DIR/best.h5 where a selection kept one, else DIR/checkpoint.h5
     std::string line;   // its one summary line ("acceptance (5 measured runs, ...): PASS|FAIL; files: ...")
     std::string advice; // after a FAIL: what to try, one line ("acceptance: next: ..."); empty after a PASS
@@ -93,6 +94,8 @@ struct AcceptanceOutcome {
     double rms_q_settled = std::numeric_limits<double>::quiet_NaN();
     double rms_q_settled_ekf = std::numeric_limits<double>::quiet_NaN();
     double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
+    // the small-signal worst ratio (docs/compare.md "The linear start"; NaN: no search ran, or not had)
+    double worst_small_signal = std::numeric_limits<double>::quiet_NaN();
 };
 /// The settled error, over the EKF's on the acceptance runs (the larger of the position and the all-state Q-weighted
 /// ratio), above which a PASS gets AcceptanceOutcome::note
@@ -116,7 +119,7 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
 /// What the acceptance's worst-case search found, for the advice after a FAIL.
 struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)
-    double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found
+    double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found (small signals too)
     bool diverged = false;   // the filter diverged under the worst signals found
     std::int64_t nominal_diverged = 0, nominal_runs = 0;  // the check's own runs ([online] noise) that diverged, of all
     // the DNN filter's settled error over the EKF's on those runs, the larger of the position and the all-state

@@ -14,6 +14,8 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include <Eigen/Dense>
+
 #include "eval/engine.hpp"
 #include "filters/gain_law.hpp"
 #include "hinf/error.hpp"
@@ -111,22 +113,35 @@ struct Parametrisation {
 // The ratio of an already-cloned filter (reset here) under s: the sums of eval/engine.cpp run_one_filter, in its
 // order, so that a replay through the engine gives the same bits.
 // NaN where the truth runs away (escape: truth_escape_bound; docs/compare.md "A truth that escapes")
-double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
-                const std::vector<double>& escape) {
+// The filter (an already-cloned one, reset here) run under s: visit(k, e_k, energy_k) with e_k = x_k - x^_k [n] (an
+// angle state's wrapped) and the step's v'v + n'n; false (nothing visited) where the truth runs away (escape:
+// truth_escape_bound; docs/compare.md "A truth that escapes").
+template <class Visit>
+bool run_errors(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
+                const std::vector<double>& escape, Visit&& visit) {
     std::int64_t escaped_at = -1;
     TruthRun tr = truth_simulate_checked(cfg, Scenario{}, 0, K, escape.data(), &escaped_at, &s);
     const int n = cfg.n;
-    if (escaped_at >= 0) return NAN;
+    if (escaped_at >= 0) return false;
     std::vector<double> e(n);
-    double error_energy = 0, energy = 0;
     f.reset(engine_filter_start(cfg, 0));
     filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
-        const double* x = tr.x.data() + k * n;
-        cfg.system->state_difference(e.data(), x, xh);  // an angle state's wrapped
-        error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e.data(), n);
-        energy += cfg.dt * tr.energy[k];
+        cfg.system->state_difference(e.data(), tr.x.data() + k * n, xh);
+        visit(k, e.data(), tr.energy[k]);
     });
-    return error_energy / energy;
+    return true;
+}
+
+// The ratio of an already-cloned filter (reset here) under s: the sums of eval/engine.cpp run_one_filter, in its
+// order, so that a replay through the engine gives the same bits. NaN where the truth runs away.
+double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
+                const std::vector<double>& escape) {
+    double error_energy = 0, energy = 0;
+    const bool stayed = run_errors(cfg, f, s, K, t, escape, [&](std::int64_t, const double* e, double ek) {
+        error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e, cfg.n);
+        energy += cfg.dt * ek;
+    });
+    return stayed ? error_energy / energy : NAN;
 }
 
 std::vector<double> times(const RunConfig& cfg, std::int64_t K) {
@@ -174,6 +189,87 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
         s = std::move(g);
     }
     return s;
+}
+
+// The small-signal worst case of one filter over piecewise-constant signals, P pieces a channel (docs/compare.md,
+// "The linear start"). For signals small enough that the truth and the filter respond linearly, the error sequence
+// is e = L s about the zero signal's, and the ratio |e|_Q^2 / |s|^2 is at most the largest eigenvalue of the error
+// energy's Gram matrix G = dt D'(I (x) Q)D over the signals' M = diag(piece lengths dt), where column j of D is the
+// error sequence's central difference along basis signal j (one piece of one channel). That eigenvalue is the gain;
+// its eigenvector, scaled to the budget, is the signal that reaches it, the search's "linear" start. Each difference
+// runs the filter twice at +-a_j, the amplitude that carries kLinearShare of the budget: small against the noise the
+// filter was built for, large against the round-off of a float network. Columns run in parallel, each a pure
+// function of its index, so the result does not depend on the thread count. gain NaN: a basis run escaped or gave a
+// non-finite error, or D would not fit in kLinearBytes.
+constexpr double kLinearShare = 1e-6;
+constexpr double kLinearBytes = 1024.0 * 1024.0 * 1024.0;
+
+struct LinearWorst {
+    double gain = NAN;
+    Signals s;  // [K x nv], [K x m], scaled to the budget (empty where gain is NaN)
+};
+
+LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::int64_t K, int pieces, double energy,
+                         const std::vector<double>& t, const std::vector<double>& escape, bool quiet) {
+    const int P = int(std::min<std::int64_t>(pieces, K));  // a short horizon: a piece a step
+    const int n = cfg.n, nv = cfg.nv, m = cfg.m, C = nv + m, B = C * P;
+    LinearWorst out;
+    if (P <= 0 || double(K) * n * B * sizeof(double) > kLinearBytes) return out;
+    auto first = [K, P](int p) { return std::int64_t(p) * K / P; };  // piece p: steps [first(p), first(p + 1))
+    std::vector<double> D(std::size_t(K) * n * B, 0.0), M(B);
+    std::vector<unsigned char> ok(B, 0);
+    Progress progress("worst linear start " + proto.name(), 0, B, quiet);
+    std::int64_t finished = 0;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int j = 0; j < B; ++j) {
+        const int c = j / P, p = j % P;
+        const std::int64_t k0 = first(p), k1 = first(p + 1);
+        M[j] = double(k1 - k0) * cfg.dt;
+        const double a = std::sqrt(kLinearShare * energy / M[j]);
+        std::unique_ptr<OnlineFilter> f = proto.clone();
+        double* col = D.data() + std::size_t(j) * K * n;
+        bool good = k1 > k0;
+        for (int sign = 1; good && sign >= -1; sign -= 2) {
+            Signals s{std::vector<double>(std::size_t(K) * nv, 0.0), std::vector<double>(std::size_t(K) * m, 0.0)};
+            for (std::int64_t k = k0; k < k1; ++k) (c < nv ? s.v[k * nv + c] : s.n[k * m + (c - nv)]) = sign * a;
+            good = run_errors(cfg, *f, s, K, t, escape, [&](std::int64_t k, const double* e, double) {
+                for (int i = 0; i < n; ++i) col[k * n + i] += sign * e[i] / (2 * a);
+            });
+        }
+        for (std::size_t i = 0; good && i < std::size_t(K) * n; ++i) good = std::isfinite(col[i]);
+        ok[j] = good;
+#pragma omp critical
+        progress.update(++finished, "basis signals |");
+    }
+    for (unsigned char g : ok)
+        if (!g) return out;
+    // G = dt D' (I (x) Q) D: each column [K x n] seen as n x K (column-major), Q symmetric
+    const Eigen::Map<const Eigen::MatrixXd> Dm(D.data(), std::int64_t(K) * n, B);
+    const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> Q(cfg.Q.data(), n, n);
+    Eigen::MatrixXd QD(std::int64_t(K) * n, B);
+    for (int j = 0; j < B; ++j)
+        Eigen::Map<Eigen::MatrixXd>(QD.col(j).data(), n, K).noalias() =
+            Q * Eigen::Map<const Eigen::MatrixXd>(D.data() + std::size_t(j) * K * n, n, K);
+    Eigen::MatrixXd A = cfg.dt * (Dm.transpose() * QD);
+    for (int i = 0; i < B; ++i)
+        for (int j = 0; j < B; ++j) A(i, j) /= std::sqrt(M[i] * M[j]);
+    A = 0.5 * (A + A.transpose());
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(A);
+    if (es.info() != Eigen::Success) return out;
+    Eigen::VectorXd u = es.eigenvectors().col(B - 1);
+    Eigen::Index big = 0;
+    u.cwiseAbs().maxCoeff(&big);
+    if (u[big] < 0) u = -u;  // one sign whatever the solver's
+    Signals s{std::vector<double>(std::size_t(K) * nv, 0.0), std::vector<double>(std::size_t(K) * m, 0.0)};
+    for (int j = 0; j < B; ++j) {
+        const int c = j / P, p = j % P;
+        const double w = u[j] / std::sqrt(M[j]);
+        for (std::int64_t k = first(p); k < first(p + 1); ++k) (c < nv ? s.v[k * nv + c] : s.n[k * m + (c - nv)]) = w;
+    }
+    if (!scale_to_budget(s, energy, cfg.dt)) return out;
+    out.gain = std::max(0.0, es.eigenvalues()[B - 1]);
+    out.s = std::move(s);
+    return out;
 }
 
 struct Task {
@@ -361,6 +457,15 @@ double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s
     return ratio_of(cfg, *c, s, steps, times(cfg, steps), truth_escape_bound(cfg, steps));
 }
 
+double worst_small_signal(const RunConfig& cfg_in, const OnlineFilter& f, const WorstOptions& opt) {
+    const RunConfig cfg = worst_config(cfg_in, opt);
+    const std::int64_t K = cfg.steps_until(opt.until);
+    if (opt.linear_pieces <= 0 || K < 2) return NAN;
+    return linear_worst(cfg, f, K, opt.linear_pieces, worst_energy(cfg, opt, K), times(cfg, K), truth_escape_bound(cfg, K),
+                        opt.quiet)
+        .gain;
+}
+
 WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt) {
     const auto wall0 = std::chrono::steady_clock::now();
@@ -372,6 +477,8 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     HINF_CHECK(opt.pieces <= 1000 && opt.sines <= 100, "--pieces <= 1000 and --sines <= 100");
     HINF_CHECK(opt.evals >= 1, "--evals must be >= 1 (got " + std::to_string(opt.evals) + ")");
     HINF_CHECK(opt.random_starts >= 0, "--random-starts must be >= 0");
+    HINF_CHECK(opt.linear_pieces >= 0 && opt.linear_pieces <= 1000,
+               "--linear-pieces must be in [0, 1000] (0: no linear start; got " + std::to_string(opt.linear_pieces) + ")");
     algorithm_named(opt.algorithm);
     const RunConfig cfg = worst_config(cfg_in, opt);
     const std::int64_t K = cfg.steps_until(opt.until);
@@ -406,8 +513,10 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
         HINF_CHECK(scale_to_budget(s, E, cfg.dt), "worst: scenario start '" + name + "' carries no energy");
         scenario_base.push_back(std::move(s));
     }
-    std::vector<Signals> game_base(F);
+    std::vector<Signals> game_base(F), linear_base(F);
+    std::vector<double> linear_gain(F, NAN);
     std::vector<Task> tasks;
+    const std::vector<double> escape = opt.linear_pieces > 0 ? truth_escape_bound(cfg, K) : std::vector<double>{};
     for (int i = 0; i < F; ++i) {
         for (int j = 0; j < opt.random_starts; ++j)
             tasks.push_back(Task{i, "random:" + std::to_string(j), nullptr, std::uint64_t(j)});
@@ -416,6 +525,14 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
         if (opt.game_start && !games.empty() && games[i].network != nullptr) {
             game_base[i] = game_signals(cfg, *filters[i], games[i], K, E, t);
             tasks.push_back(Task{i, "game", &game_base[i], 0});
+        }
+        if (opt.linear_pieces > 0) {  // every process computes it: the same bits, no exchange
+            LinearWorst lw = linear_worst(cfg, *filters[i], K, opt.linear_pieces, E, t, escape, opt.quiet || par_rank() != 0);
+            linear_gain[i] = lw.gain;
+            if (std::isfinite(lw.gain)) {
+                linear_base[i] = std::move(lw.s);
+                tasks.push_back(Task{i, "linear", &linear_base[i], 0});
+            }
         }
     }
     HINF_CHECK(!tasks.empty(), "worst: no starts (--random-starts 0 and no --scenario-starts)");
@@ -430,7 +547,10 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     res.steps = K;
     res.parameters = par.dims();
     res.filters.resize(F);
-    for (int i = 0; i < F; ++i) res.filters[i].name = filters[i]->name();
+    for (int i = 0; i < F; ++i) {
+        res.filters[i].name = filters[i]->name();
+        res.filters[i].linear_gain = linear_gain[i];
+    }
     // restarts in task order into each filter's list; its worst set is its largest ratio (the first on a tie)
     auto merge = [&res](const std::vector<Task>& ts, std::vector<TaskResult>& done) {
         for (std::size_t j = 0; j < ts.size(); ++j) {
@@ -639,6 +759,7 @@ void worst_write(const std::string& path, const RunConfig& cfg, const WorstOptio
     h5::set_attr(root, "algorithm", opt.algorithm);
     h5::set_attr(root, "pieces", std::int64_t(opt.pieces));
     h5::set_attr(root, "sines", std::int64_t(opt.sines));
+    h5::set_attr(root, "linear_pieces", std::int64_t(opt.linear_pieces));
     h5::set_attr(root, "evals", std::int64_t(opt.evals));
     h5::set_attr(root, "parameters", std::int64_t(r.parameters));
     h5::set_attr(root, "wall_seconds", r.wall_seconds);
@@ -665,6 +786,7 @@ void worst_write(const std::string& path, const RunConfig& cfg, const WorstOptio
         h5::set_attr(g.get(), "nlopt_results", join(results));
         h5::set_attr(g.get(), "best", std::int64_t(fr.best));
         h5::set_attr(g.get(), "ratio", fr.worst.ratio);
+        h5::set_attr(g.get(), "linear_gain", fr.linear_gain);
     }
     std::vector<WorstSignals> sets;
     for (const auto& fr : r.filters) sets.push_back(fr.worst);

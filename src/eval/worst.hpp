@@ -6,6 +6,7 @@
 // Shape legend: K = steps, n = states, nv = disturbance inputs, m = outputs, C = nv + m signal channels,
 // P = pieces per channel, S = sinusoids, F = filters, R = restarts, D = signal sets.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -26,6 +27,8 @@ struct WorstOptions {
     std::vector<std::string> scenario_starts = {"nominal", "energy_pulse", "bias"};  // compare scenarios as starts
     bool game_start = true;      // a DNN filter with a network also starts from the game's v* = B'p / (2 rho), n* = -dC
     bool cross_starts = true;    // a filter whose cross-table column beats its own best searches on from those sets
+    int linear_pieces = 20;      // the linear start: the small-signal worst case over signals of this many pieces a
+                                 // channel (2 (nv + m) pieces runs a filter); 0: none (docs/compare.md "The linear start")
     int evals = 200;             // objective evaluations per restart
     std::string algorithm = "LN_SBPLX";  // a local derivative-free NLopt algorithm (worst_algorithms())
     bool keep_initial_error = false;     // false: every filter starts at x^0 = x0 (the pure energy gain)
@@ -59,6 +62,7 @@ struct WorstFilterResult {
     std::vector<WorstRestart> restarts;  // [R] in start order
     int best = 0;                        // index of the largest ratio
     WorstSignals worst;
+    double linear_gain = NAN;            // the small-signal worst ratio over the linear start's signals (NaN: none)
 };
 
 /// Every filter run on every signal set (the same signals against every filter).
@@ -96,13 +100,19 @@ double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t 
 double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s, std::int64_t steps);
 
 /// The search: R restarts per filter, OpenMP over (filter, restart), each a pure function of its inputs:
-/// the result does not depend on the thread count; under mpirun the restarts are dealt out over the processes
+/// the result does not depend on the thread count; with opt.linear_pieces > 0 each filter also starts from its
+/// small-signal worst case ("linear", WorstFilterResult::linear_gain); under mpirun the restarts are dealt out over the processes
 /// (worst_rank_of) and the result is the same bits for any number of them. games: [F] (or empty). Ends with the replay of every
 /// worst set against every filter (WorstResult::cross); with opt.cross_starts, every other filter's worst set that
 /// beats a filter's own best is one more start for it ("cross:<name>") and the table is replayed again, for up to
 /// three rounds. Runs on worst_config(cfg, opt).
 WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt);
+
+/// The small-signal worst ratio of filter f on worst_config(cfg, opt) over signals of opt.linear_pieces pieces a
+/// channel: the figure the linear start reports (WorstFilterResult::linear_gain; docs/compare.md "The linear start"),
+/// without a search. NaN where it cannot be had (opt.linear_pieces = 0, a basis run ran away or diverged).
+double worst_small_signal(const RunConfig& cfg, const OnlineFilter& f, const WorstOptions& opt);
 
 /// The process that computes restart (or replayed set) `task` among `ranks` under mpirun.
 std::int64_t worst_rank_of(std::int64_t task, int ranks);

@@ -23,7 +23,7 @@ namespace {
 // The acceptance figures of a checkpoint's root attributes.
 struct Acceptance {
     std::string verdict;
-    double rho = 0, ratio = 0, ratio_minus_v0 = 0, worst_ratio = 0, worst_ratio_ekf = 0;
+    double rho = 0, ratio = 0, ratio_minus_v0 = 0, worst_ratio = 0, worst_ratio_ekf = 0, small = 0, small_ekf = 0;
     std::int64_t diverged_runs = 0, worst_evals = 0, worst_diverged = 0;
 };
 
@@ -38,18 +38,21 @@ Acceptance read_acceptance(const std::string& checkpoint, double rho) {
     a.diverged_runs = hinf::h5::get_attr_int(r, "acceptance_diverged_runs");
     a.worst_ratio = hinf::h5::get_attr_double(r, "acceptance_worst_ratio");
     a.worst_ratio_ekf = hinf::h5::get_attr_double(r, "acceptance_worst_ratio_ekf");
+    a.small = hinf::h5::get_attr_double(r, "acceptance_worst_small_signal");
+    a.small_ekf = hinf::h5::get_attr_double(r, "acceptance_worst_small_signal_ekf");
     a.worst_evals = hinf::h5::get_attr_int(r, "acceptance_worst_evals");
     a.worst_diverged = hinf::h5::get_attr_int(r, "acceptance_worst_diverged");
     return a;
 }
 
-// docs/method.md section 16.5: the Monte Carlo's bound, and (when a search ran) the worst ratio found <= rho
+// docs/method.md section 16.5: the Monte Carlo's bound, and (when a search ran) the worst ratio found <= rho and the
+// small-signal worst ratio <= rho (docs/compare.md "The linear start")
 bool mc_passes(const Acceptance& a) {
     const double ratio = std::isfinite(a.ratio_minus_v0) ? a.ratio_minus_v0 : a.ratio;
     return a.diverged_runs == 0 && ratio <= a.rho;
 }
 bool worst_passes(const Acceptance& a) {
-    return a.worst_evals == 0 || (a.worst_diverged == 0 && a.worst_ratio <= a.rho);
+    return a.worst_evals == 0 || (a.worst_diverged == 0 && a.worst_ratio <= a.rho && !(a.small > a.rho));
 }
 
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
@@ -75,6 +78,8 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         CHECK(std::isfinite(a.worst_ratio));
         CHECK(a.worst_ratio > 0);
         CHECK(std::isfinite(a.worst_ratio_ekf));
+        CHECK(std::isfinite(a.small));
+        CHECK(std::isfinite(a.small_ekf));
         CHECK(a.verdict == (mc_passes(a) && worst_passes(a) ? "pass" : "fail"));
         hinf::h5::Handle w = hinf::h5::open_file(d / "run/acceptance/worst.h5", false);
         CHECK(hinf::h5::get_attr_string(w.get(), "format") == "hinf-worst");

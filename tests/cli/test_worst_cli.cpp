@@ -29,9 +29,10 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
     {
         // the DNN filter got the game's start besides the random and the scenario one
         hinf::h5::Handle g = hinf::h5::open_group(f.get(), "filters/dnn_dissipative_oracle");
-        CHECK(hinf::h5::get_attr_string(g.get(), "starts") == "random:0,scenario:nominal,game");
+        CHECK(hinf::h5::get_attr_string(g.get(), "starts") == "random:0,scenario:nominal,game,linear");
         hinf::h5::Handle e = hinf::h5::open_group(f.get(), "filters/ekf");
-        CHECK(hinf::h5::get_attr_string(e.get(), "starts") == "random:0,scenario:nominal");
+        CHECK(hinf::h5::get_attr_string(e.get(), "starts") == "random:0,scenario:nominal,linear");
+        CHECK(hinf::h5::get_attr_double(e.get(), "linear_gain") > 0);
         hinf::h5::Handle c = hinf::h5::open_group(f.get(), "cross");
         CHECK(hinf::h5::read_doubles(c.get(), "ratio").size() == 4u);
     }
@@ -63,6 +64,7 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
     expect_one_line_error(base + " --energy inf", "--energy must be a finite number > 0");
     expect_one_line_error(base + " --algorithm GN_DIRECT", "is not one of");
     expect_one_line_error(base + " --pieces 0 --sines 0", "not both 0");
+    expect_one_line_error(base + " --linear-pieces -1", "--linear-pieces must be in [0, 1000]");
     expect_one_line_error("worst " + cfg + " --filters ekf --evals 0", "--evals must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --scenario-starts nominal,windy", "is not one of");
     const std::string vdp = hinf::test::source_path("runs/vanderpol.toml");

@@ -15,6 +15,7 @@
 #include "filters/ukf.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
+#include "random.hpp"
 
 using namespace hinf;
 using hinf::test::TempDir;
@@ -122,9 +123,13 @@ TEST_CASE("worst-case search reaches the exact worst-case gain of a fixed-gain f
         opt.quiet = true;
         WorstResult r = worst_search(cfg, {&f}, {}, opt);
         const double found = r.filters[0].worst.ratio;
-        INFO("exact " << exact << ", H-inf norm^2 " << hinf_norm2 << ", found " << found);
+        const double linear = r.filters[0].linear_gain;
+        INFO("exact " << exact << ", H-inf norm^2 " << hinf_norm2 << ", found " << found << ", linear " << linear);
         CHECK(found >= 0.90 * exact);
         CHECK(found <= exact * (1 + 1e-9));  // a ratio above the exact maximum would be a wrong ratio
+        // the linear start: the maximum over 20 pieces a channel, so at most the exact one over every signal
+        CHECK(linear <= exact * (1 + 1e-9));
+        CHECK(linear >= 0.90 * exact);
     }
     SECTION("oscillator: resonance at 1 Hz, zeta = 0.05, L = [1, 0.5] (worst is a sinusoid)") {
         const double w0 = 2 * M_PI, zeta = 0.05;
@@ -146,11 +151,64 @@ TEST_CASE("worst-case search reaches the exact worst-case gain of a fixed-gain f
         opt.evals = 400;
         opt.quiet = true;
         WorstResult r = worst_search(cfg, {&f}, {}, opt);
-        const double found = r.filters[0].worst.ratio;
-        INFO("exact " << exact << ", found " << found);
+        const double found = r.filters[0].worst.ratio, linear = r.filters[0].linear_gain;
+        INFO("exact " << exact << ", found " << found << ", linear " << linear);
         CHECK(found >= 0.90 * exact);
         CHECK(found <= exact * (1 + 1e-9));
+        CHECK(linear <= exact * (1 + 1e-9));
     }
+}
+
+TEST_CASE("the linear start: on a linear system no signal of its pieces scores above its gain and its own reaches it",
+          "[eval][worst]") {
+    // the oscillator above with a fixed gain: the error is linear in the signals, so the ratio does not depend on
+    // the energy and the small-signal figure is the maximum over every piecewise-constant signal of those pieces
+    const double w0 = 2 * M_PI, zeta = 0.05;
+    const RunConfig cfg = linear_config(
+        "[system]\nkind = \"expr\"\nstates = [\"p\", \"w\"]\nunits = [\"m\", \"m/s\"]\ndisturbances = 1\n"
+        "measurements = 1\nparameters = { a = " + std::to_string(w0 * w0) + ", b = " + std::to_string(2 * zeta * w0) +
+            " }\nf = [\"w\", \"-a*p - b*w\"]\ng = [[\"0\"], [\"1\"]]\nh = [\"p\"]\n",
+        "Q = [1.0, 1.0]\nx0 = [0.0, 0.0]\nxhat0 = [0.0, 0.0]\n", 4.0);
+    FixedGainFilter f(filter_model(cfg), {1.0, 0.5});
+    WorstOptions opt;
+    opt.linear_pieces = 8;
+    opt.quiet = true;
+    omp_set_num_threads(1);
+    const double g1 = worst_small_signal(cfg, f, opt);
+    omp_set_num_threads(2);
+    const double gain = worst_small_signal(cfg, f, opt);
+    CHECK(g1 == gain);  // each basis run a pure function of its index: any thread count, the same bits
+    REQUIRE(gain > 0);
+    const RunConfig c = worst_config(cfg, opt);
+    const std::int64_t K = c.steps_until();
+    // random signals constant on the same 8 pieces of each channel
+    std::vector<double> u(2 * 8);
+    double best = 0;
+    for (std::uint64_t draw = 0; draw < 12; ++draw) {
+        kern::rng_uniform(u.data(), int(u.size()), 5, 0, draw, 0);
+        Signals s{std::vector<double>(K), std::vector<double>(K)};
+        for (std::int64_t k = 0; k < K; ++k) {
+            s.v[k] = u[k * 8 / K] - 0.5;
+            s.n[k] = u[8 + k * 8 / K] - 0.5;
+        }
+        const double r = worst_ratio(c, f, s, K);
+        CHECK(r <= gain * (1 + 1e-9));
+        best = std::max(best, r);
+    }
+    CHECK(best < gain);  // random draws fall short of the maximum
+    // its own signal (the search's "linear" start, at the budget) reaches the gain: the start's ratio
+    opt.random_starts = 0;
+    opt.scenario_starts = {};
+    opt.evals = 1;
+    opt.cross_starts = false;
+    const WorstResult r = worst_search(cfg, {&f}, {}, opt);
+    REQUIRE(r.filters[0].restarts.size() == 1u);
+    CHECK(r.filters[0].restarts[0].start == "linear");
+    CHECK(r.filters[0].restarts[0].start_ratio == Approx(gain).epsilon(1e-9));
+    CHECK(r.filters[0].linear_gain == gain);
+    // 0 pieces: no linear start and no figure
+    opt.linear_pieces = 0;
+    CHECK(std::isnan(worst_small_signal(cfg, f, opt)));
 }
 
 TEST_CASE("worst-case search: the engine replays the same ratio, any thread count, budget kept", "[eval][worst]") {
@@ -167,8 +225,10 @@ TEST_CASE("worst-case search: the engine replays the same ratio, any thread coun
     WorstResult r1 = worst_search(cfg, {ekf.get()}, {}, opt);
     omp_set_num_threads(2);
     WorstResult r2 = worst_search(cfg, {ekf.get()}, {}, opt);
-    REQUIRE(r1.filters[0].restarts.size() == 3);
-    for (std::size_t i = 0; i < 3; ++i) CHECK(r1.filters[0].restarts[i].ratio == r2.filters[0].restarts[i].ratio);
+    REQUIRE(r1.filters[0].restarts.size() == 4);  // 2 random, the pulse, the linear start
+    CHECK(r1.filters[0].restarts[3].start == "linear");
+    for (std::size_t i = 0; i < 4; ++i) CHECK(r1.filters[0].restarts[i].ratio == r2.filters[0].restarts[i].ratio);
+    CHECK(r1.filters[0].linear_gain == r2.filters[0].linear_gain);
     CHECK(r1.filters[0].worst.signals.v == r2.filters[0].worst.signals.v);
     // the replay through the engine (eval/engine.cpp) gives the search's ratio bit for bit
     CHECK(r1.cross.ratio[0] == r1.filters[0].worst.ratio);
@@ -226,6 +286,7 @@ TEST_CASE("worst-case search searches on from another filter's worst signals whe
     opt.evals = 16;  // short local searches: here the fixed gain's worst set beats the EKF's and the UKF's own
     opt.quiet = true;
     opt.cross_starts = false;
+    opt.linear_pieces = 0;  // (a linear start finds each filter's own worst well enough to leave nothing to cross)
     const WorstResult off = worst_search(cfg, filters, {}, opt);
     opt.cross_starts = true;
     omp_set_num_threads(1);

@@ -116,10 +116,11 @@ TEST_CASE("worst-case search: restarts dealt out over the processes, worst.h5 an
         return;
     }
     TempDir d("par-worst");
-    // 4 filters x (2 random + 1 scenario start) = 12 restarts; the PF's restarts are dealt to every process
+    // 4 filters x (2 random + 1 scenario + the linear start) = 16 restarts; the PF's restarts are dealt to every process;
+    // every process computes the linear starts (2 pieces a channel here), the same bits
     const std::string cfg = hinf::test::source_path("runs/missile_hinf.toml");
     const std::string args = " worst " + cfg + " --filters ekf,ukf,pf,open_loop --particles 100 --until 2 --evals 10 "
-                             "--random-starts 2 --scenario-starts nominal --threads 1 --quiet --out ";
+                             "--random-starts 2 --scenario-starts nominal --linear-pieces 2 --threads 1 --quiet --out ";
     CommandResult one = hinf::test::run_hinf(args + d / "plain");
     INFO(one.output);
     REQUIRE(one.status == 0);
@@ -150,7 +151,7 @@ TEST_CASE("worst-case search: restarts dealt out over the processes, worst.h5 an
     // more processes than restarts: one line from rank 0, non-zero exit, no hang
     CommandResult bad = hinf::test::run_command(mpirun(3) + HINF_CLI_PATH + " worst " + cfg +
                                                 " --filters ekf --until 1 --evals 4 --random-starts 1 "
-                                                "--scenario-starts nominal --threads 1 --quiet --out " + d / "bad");
+                                                "--scenario-starts nominal --linear-pieces 0 --threads 1 --quiet --out " + d / "bad");
     INFO(bad.output);
     CHECK(bad.status == 2);
     CHECK(bad.output.rfind("hinf: error: 3 MPI processes for 2 restart(s)", 0) == 0);
