@@ -186,10 +186,16 @@ void add_worst_command(CLI::App& app) {
         }
         if (opt.linear_pieces > 0) {  // the exact small-signal figure beside what the search found from it
             std::printf("small signals (the linear start, %d pieces a channel), the ratio they reach:", opt.linear_pieces);
+            bool none = false;
             for (const auto& fr : r.filters)
                 if (std::isfinite(fr.linear_gain)) std::printf(" %s %.4g", fr.name.c_str(), fr.linear_gain);
-                else std::printf(" %s -", fr.name.c_str());
-            std::printf("\n");
+                else {
+                    std::printf(" %s -", fr.name.c_str());
+                    none = true;
+                }
+            std::printf("%s\n", none ? " (-: none, the filter does not respond linearly to small signals, as a particle "
+                                        "filter's resampling, or a small signal's run ran away)"
+                                      : "");
         }
         print_cross(r.cross);
         // a gain network's filter: where its worst signals drove the truth far beyond training's region, its gain

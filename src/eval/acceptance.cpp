@@ -307,9 +307,9 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
         const char* label = "";
         const double higher = higher_level(cfg, bound, &label);
         std::snprintf(buf, sizeof buf,
-                      " the worst-case search found a ratio of %.4g above rho = %.4g: a higher level, a weaker promise, "
-                      "is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
-                      search.ratio, cfg.rho, higher, label);
+                      " the worst-case search found a ratio of %.4g%s above rho = %.4g: a higher level, a weaker "
+                      "promise, is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
+                      search.ratio, search.small_signal ? " (for small signals)" : "", cfg.rho, higher, label);
         a += buf;
     }
     if (!lost && search.ran && !search.outside.empty() && (search.diverged || search.ratio > cfg.rho)) {
@@ -458,6 +458,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
         AcceptanceSearch found;
         found.ran = search && w.skipped.empty();
         found.ratio = worst_figure;
+        found.small_signal = w.small > w.ratio;
         found.diverged = w.diverged;
         found.outside = w.outside;
         found.nominal_diverged = s.diverged_runs;

@@ -120,6 +120,7 @@ std::string acceptance_behind_note(const RunConfig& cfg, const std::string& path
 struct AcceptanceSearch {
     bool ran = false;        // a search ran (training.acceptance_worst_evals > 0 and the run long enough)
     double ratio = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found (small signals too)
+    bool small_signal = false;  // that ratio is the small-signal one (docs/compare.md "The linear start")
     bool diverged = false;   // the filter diverged under the worst signals found
     std::int64_t nominal_diverged = 0, nominal_runs = 0;  // the check's own runs ([online] noise) that diverged, of all
     // the DNN filter's settled error over the EKF's on those runs, the larger of the position and the all-state

@@ -200,9 +200,11 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
 // runs the filter twice at +-a_j, the amplitude that carries kLinearShare of the budget: small against the noise the
 // filter was built for, large against the round-off of a float network. Columns run in parallel, each a pure
 // function of its index, so the result does not depend on the thread count. gain NaN: a basis run escaped or gave a
-// non-finite error, or D would not fit in kLinearBytes.
+// non-finite error, D would not fit in kLinearBytes, or the filter is not linear at that scale (the eigenvector's own
+// central difference does not reach its eigenvalue within kLinearAgreement: a particle filter).
 constexpr double kLinearShare = 1e-6;
 constexpr double kLinearBytes = 1024.0 * 1024.0 * 1024.0;
+constexpr double kLinearAgreement = 0.01;  // the eigenvector's own difference within 1 % of its eigenvalue
 
 struct LinearWorst {
     double gain = NAN;
@@ -267,7 +269,30 @@ LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::i
         for (std::int64_t k = first(p); k < first(p + 1); ++k) (c < nv ? s.v[k * nv + c] : s.n[k * m + (c - nv)]) = w;
     }
     if (!scale_to_budget(s, energy, cfg.dt)) return out;
-    out.gain = std::max(0.0, es.eigenvalues()[B - 1]);
+    // the check that the filter is linear at that scale: the central difference along the eigenvector itself must
+    // give its eigenvalue. A smooth filter gives it to the differences' rounding; one that is not differentiable
+    // there (a particle filter's resampling) does not, and its figure would be the differences' noise
+    const double lambda = std::max(0.0, es.eigenvalues()[B - 1]), c = std::sqrt(kLinearShare);
+    Signals half{s.v, s.n};
+    for (double& v : half.v) v *= c;
+    for (double& v : half.n) v *= c;
+    std::vector<double> diff(std::size_t(K) * n, 0.0);
+    std::unique_ptr<OnlineFilter> f = proto.clone();
+    for (int sign = 1; sign >= -1; sign -= 2) {
+        if (sign < 0) {
+            for (double& v : half.v) v = -v;
+            for (double& v : half.n) v = -v;
+        }
+        if (!run_errors(cfg, *f, half, K, t, escape, [&](std::int64_t k, const double* e, double) {
+                for (int i = 0; i < n; ++i) diff[k * n + i] += sign * e[i] / 2;
+            }))
+            return out;
+    }
+    double along = 0;
+    for (std::int64_t k = 0; k < K; ++k) along += cfg.dt * quadratic_form(cfg.Q.data(), diff.data() + k * n, n);
+    along /= kLinearShare * energy;
+    if (!(std::fabs(along - lambda) <= kLinearAgreement * lambda)) return out;
+    out.gain = lambda;
     out.s = std::move(s);
     return out;
 }

@@ -45,6 +45,9 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK_FALSE(has(a, "at or below rho*"));
     CHECK_FALSE(has(a, "Adam updates"));
     CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
+    s.small_signal = true;  // the ratio the linear start found: said as such
+    CHECK(has(acceptance_advice(c, "run/best.h5", s), "found a ratio of 7.5 (for small signals) above rho = 2"));
+    s.small_signal = false;
 
     // a level not far above rho* (1.8 rho*, above rho*_on = 1.58 rho* of this 2 s horizon): 4 rho* is the larger
     // suggestion

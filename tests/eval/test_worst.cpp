@@ -12,6 +12,7 @@
 #include "eval/worst.hpp"
 #include "filters/ekf.hpp"
 #include "filters/gain_law.hpp"
+#include "filters/pf.hpp"
 #include "filters/ukf.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
@@ -209,6 +210,15 @@ TEST_CASE("the linear start: on a linear system no signal of its pieces scores a
     // 0 pieces: no linear start and no figure
     opt.linear_pieces = 0;
     CHECK(std::isnan(worst_small_signal(cfg, f, opt)));
+    // a particle filter's resampling does not respond linearly to small signals: its eigenvector's own difference
+    // misses the eigenvalue, and it gets no figure, where a smooth filter on the same system gets one
+    const RunConfig vdp = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml")));
+    WorstOptions vo;
+    vo.until = 1.0;
+    vo.linear_pieces = 4;
+    vo.quiet = true;
+    CHECK(std::isnan(worst_small_signal(vdp, *make_particle_filter(filter_model(vdp), 50), vo)));
+    CHECK(worst_small_signal(vdp, *make_ekf(filter_model(vdp)), vo) > 0);
 }
 
 TEST_CASE("worst-case search: the engine replays the same ratio, any thread count, budget kept", "[eval][worst]") {
