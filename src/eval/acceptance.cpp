@@ -245,9 +245,14 @@ LevelSearch level_search(const RunConfig& cfg, const std::string& network, const
     const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
     std::filesystem::create_directories(out_dir);
     worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
-    l.dnn = r.filters[0].worst.ratio;
-    l.ekf = r.filters[1].worst.ratio;
-    l.ukf = r.filters[2].worst.ratio;
+    // the worst found at the budget or, where larger, for small signals (the linear start's figure)
+    auto worst = [&r](int i) {
+        const WorstFilterResult& f = r.filters[std::size_t(i)];
+        return f.linear_gain > f.worst.ratio ? f.linear_gain : f.worst.ratio;
+    };
+    l.dnn = worst(0);
+    l.ekf = worst(1);
+    l.ukf = worst(2);
     l.diverged = r.cross.diverged_at[0] >= 0;
     l.wall_seconds = r.wall_seconds;
     return l;

@@ -140,7 +140,8 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
 /// out_dir/worst.h5. `hinf sweep --worst` runs it for each value: the acceptance's short search is a lower bound too
 /// weak to tell levels a few per cent apart (docs/method.md section 16.7b, "Which level the trained filter keeps").
 struct LevelSearch {
-    double dnn = std::numeric_limits<double>::quiet_NaN();  // the largest attenuation ratio found for each filter
+    // the largest attenuation ratio found for each filter, at the budget or for small signals (the linear start)
+    double dnn = std::numeric_limits<double>::quiet_NaN();
     double ekf = std::numeric_limits<double>::quiet_NaN();
     double ukf = std::numeric_limits<double>::quiet_NaN();
     bool diverged = false;  // the DNN filter diverged under its own worst signals
