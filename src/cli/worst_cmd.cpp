@@ -193,8 +193,9 @@ void add_worst_command(CLI::App& app) {
                     std::printf(" %s -", fr.name.c_str());
                     none = true;
                 }
-            std::printf("%s\n", none ? " (-: none, the filter does not respond linearly to small signals, as a particle "
-                                        "filter's resampling, or a small signal's run ran away)"
+            std::printf("%s\n", none ? " (-: none: the filter does not respond linearly to small signals, as a particle "
+                                        "filter's resampling, a small signal's run ran away, or the differences would "
+                                        "take more than 512 MiB: fewer --linear-pieces or a shorter --until)"
                                       : "");
         }
         print_cross(r.cross);

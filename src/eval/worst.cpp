@@ -203,7 +203,7 @@ Signals game_signals(const RunConfig& cfg, const OnlineFilter& proto, const Wors
 // non-finite error, D would not fit in kLinearBytes, or the filter is not linear at that scale (the eigenvector's own
 // central difference does not reach its eigenvalue within kLinearAgreement: a particle filter).
 constexpr double kLinearShare = 1e-6;
-constexpr double kLinearBytes = 1024.0 * 1024.0 * 1024.0;
+constexpr double kLinearBytes = 512.0 * 1024.0 * 1024.0;  // D, and as much again for (I (x) Q) D
 constexpr double kLinearAgreement = 0.01;  // the eigenvector's own difference within 1 % of its eigenvalue
 
 struct LinearWorst {
