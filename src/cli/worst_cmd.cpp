@@ -81,7 +81,8 @@ void add_worst_command(CLI::App& app) {
                 "Do not search on from another filter's worst signals where they beat a filter's own best");
     c->add_option("--linear-pieces", a->linear_pieces,
                   "The linear start: each filter's small-signal worst case over piecewise-constant signals of this many "
-                  "pieces a channel, searched on from there (default 20; 0: none; docs/compare.md \"The linear start\")");
+                  "pieces a channel, doubled until it moves by less than 5 %, searched on from there (default 20; 0: "
+                  "none; docs/compare.md \"The linear start\")");
     c->add_option("--evals", a->evals, "Objective evaluations per restart (default 200)");
     c->add_option("--algorithm", a->algorithm, "NLopt algorithm: " + worst_algorithms() + " (default LN_SBPLX)");
     c->add_flag("--keep-initial-error", a->keep_initial_error,
@@ -185,10 +186,13 @@ void add_worst_command(CLI::App& app) {
                         median, best_start, fr.restarts[fr.best].start.c_str(), fr.restarts.size());
         }
         if (opt.linear_pieces > 0) {  // the exact small-signal figure beside what the search found from it
-            std::printf("small signals (the linear start, %d pieces a channel), the ratio they reach:", opt.linear_pieces);
+            std::printf("small signals (the linear start, pieces a channel doubled from %d until it moves by less than 5 %%), "
+                        "the ratio they reach:", opt.linear_pieces);
             bool none = false;
             for (const auto& fr : r.filters)
-                if (std::isfinite(fr.linear_gain)) std::printf(" %s %.4g", fr.name.c_str(), fr.linear_gain);
+                if (std::isfinite(fr.linear_gain))
+                    std::printf(" %s %.4g (%d pieces%s)", fr.name.c_str(), fr.linear_gain, fr.linear_pieces,
+                                fr.linear_converged ? "" : ", still moving: a lower bound");
                 else {
                     std::printf(" %s -", fr.name.c_str());
                     none = true;

@@ -208,7 +208,9 @@ constexpr double kLinearAgreement = 0.01;  // the eigenvector's own difference w
 
 struct LinearWorst {
     double gain = NAN;
-    Signals s;  // [K x nv], [K x m], scaled to the budget (empty where gain is NaN)
+    Signals s;       // [K x nv], [K x m], scaled to the budget (empty where gain is NaN)
+    int pieces = 0;  // the pieces a channel it was found with
+    bool converged = false;  // the last doubling moved it by less than kLinearConverged
 };
 
 LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::int64_t K, int pieces, double energy,
@@ -294,7 +296,36 @@ LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::i
     if (!(std::fabs(along - lambda) <= kLinearAgreement * lambda)) return out;
     out.gain = lambda;
     out.s = std::move(s);
+    out.pieces = P;
     return out;
+}
+
+// The pieces doubled from `pieces` until the figure moves by less than kLinearConverged (each level's pieces split
+// the last's in two, so its maximum is over a larger family and can only grow, up to the differences' rounding), the
+// pieces reach the horizon's steps, or the next level would simulate more than max_steps steps in all (the first
+// level runs whatever it costs). 20 pieces
+// over a 20 s horizon cannot hold a cart's pendulum swinging at 0.5 Hz: its DNN filter reached 0.38 with them and
+// 5.8 / 6.3 with 100 / 400 (docs/compare.md "The linear start").
+constexpr double kLinearConverged = 0.05;
+
+LinearWorst linear_worst_refined(const RunConfig& cfg, const OnlineFilter& proto, std::int64_t K, int pieces,
+                                 double max_steps, double energy, const std::vector<double>& t,
+                                 const std::vector<double>& escape, bool quiet) {
+    const double per_piece = 2.0 * (cfg.nv + cfg.m) * double(K);  // steps simulated per piece a channel
+    LinearWorst best = linear_worst(cfg, proto, K, pieces, energy, t, escape, quiet);
+    double spent = per_piece * best.pieces;
+    while (std::isfinite(best.gain) && best.pieces < K && spent + per_piece * 2.0 * best.pieces <= max_steps) {
+        LinearWorst finer = linear_worst(cfg, proto, K, 2 * best.pieces, energy, t, escape, quiet);
+        spent += per_piece * 2.0 * best.pieces;
+        if (!std::isfinite(finer.gain)) break;  // keep the figure that checked itself
+        const bool moved = finer.gain > best.gain * (1 + kLinearConverged);
+        best = std::move(finer);
+        if (!moved) {
+            best.converged = true;
+            break;
+        }
+    }
+    return best;
 }
 
 struct Task {
@@ -486,8 +517,8 @@ double worst_small_signal(const RunConfig& cfg_in, const OnlineFilter& f, const 
     const RunConfig cfg = worst_config(cfg_in, opt);
     const std::int64_t K = cfg.steps_until(opt.until);
     if (opt.linear_pieces <= 0 || K < 2) return NAN;
-    return linear_worst(cfg, f, K, opt.linear_pieces, worst_energy(cfg, opt, K), times(cfg, K), truth_escape_bound(cfg, K),
-                        opt.quiet)
+    return linear_worst_refined(cfg, f, K, opt.linear_pieces, opt.linear_steps, worst_energy(cfg, opt, K), times(cfg, K),
+                                truth_escape_bound(cfg, K), opt.quiet)
         .gain;
 }
 
@@ -540,6 +571,8 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     }
     std::vector<Signals> game_base(F), linear_base(F);
     std::vector<double> linear_gain(F, NAN);
+    std::vector<int> linear_pieces(F, 0);
+    std::vector<char> linear_converged(F, 0);
     std::vector<Task> tasks;
     const std::vector<double> escape = opt.linear_pieces > 0 ? truth_escape_bound(cfg, K) : std::vector<double>{};
     for (int i = 0; i < F; ++i) {
@@ -552,8 +585,11 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
             tasks.push_back(Task{i, "game", &game_base[i], 0});
         }
         if (opt.linear_pieces > 0) {  // every process computes it: the same bits, no exchange
-            LinearWorst lw = linear_worst(cfg, *filters[i], K, opt.linear_pieces, E, t, escape, opt.quiet || par_rank() != 0);
+            LinearWorst lw = linear_worst_refined(cfg, *filters[i], K, opt.linear_pieces, opt.linear_steps, E, t, escape,
+                                                  opt.quiet || par_rank() != 0);
             linear_gain[i] = lw.gain;
+            linear_pieces[i] = lw.pieces;
+            linear_converged[i] = lw.converged;
             if (std::isfinite(lw.gain)) {
                 linear_base[i] = std::move(lw.s);
                 tasks.push_back(Task{i, "linear", &linear_base[i], 0});
@@ -575,6 +611,8 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     for (int i = 0; i < F; ++i) {
         res.filters[i].name = filters[i]->name();
         res.filters[i].linear_gain = linear_gain[i];
+        res.filters[i].linear_pieces = linear_pieces[i];
+        res.filters[i].linear_converged = linear_converged[i] != 0;
     }
     // restarts in task order into each filter's list; its worst set is its largest ratio (the first on a tie)
     auto merge = [&res](const std::vector<Task>& ts, std::vector<TaskResult>& done) {
@@ -812,6 +850,8 @@ void worst_write(const std::string& path, const RunConfig& cfg, const WorstOptio
         h5::set_attr(g.get(), "best", std::int64_t(fr.best));
         h5::set_attr(g.get(), "ratio", fr.worst.ratio);
         h5::set_attr(g.get(), "linear_gain", fr.linear_gain);
+        h5::set_attr(g.get(), "linear_pieces", std::int64_t(fr.linear_pieces));
+        h5::set_attr(g.get(), "linear_converged", std::int64_t(fr.linear_converged ? 1 : 0));
     }
     std::vector<WorstSignals> sets;
     for (const auto& fr : r.filters) sets.push_back(fr.worst);

@@ -28,7 +28,9 @@ struct WorstOptions {
     bool game_start = true;      // a DNN filter with a network also starts from the game's v* = B'p / (2 rho), n* = -dC
     bool cross_starts = true;    // a filter whose cross-table column beats its own best searches on from those sets
     int linear_pieces = 20;      // the linear start: the small-signal worst case over signals of this many pieces a
-                                 // channel (2 (nv + m) pieces runs a filter); 0: none (docs/compare.md "The linear start")
+                                 // channel (2 (nv + m) pieces runs a filter), doubled until it moves by less than 5 %;
+                                 // 0: none (docs/compare.md "The linear start")
+    double linear_steps = 1e7;   // ... no doubling past this many steps simulated in all for a filter
     int evals = 200;             // objective evaluations per restart
     std::string algorithm = "LN_SBPLX";  // a local derivative-free NLopt algorithm (worst_algorithms())
     bool keep_initial_error = false;     // false: every filter starts at x^0 = x0 (the pure energy gain)
@@ -63,6 +65,8 @@ struct WorstFilterResult {
     int best = 0;                        // index of the largest ratio
     WorstSignals worst;
     double linear_gain = NAN;            // the small-signal worst ratio over the linear start's signals (NaN: none)
+    int linear_pieces = 0;               // ... found with this many pieces a channel (the start's, doubled)
+    bool linear_converged = false;       // ... and the last doubling moved it by less than 5 %
 };
 
 /// Every filter run on every signal set (the same signals against every filter).
