@@ -192,7 +192,7 @@ void add_worst_command(CLI::App& app) {
             for (const auto& fr : r.filters)
                 if (std::isfinite(fr.linear_gain))
                     std::printf(" %s %.4g (%d pieces%s)", fr.name.c_str(), fr.linear_gain, fr.linear_pieces,
-                                fr.linear_converged ? "" : ", still moving: a lower bound");
+                                fr.linear_converged ? "" : ", not settled by doubling: more pieces may raise it");
                 else {
                     std::printf(" %s -", fr.name.c_str());
                     none = true;

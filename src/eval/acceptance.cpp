@@ -101,7 +101,7 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     for (const auto& rs : r.filters[0].restarts) a.evals += rs.evals;
     a.diverged = r.cross.diverged_at[0] >= 0;  // row 0 (the DNN filter's worst set), column 0 (the DNN filter)
     // small signals: the ratio a filter reaches as the energy goes to 0, which a search at the budget can miss (Van der
-    // Pol at rho = 1.5: 1.49 found at the budget, 1.80 for small signals; docs/compare.md "The linear start")
+    // Pol at rho = 1.5: 1.49 found at the budget, 2.12 for small signals; docs/compare.md "The linear start")
     WorstOptions lo = wo;
     lo.linear_pieces = WorstOptions{}.linear_pieces;
     lo.linear_steps = kAcceptanceLinearSteps;

@@ -110,9 +110,6 @@ struct Parametrisation {
     }
 };
 
-// The ratio of an already-cloned filter (reset here) under s: the sums of eval/engine.cpp run_one_filter, in its
-// order, so that a replay through the engine gives the same bits.
-// NaN where the truth runs away (escape: truth_escape_bound; docs/compare.md "A truth that escapes")
 // The filter (an already-cloned one, reset here) run under s: visit(k, e_k, energy_k) with e_k = x_k - x^_k [n] (an
 // angle state's wrapped) and the step's v'v + n'n; false (nothing visited) where the truth runs away (escape:
 // truth_escape_bound; docs/compare.md "A truth that escapes").
@@ -303,9 +300,8 @@ LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::i
 // The pieces doubled from `pieces` until the figure moves by less than kLinearConverged (each level's pieces split
 // the last's in two, so its maximum is over a larger family and can only grow, up to the differences' rounding), the
 // pieces reach the horizon's steps, or the next level would simulate more than max_steps steps in all (the first
-// level runs whatever it costs). 20 pieces
-// over a 20 s horizon cannot hold a cart's pendulum swinging at 0.5 Hz: its DNN filter reached 0.38 with them and
-// 5.8 / 6.3 with 100 / 400 (docs/compare.md "The linear start").
+// level runs whatever it costs). 20 pieces over a 20 s horizon cannot hold a cart's pendulum swinging at 0.5 Hz: its
+// DNN filter reached 0.38 with them and 5.8 / 6.3 with 100 / 400 (docs/compare.md "The linear start").
 constexpr double kLinearConverged = 0.05;
 
 LinearWorst linear_worst_refined(const RunConfig& cfg, const OnlineFilter& proto, std::int64_t K, int pieces,

@@ -66,7 +66,8 @@ struct WorstFilterResult {
     WorstSignals worst;
     double linear_gain = NAN;            // the small-signal worst ratio over the linear start's signals (NaN: none)
     int linear_pieces = 0;               // ... found with this many pieces a channel (the start's, doubled)
-    bool linear_converged = false;       // ... and the last doubling moved it by less than 5 %
+    bool linear_converged = false;       // ... and the last doubling moved it by less than 5 % (false: not settled,
+                                         // the step cap or the horizon stopped the doubling)
 };
 
 /// Every filter run on every signal set (the same signals against every filter).
