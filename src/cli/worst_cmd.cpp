@@ -25,6 +25,7 @@ struct WorstArgs {
     std::int64_t particles = 2000;
     int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
     int linear_pieces = 20;
+    double linear_steps = 1e7;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
     bool keep_initial_error = false, no_game_start = false, no_cross_starts = false, quiet = false, plot = false;
     bool ensemble = false;
@@ -83,6 +84,9 @@ void add_worst_command(CLI::App& app) {
                   "The linear start: each filter's small-signal worst case over piecewise-constant signals of this many "
                   "pieces a channel, doubled until it moves by less than 5 %, searched on from there (default 20; 0: "
                   "none; docs/compare.md \"The linear start\")");
+    c->add_option("--linear-steps", a->linear_steps,
+                  "The linear start's doubling stops before it would simulate more steps than this for a filter (default "
+                  "1e7; 0: the first level only)");
     c->add_option("--evals", a->evals, "Objective evaluations per restart (default 200)");
     c->add_option("--algorithm", a->algorithm, "NLopt algorithm: " + worst_algorithms() + " (default LN_SBPLX)");
     c->add_flag("--keep-initial-error", a->keep_initial_error,
@@ -115,6 +119,9 @@ void add_worst_command(CLI::App& app) {
         opt.game_start = !a->no_game_start;
         opt.cross_starts = !a->no_cross_starts;
         opt.linear_pieces = a->linear_pieces;
+        HINF_CHECK(std::isfinite(a->linear_steps) && a->linear_steps >= 0,
+                   "--linear-steps must be a finite number >= 0 (got " + std::to_string(a->linear_steps) + ")");
+        opt.linear_steps = a->linear_steps;
         opt.evals = a->evals;
         opt.algorithm = a->algorithm;
         opt.keep_initial_error = a->keep_initial_error;

@@ -65,10 +65,11 @@ std::string search_skipped(const RunConfig& cfg) {
     return "";
 }
 
-// the check's small-signal figure doubles its pieces within a tenth of hinf worst's steps: Van der Pol and a cart's
-// pendulum (2000 steps) up to 80 pieces a channel, the missile (7000 steps, 6 channels) stays at 20 (1.7e6 steps a
-// filter, about 45 s)
-constexpr double kAcceptanceLinearSteps = 2e6;
+// the check's small-signal figure simulates at most half the steps of the search's evaluations, for each filter:
+// its first level has at most acceptance_worst_evals / (4 (nv + m)) pieces a channel (20 at most), and doubles while
+// the whole stays within that half. At the default 600: Van der Pol (2000 steps, 2 channels) 20 doubled to 40, the
+// missile (6 channels) 20
+constexpr double kAcceptanceLinearShare = 0.5;
 
 AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& network, const std::string& out_dir,
                                  bool quiet) {
@@ -103,8 +104,10 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     // small signals: the ratio a filter reaches as the energy goes to 0, which a search at the budget can miss (Van der
     // Pol at rho = 1.5: 1.49 found at the budget, 2.12 for small signals; docs/compare.md "The linear start")
     WorstOptions lo = wo;
-    lo.linear_pieces = WorstOptions{}.linear_pieces;
-    lo.linear_steps = kAcceptanceLinearSteps;
+    const double channels = double(cfg.nv + cfg.m);
+    lo.linear_steps = kAcceptanceLinearShare * double(cfg.acceptance_worst_evals) * double(K);
+    lo.linear_pieces = int(std::max(1.0, std::min(double(WorstOptions{}.linear_pieces),
+                                                   std::floor(lo.linear_steps / (2.0 * channels * double(K))))));
     const auto l0 = std::chrono::steady_clock::now();
     a.small = worst_small_signal(cfg, *filters[0], lo);
     a.ekf_small = worst_small_signal(cfg, *filters[1], lo);

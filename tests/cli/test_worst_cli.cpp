@@ -65,6 +65,7 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
     expect_one_line_error(base + " --algorithm GN_DIRECT", "is not one of");
     expect_one_line_error(base + " --pieces 0 --sines 0", "not both 0");
     expect_one_line_error(base + " --linear-pieces -1", "--linear-pieces must be in [0, 1000]");
+    expect_one_line_error(base + " --linear-steps -1", "--linear-steps must be a finite number >= 0");
     expect_one_line_error("worst " + cfg + " --filters ekf --evals 0", "--evals must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --scenario-starts nominal,windy", "is not one of");
     const std::string vdp = hinf::test::source_path("runs/vanderpol.toml");

@@ -231,6 +231,7 @@ TEST_CASE("worst-case search: the engine replays the same ratio, any thread coun
     opt.scenario_starts = {"energy_pulse"};
     opt.evals = 30;
     opt.quiet = true;
+    opt.linear_steps = 0;  // the first level only: its bits on 1 and 2 threads, not the doubling's cost
     omp_set_num_threads(1);
     WorstResult r1 = worst_search(cfg, {ekf.get()}, {}, opt);
     omp_set_num_threads(2);

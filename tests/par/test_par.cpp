@@ -120,7 +120,7 @@ TEST_CASE("worst-case search: restarts dealt out over the processes, worst.h5 an
     // every process computes the linear starts (2 pieces a channel here), the same bits
     const std::string cfg = hinf::test::source_path("runs/missile_hinf.toml");
     const std::string args = " worst " + cfg + " --filters ekf,ukf,pf,open_loop --particles 100 --until 2 --evals 10 "
-                             "--random-starts 2 --scenario-starts nominal --linear-pieces 2 --threads 1 --quiet --out ";
+                             "--random-starts 2 --scenario-starts nominal --linear-pieces 2 --linear-steps 0 --threads 1 --quiet --out ";
     CommandResult one = hinf::test::run_hinf(args + d / "plain");
     INFO(one.output);
     REQUIRE(one.status == 0);
