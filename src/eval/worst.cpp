@@ -611,10 +611,18 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
         res.filters[i].linear_pieces = linear_pieces[i];
         res.filters[i].linear_converged = linear_converged[i] != 0;
     }
-    // restarts in task order into each filter's list; its worst set is its largest ratio (the first on a tie)
-    auto merge = [&res](const std::vector<Task>& ts, std::vector<TaskResult>& done) {
+    // restarts in task order into each filter's list; its worst set is its largest ratio (the first on a tie), and
+    // `searched` its largest apart from the linear start (kept where the linear start gave the worst set: below)
+    std::vector<WorstSignals> searched(F);
+    std::vector<char> has_searched(F, 0);
+    auto merge = [&res, &searched, &has_searched](const std::vector<Task>& ts, std::vector<TaskResult>& done) {
         for (std::size_t j = 0; j < ts.size(); ++j) {
             WorstFilterResult& fr = res.filters[ts[j].filter];
+            const int f = ts[j].filter;
+            if (ts[j].start != "linear" && (!has_searched[f] || done[j].restart.ratio > searched[f].ratio)) {
+                searched[f] = WorstSignals{fr.name, done[j].restart.ratio, done[j].best};
+                has_searched[f] = 1;
+            }
             fr.restarts.push_back(done[j].restart);
             const int r = int(fr.restarts.size()) - 1;
             if (r == 0 || done[j].restart.ratio > fr.restarts[fr.best].ratio) {
@@ -639,13 +647,31 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
     // sets; again while a set beats a filter's best, at most kCrossRounds rounds. When the rounds end on their own,
     // every filter's worst ratio is the largest entry of its column. Tasks in (filter, set) order; the table is the
     // same on every process.
+    // A filter whose worst set came from its linear start also offers its best searched set ("cross:<name>:searched"):
+    // the linear start raises a filter's worst set to its small-signal direction, which may serve another filter
+    // less than the set its search found (Van der Pol, 40 knots at rho = 2: the UKF's searched set gave the DNN filter
+    // 1.583, its linear set 1.283), and a start added to the search must not lower what the others find.
     constexpr int kCrossRounds = 3;
     for (int round = 0; opt.cross_starts && round < kCrossRounds; ++round) {
+        std::vector<WorstSignals> alt;
+        std::vector<int> alt_of;
+        for (int d = 0; d < F; ++d) {
+            const WorstFilterResult& fr = res.filters[d];
+            if (fr.restarts[fr.best].start == "linear" && has_searched[d]) {
+                alt.push_back(searched[d]);
+                alt_of.push_back(d);
+            }
+        }
+        const WorstReplay alt_cross = alt.empty() ? WorstReplay{} : worst_replay(cfg, filters, alt, K, true);
         std::vector<Task> more;
-        for (int i = 0; i < F; ++i)
+        for (int i = 0; i < F; ++i) {
             for (int d = 0; d < F; ++d)
                 if (d != i && res.cross.ratio[std::size_t(d) * F + i] > res.filters[i].worst.ratio)
                     more.push_back(Task{i, "cross:" + sets[d].source, &sets[d].signals, 0});
+            for (std::size_t a = 0; a < alt.size(); ++a)
+                if (alt_of[a] != i && alt_cross.ratio[a * F + i] > res.filters[i].worst.ratio)
+                    more.push_back(Task{i, "cross:" + alt[a].source + ":searched", &alt[a].signals, 0});
+        }
         if (more.empty()) break;
         std::vector<TaskResult> again = run_tasks(cfg, filters, par, more, opt, t, "worst cross starts");
         merge(more, again);

@@ -109,8 +109,9 @@ double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s
 /// small-signal worst case ("linear", WorstFilterResult::linear_gain); under mpirun the restarts are dealt out over the processes
 /// (worst_rank_of) and the result is the same bits for any number of them. games: [F] (or empty). Ends with the replay of every
 /// worst set against every filter (WorstResult::cross); with opt.cross_starts, every other filter's worst set that
-/// beats a filter's own best is one more start for it ("cross:<name>") and the table is replayed again, for up to
-/// three rounds. Runs on worst_config(cfg, opt).
+/// beats a filter's own best is one more start for it ("cross:<name>"), and so is, where a filter's worst set came
+/// from its linear start, its best set from the other starts ("cross:<name>:searched"); the table is replayed again,
+/// for up to three rounds. Runs on worst_config(cfg, opt).
 WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt);
 

@@ -282,6 +282,73 @@ TEST_CASE("worst-case search starts the filters compare runs at the truth: their
     CHECK(k.initial_std.empty());
 }
 
+TEST_CASE("worst-case search: a filter whose worst set is its linear start also offers its searched set",
+          "[eval][worst]") {
+    // The linear start can make a filter's worst set its small-signal direction; the set its other starts found may
+    // still be what breaks another filter, and adding the linear start must not take that cross start away.
+    const RunConfig cfg = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml")));
+    auto ekf = make_ekf(filter_model(cfg));
+    auto ukf = make_ukf(filter_model(cfg));
+    FixedGainFilter fixed(filter_model(cfg), {2.0, 1.0});
+    FixedGainFilter stiff(filter_model(cfg), {40.0, 100.0});  // diverges under large signals
+    const std::vector<const OnlineFilter*> filters = {ekf.get(), ukf.get(), &fixed, &stiff};
+    const int F = 4;
+    WorstOptions opt;
+    opt.until = 3.0;
+    opt.random_starts = 2;
+    opt.scenario_starts = {};
+    opt.evals = 16;
+    opt.quiet = true;
+    opt.energy = 100;  // large signals: the stiff gain diverges under the others' searched sets
+    opt.linear_pieces = 20;
+    const WorstResult on = worst_search(cfg, filters, {}, opt);
+    // the same restarts without the linear start: their worst sets are the searched sets (restarts are pure
+    // functions of their inputs), replayed here against every filter
+    opt.linear_pieces = 0;
+    opt.cross_starts = false;
+    const WorstResult searched = worst_search(cfg, filters, {}, opt);
+    const WorstReplay& by = searched.cross;
+    int offered = 0;
+    for (int i = 0; i < F; ++i) {
+        const auto& rs = on.filters[i].restarts;
+        std::size_t first = 0;  // the first round: the restarts that are not cross starts
+        while (first < rs.size() && rs[first].start.rfind("cross:", 0) != 0) ++first;
+        double own = 0;
+        for (std::size_t j = 0; j < first; ++j) own = std::max(own, rs[j].ratio);
+        REQUIRE(first == searched.filters[i].restarts.size() + 1);  // + its linear start
+        for (int d = 0; d < F; ++d) {
+            if (d == i) continue;
+            const auto& rd = on.filters[d].restarts;
+            double best_other = -1;
+            bool linear_best = false;
+            for (const auto& r : rd) {
+                if (r.start.rfind("cross:", 0) == 0) break;
+                if (r.ratio > best_other) {
+                    best_other = r.ratio;
+                    linear_best = r.start == "linear";
+                }
+            }
+            const std::string label = "cross:" + on.filters[d].name + ":searched";
+            const double r = by.ratio[std::size_t(d) * F + i];
+            const bool diverged = by.diverged_at[std::size_t(d) * F + i] >= 0;  // the search scores a divergence 0
+            bool found = false;  // its first offer is in the second round, where that set beat this filter's own
+            for (std::size_t j = first; j < rs.size() && !found; ++j)
+                if (rs[j].start == label) {
+                    found = true;
+                    if (!diverged) CHECK(rs[j].start_ratio == Approx(r).epsilon(1e-9));
+                    CHECK(rs[j].ratio >= rs[j].start_ratio);
+                }
+            if (linear_best && r > own) CHECK(found);
+            if (!linear_best) CHECK_FALSE(found);
+            if (found) {
+                ++offered;
+                if (!diverged) CHECK(on.filters[i].worst.ratio >= r);
+            }
+        }
+    }
+    CHECK(offered >= 1);  // this setting exercises it
+}
+
 TEST_CASE("worst-case search searches on from another filter's worst signals where they beat a filter's own",
           "[eval][worst]") {
     const RunConfig cfg = load_run_config(ConfigDoc::from_file(hinf::test::source_path("runs/vanderpol.toml")));
