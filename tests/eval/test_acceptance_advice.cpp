@@ -45,8 +45,22 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK_FALSE(has(a, "at or below rho*"));
     CHECK_FALSE(has(a, "Adam updates"));
     CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
-    s.small_signal = true;  // the ratio the linear start found: said as such
-    CHECK(has(acceptance_advice(c, "run/best.h5", s), "found a ratio of 7.5 (for small signals) above rho = 2"));
+    CHECK_FALSE(has(a, "knot count"));
+    s.small_signal = true;  // the ratio the linear start found: said as such, with the knot count to compare
+    const std::string sm = acceptance_advice(c, "run/best.h5", s);
+    INFO(sm);
+    CHECK(has(sm, "found a ratio of 7.5 (for small signals) above rho = 2"));
+    REQUIRE(c.storage_knots == 32);  // the gain variant's default on a continuous-time system
+    CHECK(has(sm, "interpolated between its 32 knots"));
+    CHECK(has(sm, "hinf sweep CONFIG --vary network.storage_knots=32,64,128 --worst"));
+    // a constant storage has no knots to count
+    const RunConfig flat = load_run_config(ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"-x\"]\n"
+        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nvariant = \"gain\"\nrho = 2\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\n"
+        "dt = 0.01\nt_final = 2\n[network]\nstorage_knots = 0\n[training]\nadam_steps = 200\n[online]\n"
+        "disturbance_std = 1\nnoise_std = 1\n",
+        "flat.toml"));
+    CHECK_FALSE(has(acceptance_advice(flat, "run/best.h5", s), "knot count"));
     s.small_signal = false;
 
     // a level not far above rho* (1.8 rho*, above rho*_on = 1.58 rho* of this 2 s horizon): 4 rho* is the larger
