@@ -53,6 +53,7 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     REQUIRE(c.storage_knots == 32);  // the gain variant's default on a continuous-time system
     CHECK(has(sm, "interpolated between its 32 knots"));
     CHECK(has(sm, "hinf sweep CONFIG --vary network.storage_knots=32,64,128 --worst"));
+    CHECK(has(sm, "hinf sweep CONFIG --vary objective.h2_weight=0.1,0 --worst"));
     // a constant storage has no knots to count
     const RunConfig flat = load_run_config(ConfigDoc::from_text(
         "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"-x\"]\n"
@@ -60,7 +61,11 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
         "dt = 0.01\nt_final = 2\n[network]\nstorage_knots = 0\n[training]\nadam_steps = 200\n[online]\n"
         "disturbance_std = 1\nnoise_std = 1\n",
         "flat.toml"));
-    CHECK_FALSE(has(acceptance_advice(flat, "run/best.h5", s), "knot count"));
+    const std::string fa = acceptance_advice(flat, "run/best.h5", s);
+    INFO(fa);
+    CHECK_FALSE(has(fa, "knot count"));
+    CHECK(has(fa, "objective.h2_weight=0.1,0"));  // the H2 term is still there to compare
+    CHECK_FALSE(has(a, "H2 term"));  // a ratio found at the budget: neither cause named
     s.small_signal = false;
 
     // a level not far above rho* (1.8 rho*, above rho*_on = 1.58 rho* of this 2 s horizon): 4 rho* is the larger
