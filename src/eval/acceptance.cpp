@@ -325,8 +325,9 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
                       "promise, is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5;",
                       search.ratio, search.small_signal ? " (for small signals)" : "", cfg.rho, higher, label);
         a += buf;
-        if (search.small_signal && cfg.variant == "gain") {  // method.md 16.7b, "The knot count sets ..."
-            a += " for small signals two causes were measured:";
+        if (search.small_signal && cfg.variant == "gain" && (cfg.storage_knots > 0 || cfg.h2_weight > 0)) {
+            // method.md 16.7b, "The knot count sets ..." and "Not the cause everywhere": what moved it, measured
+            a += " for small signals, what was measured to move that ratio:";
             if (cfg.storage_knots > 0) {
                 const long long J = cfg.storage_knots, J2 = std::min<long long>(2 * J, 4096),
                                 J4 = std::min<long long>(4 * J, 4096);

@@ -66,6 +66,17 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK_FALSE(has(fa, "knot count"));
     CHECK(has(fa, "objective.h2_weight=0.1,0"));  // the H2 term is still there to compare
     CHECK_FALSE(has(a, "H2 term"));  // a ratio found at the budget: neither cause named
+    // neither knots nor an H2 term: nothing to name
+    const RunConfig bare = load_run_config(ConfigDoc::from_text(
+        "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"-x\"]\n"
+        "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nvariant = \"gain\"\nrho = 2\nQ = [1.0]\nx0 = [1.0]\nxhat0 = [0.0]\n"
+        "dt = 0.01\nt_final = 2\n[network]\nstorage_knots = 0\n[training]\nadam_steps = 200\n[objective]\n"
+        "h2_weight = 0\n[online]\ndisturbance_std = 1\nnoise_std = 1\n",
+        "bare.toml"));
+    const std::string ba = acceptance_advice(bare, "run/best.h5", s);
+    INFO(ba);
+    CHECK(has(ba, "found a ratio of 7.5 (for small signals)"));
+    CHECK_FALSE(has(ba, "what was measured to move"));
     s.small_signal = false;
 
     // a level not far above rho* (1.8 rho*, above rho*_on = 1.58 rho* of this 2 s horizon): 4 rho* is the larger

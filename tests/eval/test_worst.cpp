@@ -282,6 +282,21 @@ TEST_CASE("worst-case search starts the filters compare runs at the truth: their
     CHECK(k.initial_std.empty());
 }
 
+namespace {
+
+// Van der Pol over 3 s with two random starts and short local searches: the cross-start tests' search
+WorstOptions short_cross_search() {
+    WorstOptions opt;
+    opt.until = 3.0;
+    opt.random_starts = 2;
+    opt.scenario_starts = {};
+    opt.evals = 16;
+    opt.quiet = true;
+    return opt;
+}
+
+}  // namespace
+
 TEST_CASE("worst-case search: a filter whose worst set is its linear start also offers its searched set",
           "[eval][worst]") {
     // The linear start can make a filter's worst set its small-signal direction; the set its other starts found may
@@ -293,12 +308,7 @@ TEST_CASE("worst-case search: a filter whose worst set is its linear start also 
     FixedGainFilter stiff(filter_model(cfg), {40.0, 100.0});  // diverges under large signals
     const std::vector<const OnlineFilter*> filters = {ekf.get(), ukf.get(), &fixed, &stiff};
     const int F = 4;
-    WorstOptions opt;
-    opt.until = 3.0;
-    opt.random_starts = 2;
-    opt.scenario_starts = {};
-    opt.evals = 16;
-    opt.quiet = true;
+    WorstOptions opt = short_cross_search();
     opt.energy = 100;  // large signals: the stiff gain diverges under the others' searched sets
     opt.linear_pieces = 20;
     const WorstResult on = worst_search(cfg, filters, {}, opt);
@@ -357,12 +367,7 @@ TEST_CASE("worst-case search searches on from another filter's worst signals whe
     FixedGainFilter fixed(filter_model(cfg), {2.0, 1.0});
     const std::vector<const OnlineFilter*> filters = {ekf.get(), ukf.get(), &fixed};
     const int F = 3;
-    WorstOptions opt;
-    opt.until = 3.0;
-    opt.random_starts = 2;
-    opt.scenario_starts = {};
-    opt.evals = 16;  // short local searches: here the fixed gain's worst set beats the EKF's and the UKF's own
-    opt.quiet = true;
+    WorstOptions opt = short_cross_search();  // here the fixed gain's worst set beats the EKF's and the UKF's own
     opt.cross_starts = false;
     opt.linear_pieces = 0;  // (a linear start finds each filter's own worst well enough to leave nothing to cross)
     const WorstResult off = worst_search(cfg, filters, {}, opt);
