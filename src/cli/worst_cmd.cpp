@@ -44,6 +44,19 @@ void print_cross(const WorstReplay& r) {
         std::printf("\n");
     }
     std::printf("(! = the filter diverged under these signals and was frozen)\n");
+    // a gain network's filter whose estimate went far beyond its training region under some sets: which sets, and
+    // the first one's excursion (its gain there is the region's edge's, which can be what broke it)
+    for (std::size_t f = 0; f < F; ++f) {
+        std::string under, first;
+        for (std::size_t d = 0; d < r.sets.size(); ++d) {
+            if (d * F + f >= r.note.size() || r.note[d * F + f].empty()) continue;
+            under += (under.empty() ? "" : ", ") + r.sets[d];
+            if (first.empty()) first = r.note[d * F + f];
+        }
+        if (!first.empty())
+            std::printf("note: %s, under the signals found for %s: %s\n", r.filters[f].c_str(), under.c_str(),
+                        first.c_str());
+    }
 }
 
 void plot(const std::string& file, const std::string& dir) {

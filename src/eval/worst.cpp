@@ -693,6 +693,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
     r.signal_energy.assign(D, 0.0);
     r.stride = std::max<std::int64_t>(1, steps / 2000);
     r.err.resize(std::size_t(D) * F);
+    r.note.assign(std::size_t(D) * F, "");
     // under mpirun the sets are dealt out over the processes (set d to worst_rank_of(d)); a process may have none
     const int rank = par_rank(), ranks = par_size();
     for (int d = 0; d < D; ++d) {
@@ -715,6 +716,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
             r.diverged_at[d * F + f] = escaped ? NAN : st.diverged_at;
             r.signal_energy[d] = st.signal_energy;
             r.err[d * F + f] = std::move(st.err_sub);
+            r.note[d * F + f] = st.note;
         }
     }
     if (ranks > 1) {
@@ -726,6 +728,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
                 w.put(r.ratio[d * F + f]);
                 w.put(r.diverged_at[d * F + f]);
                 w.put(r.err[d * F + f]);
+                w.put(r.note[d * F + f]);
             }
         }
         const std::vector<std::vector<char>> all = par_allgather(w.bytes);
@@ -738,6 +741,7 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
                     r.ratio[d * F + f] = rd.get_double();
                     r.diverged_at[d * F + f] = rd.get_double();
                     r.err[d * F + f] = rd.get_vector();
+                    r.note[d * F + f] = rd.get_string();
                 }
             }
             HINF_CHECK(rd.at_end(), "worst: a process sent more than its replays (bug)");

@@ -78,6 +78,7 @@ struct WorstReplay {
     std::vector<double> signal_energy;       // [D]
     std::int64_t stride = 1;                 // err keeps every stride-th step
     std::vector<std::vector<double>> err;    // [D x F][ceil(K / stride) x n] x - x^
+    std::vector<std::string> note;           // [D x F] OnlineFilter::run_note() after the replay ("": none)
 };
 
 struct WorstResult {

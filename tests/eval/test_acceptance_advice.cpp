@@ -270,7 +270,7 @@ TEST_CASE("acceptance advice says when the level is below rho*_on and names a le
     const std::string a = acceptance_advice(c, "run/best.h5", s);
     INFO(a);
     CHECK(has(a, "[filter] rho = 0.8 is at or below rho*_on = "));
-    char level[32];
+    char level[64];
     std::snprintf(level, sizeof level, "--set filter.rho=%.4g (1.25 rho*_on)", 1.25 * on);
     CHECK(has(a, level));
     CHECK_FALSE(has(a, "at or below rho* ="));

@@ -10,6 +10,7 @@
 #include "hinf/config.hpp"
 #include "hinf/h5.hpp"
 #include "filters/dnn.hpp"
+#include "eval/worst.hpp"
 #include "io/checkpoint.hpp"
 #include "train/gain_samples.hpp"
 #include "train/trainer.hpp"
@@ -108,6 +109,24 @@ TEST_CASE("input_box: training is unchanged, and the filter holds the network's 
     CHECK(said.find(" reached ") != std::string::npos);
     CHECK(said.find("where training's estimates spanned [") != std::string::npos);
     CHECK(note_from(mid).empty());
+
+    // hinf worst's replay keeps that note for each (set, filter), so it can say under which sets the estimate left
+    // the region: a filter started far beyond the box says so, one started at the truth on nothing does not
+    const std::int64_t K = 20;
+    WorstSignals zero;
+    zero.source = "zero";
+    zero.signals.v.assign(std::size_t(K) * cfg.nv, 0.0);
+    zero.signals.n.assign(std::size_t(K) * cfg.m, 0.0);
+    RunConfig from_far = cfg, from_truth = cfg;
+    from_far.xhat0 = far;
+    from_truth.xhat0 = cfg.x0;
+    const WorstReplay out = worst_replay(from_far, {filter.get()}, {zero}, K);
+    REQUIRE(out.note.size() == 1);
+    CHECK(out.note[0].rfind("its estimate went far beyond the region its network was trained on (", 0) == 0);
+    CHECK(out.note[0].find(" reached ") != std::string::npos);
+    const WorstReplay in = worst_replay(from_truth, {filter.get()}, {zero}, K);
+    REQUIRE(in.note.size() == 1);
+    CHECK(in.note[0].empty());
 
     // the bounds travel with the network
     h5::Handle f = h5::open_file(d / "held/checkpoint.h5", false);
