@@ -949,10 +949,10 @@ std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& c
 }
 
 std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
-                                   const std::vector<double>& x, int n) {
+                                   const std::vector<double>& x, int n, double t0, double dt) {
     if (n <= 0) return "";
     BoxExcursion far;
-    far.see(g, x.data(), std::int64_t(x.size()) / n, n);
+    far.see(g, x.data(), std::int64_t(x.size()) / n, n, t0, dt);
     return far.text(names);
 }
 
@@ -960,7 +960,7 @@ std::string worst_truth_outside_training(const RunConfig& cfg, const kern::GainS
                                          std::int64_t steps) {
     if (g.zlo.empty()) return "";
     const TruthRun tr = truth_simulate(cfg, Scenario{}, 0, steps, &s);
-    return worst_outside_training(g, cfg.system->state_names(), tr.x, cfg.n);
+    return worst_outside_training(g, cfg.system->state_names(), tr.x, cfg.n, cfg.time_of(0), cfg.dt);
 }
 
 }  // namespace hinf

@@ -132,9 +132,10 @@ WorstReplay worst_replay(const RunConfig& cfg, const std::vector<const OnlineFil
 /// Where a `gain` network's input box (network.input_box: the box of training's estimates, docs/method.md section
 /// 16.10) is known: the state whose true values along `x` [K x n] went furthest beyond it, by more than the box's own
 /// width, said as "vy reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite
-/// value); "" where none did or the network has no box.
+/// value), and with row k at time t0 + k dt where t0 is given, when a state first went that far (BoxExcursion::text);
+/// "" where none did or the network has no box.
 std::string worst_outside_training(const kern::GainSpec& g, const std::vector<std::string>& names,
-                                   const std::vector<double>& x, int n);
+                                   const std::vector<double>& x, int n, double t0 = NAN, double dt = 0);
 /// worst_outside_training along the true state under `s` over `steps` steps of cfg (the truth does not depend on the
 /// filters: run 0's initial state, no scenario), for the note of `hinf worst` and the acceptance's advice.
 std::string worst_truth_outside_training(const RunConfig& cfg, const kern::GainSpec& g, const Signals& s,

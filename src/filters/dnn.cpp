@@ -95,7 +95,7 @@ public:
         const System& sys = *model_.system;
         const int n = sys.state_dim(), m = sys.output_dim();
         std::vector<double> a(n), ch(m), e(m), k(static_cast<std::size_t>(n) * m);
-        for (const auto& net : nets_) far_.see(net->step_config().gain, xhat_.data(), 1, n);  // the input it holds
+        for (const auto& net : nets_) far_.see(net->step_config().gain, xhat_.data(), 1, n, in.t);  // the input it holds
         sys.drift(a.data(), xhat_.data(), in.t, 1);
         sys.measurement(ch.data(), xhat_.data(), in.t, 1);
         if (in.y != nullptr) sys.output_difference(e.data(), in.y, ch.data());  // missing: e = 0, no correction

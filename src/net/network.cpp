@@ -547,7 +547,7 @@ Network<T> network_create(const RunConfig& cfg) {
     return net;
 }
 
-void BoxExcursion::see(const kern::GainSpec& g, const double* x, std::int64_t count, int n) {
+void BoxExcursion::see(const kern::GainSpec& g, const double* x, std::int64_t count, int n, double t0, double dt) {
     if (g.zlo.empty()) return;
     for (int i = 0; i < n && i < int(g.zlo.size()); ++i) {
         const double a = g.shift[i] + g.spread[i] * g.zlo[i], b = g.shift[i] + g.spread[i] * g.zhi[i];
@@ -556,6 +556,10 @@ void BoxExcursion::see(const kern::GainSpec& g, const double* x, std::int64_t co
         for (std::int64_t k = 0; k < count; ++k) {
             const double v = x[k * n + i];
             const double past = !std::isfinite(v) ? INFINITY : std::max(v - b, a - v) / w;
+            if (past > 1 && std::isfinite(t0) && !(t0 + double(k) * dt >= first_t)) {  // earliest; a tie keeps the first state
+                first_t = t0 + double(k) * dt;
+                first_state = i;
+            }
             if (past > widths) {
                 widths = past;
                 state = i;
@@ -577,14 +581,21 @@ std::string BoxExcursion::text(const std::vector<std::string>& names) const {
     else
         std::snprintf(buf, sizeof buf, "%s ran away where training's estimates spanned [%.4g, %.4g]", name.c_str(), lo,
                       hi);
-    return buf;
+    std::string out = buf;
+    if (std::isfinite(first_t) && first_state >= 0) {
+        const std::string fname =
+            std::size_t(first_state) < names.size() ? names[std::size_t(first_state)] : std::to_string(first_state + 1);
+        std::snprintf(buf, sizeof buf, ", first more than a width beyond at t = %.4g (%s)", first_t, fname.c_str());
+        out += buf;
+    }
+    return out;
 }
 
 std::string BoxExcursion::filter_note(const std::vector<std::string>& names) const {
     const std::string where = text(names);
     if (where.empty()) return "";
     return "its estimate went far beyond the region its network was trained on (" + where +
-           ", more than the region's width beyond it): its gain there is the one at the region's edge "
+           "): more than the region's width beyond it, where its gain is the one at the region's edge "
            "(docs/method.md section 16.10)";
 }
 

@@ -2,6 +2,7 @@
 // (seed 000 Remark 6: the standardisation constants are part of the network, stored with it).
 // Not the training loop (trainer.cpp) and not the file layout (io/checkpoint.cpp).
 #pragma once
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -83,10 +84,14 @@ struct BoxExcursion {
     double widths = 1;   // how far beyond, in widths of the box (inf: a non-finite value)
     double value = 0;    // its value there
     double lo = 0, hi = 0;  // the box of that state, in state units
-    /// Takes the states x [count x n] into account; a gain without a box changes nothing.
-    void see(const kern::GainSpec& g, const double* x, std::int64_t count, int n);
+    double first_t = NAN;   // when a state first went more than a width beyond (NaN: never, or times not given)
+    int first_state = -1;   // which state that was
+    /// Takes the states x [count x n] into account, row k at time t0 + k dt (t0 NaN: times unknown); a gain without
+    /// a box changes nothing.
+    void see(const kern::GainSpec& g, const double* x, std::int64_t count, int n, double t0 = NAN, double dt = 0);
     /// "v reached 88.5 where training's estimates spanned [-2.6, 2.5]" ("ran away" for a non-finite value), with
-    /// the states' names; "" where no state went more than a width beyond.
+    /// the states' names, and where times were given ", first more than a width beyond at t = 3.2 (w)"; "" where no
+    /// state went more than a width beyond.
     std::string text(const std::vector<std::string>& names) const;
     /// What a gain filter says after its run (OnlineFilter::run_note): text() in a sentence; "" where text() is.
     std::string filter_note(const std::vector<std::string>& names) const;

@@ -101,7 +101,7 @@ public:
         std::fill(e_.begin(), e_.end(), 0.0);  // missing: no correction
         if (in.y != nullptr) sys.output_difference(e_.data(), in.y, ch_.data());
         next_step_ = in.step + 1;
-        far_.see(net_.step.gain, xhat_.data(), 1, n);  // the input it holds (retraining changes theta, not the box)
+        far_.see(net_.step.gain, xhat_.data(), 1, n, in.t);  // the input it holds (retraining changes theta, not the box)
         if (!filter_estimate_ok(xhat_.data(), n)) return FILTER_DIVERGED;
         // 1. the on-line check (docs/method.md section 16.5): kOnlineCheckErrors errors around x^, current network
         const kern::GainSpec& g = net_.step.gain;

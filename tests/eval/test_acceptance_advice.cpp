@@ -229,6 +229,15 @@ TEST_CASE("the true state far beyond training's region under the worst signals i
           "v reached -15 where training's estimates spanned [10, 20]");
     CHECK(worst_outside_training(g, names, {0.0, 12.0, NAN, 12.0}, 2) ==
           "p ran away where training's estimates spanned [-1, 3]");
+    // with times (row k at 2 + 0.5 k): when a state first went more than a width beyond, which need not be the
+    // furthest one; v leaves at row 1 (31: 1.1 widths), p at row 2 (further, 2.25 widths); at the same row the
+    // first state is named
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 1.0, 31.0, 12.0, 41.0}, 2, 2.0, 0.5) ==
+          "p reached 12 where training's estimates spanned [-1, 3], first more than a width beyond at t = 2.5 (v)");
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 12.0, 41.0}, 2, 2.0, 0.5) ==
+          "p reached 12 where training's estimates spanned [-1, 3], first more than a width beyond at t = 2.5 (p)");
+    CHECK(worst_outside_training(g, names, {0.0, 12.0, 8.0, 19.0, 12.0, 41.0}, 2, 0.0, 0.5) ==
+          "p reached 12 where training's estimates spanned [-1, 3], first more than a width beyond at t = 0.5 (p)");
     kern::GainSpec none = g;  // a network without an input box: nothing to compare with
     none.zlo.clear();
     none.zhi.clear();

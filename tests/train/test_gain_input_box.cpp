@@ -102,12 +102,14 @@ TEST_CASE("input_box: training is unchanged, and the filter holds the network's 
         start.xhat0 = x0;
         filter->reset(start);
         FilterInput in;  // no measurement: the estimate the network sees is x0
+        in.t = 0.25;
         filter->step(in);
         return filter->run_note();
     };
     const std::string said = note_from(far);
     CHECK(said.find(" reached ") != std::string::npos);
     CHECK(said.find("where training's estimates spanned [") != std::string::npos);
+    CHECK(said.find(", first more than a width beyond at t = 0.25 (") != std::string::npos);  // when it left
     CHECK(note_from(mid).empty());
 
     // hinf worst's replay keeps that note for each (set, filter), so it can say under which sets the estimate left
