@@ -127,6 +127,10 @@ void add_compare_command(CLI::App& app) {
                             cfg.rho, fr.report_sum[0], static_cast<long long>(fr.report_runs));
         for (const auto& fr : s.filters)
             if (fr.notes.runs > 0) print_filter_note(fr.name, runs_with_note(fr.notes, s.runs), fr.notes.first);
+        for (const auto& fr : s.filters) {
+            const std::string overconfident = consistency_note(cfg, fr);
+            if (!overconfident.empty()) std::printf("%s\n", overconfident.c_str());
+        }
         if (s.truth_escaped_runs > 0)
             std::printf("the truth ran away in %lld of %lld run(s) (the first at t = %g s: not finite, or 1e12 times "
                         "beyond every scale its config gives it; %s); those "

@@ -217,6 +217,12 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             else kept.push_back(r);
         }
         fr.us_per_step = 1e6 * secs / double(R * steps);
+        double nees_sum = 0, nees_steps = 0;
+        for (std::int64_t r : kept) {
+            nees_sum += er.runs[k][r].nees_sum;
+            nees_steps += er.runs[k][r].nees_steps;
+        }
+        if (nees_steps > 0) fr.nees_per_state = nees_sum / nees_steps / double(n);
         auto over_kept = [&](auto get) {
             std::vector<double> v;
             for (std::int64_t r : kept) v.push_back(get(runs[r]));
@@ -297,6 +303,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         h5::set_attr(gid, "mse_filtered_db", fr.mse_filtered_db);
         h5::set_attr(gid, "settle_halves", fr.settle_halves);
         h5::set_attr(gid, "settled_after", fr.settled_after);
+        if (std::isfinite(fr.nees_per_state)) h5::set_attr(gid, "nees_per_state", fr.nees_per_state);
         if (fr.notes.runs > 0) {  // what the figures do not say (OnlineFilter::run_note)
             h5::set_attr(gid, "note", fr.notes.first);
             h5::set_attr(gid, "note_runs", fr.notes.runs);
@@ -387,6 +394,23 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     });
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return sum;
+}
+
+std::string consistency_note(const RunConfig& cfg, const CompareFilterResult& fr) {
+    if (!(fr.nees_per_state > kOverconfidentNees)) return "";  // NaN: no covariance stated
+    const bool particles = fr.name.rfind("pf", 0) == 0;
+    char buf[1024];
+    std::snprintf(buf, sizeof buf,
+                  "note: %s: its settled errors are about %.3g times what its own covariance says (mean NEES per state "
+                  "%.3g after t = %g, about 1 for a filter whose covariance is its error's): it is overconfident, and "
+                  "its figures say how far it lost the state, not what the filter can do here; %s (docs/compare.md "
+                  "\"Consistency\")",
+                  fr.name.c_str(), std::sqrt(fr.nees_per_state), fr.nees_per_state, cfg.settle_time,
+                  particles ? "its particle cloud collapsed onto too few distinct states: ten times the --particles, "
+                              "or --pf-roughening 0.2, repaired that on some systems, not on all"
+                            : "its linearisation, or the statistics it is told ([baseline] disturbance_std, noise_std, "
+                              "initial_std), does not hold along these runs: compare the ukf and the pf");
+    return buf;
 }
 
 }  // namespace hinf

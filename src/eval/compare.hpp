@@ -44,6 +44,9 @@ struct CompareFilterResult {
     // whether its error has settled in the settled window (settle_check below, over its Q-weighted mean square error
     // across the kept runs at t_sub)
     double settle_halves = NAN, settled_after = NAN;
+    // consistency: the mean over the kept runs' settled steps of e'P^-1 e / n, P the filter's own covariance (about 1
+    // for a filter whose covariance is its error's; NaN: it states none, OnlineFilter::covariance_is_statistical)
+    double nees_per_state = NAN;
 };
 
 struct CompareSummary {
@@ -76,6 +79,16 @@ SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>
 /// is still falling in the default window: its halves above kSettleFactor. It names where that filter settles and
 /// the key to set; "" otherwise. `who` starts the line ("compare", "acceptance").
 std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who);
+
+/// Above this mean NEES per state a filter's covariance() understates its error by more than sqrt(10) = 3.2 times in
+/// RMS: chosen by measurement (docs/compare.md "Consistency": EKF, UKF and PF at 0.87-1.3 on 35 systems where they
+/// track, 2-4 where one is mildly behind, 18-47 for the EKF on UNGM and 10^4-10^40 for particle clouds that collapsed).
+constexpr double kOverconfidentNees = 10.0;
+
+/// One line where a filter's settled errors are far larger than its own covariance says (nees_per_state above
+/// kOverconfidentNees): "note: pf: its settled errors are about 156 times ... (docs/compare.md "Consistency")"; ""
+/// otherwise (a consistent filter, or one that states no covariance).
+std::string consistency_note(const RunConfig& cfg, const CompareFilterResult& fr);
 
 /// Runs every filter (prototypes, cloned per thread) on the same R simulated runs of cfg's system; writes
 /// out_dir/compare.h5 and out_dir/compare.csv. OpenMP over runs; results do not depend on the thread count.

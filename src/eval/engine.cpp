@@ -2,6 +2,7 @@
 // measurements through filter_stream, error sums per (filter, run), observers per step.
 #include "eval/engine.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -77,6 +78,15 @@ std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& sta
     return bound;
 }
 
+double nees(const double* P, const double* e, int n) {
+    const Eigen::Map<const Eigen::MatrixXd> Pm(P, n, n);  // symmetric: layout does not matter
+    const Eigen::Map<const Eigen::VectorXd> em(e, n);
+    const Eigen::LLT<Eigen::MatrixXd> llt(Pm);
+    if (llt.info() != Eigen::Success || !Pm.allFinite()) return NAN;
+    const double q = em.dot(llt.solve(em));
+    return std::isfinite(q) && q >= 0 ? q : NAN;
+}
+
 namespace {
 
 FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const TruthRun& tr, const std::vector<double>& t,
@@ -94,10 +104,11 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
     std::vector<double> e(n);
     const FilterStart start = engine_filter_start(cfg, run);
     f.reset(start);
+    const bool stated = f.covariance_is_statistical();
     if (obs != nullptr) obs->begin(index, run);
     const std::vector<double> bound = plausible_bound(cfg, start, tr.x.data(), nullptr, K);
     StreamResult sr = filter_stream(f, tr.y.data(), m, t.data(), K, tr.x.data(), n, bound.data(), nullptr,
-                                    [&](std::int64_t k, const double* xh, bool) {
+                                    [&](std::int64_t k, const double* xh, bool frozen) {
         const double* x = tr.x.data() + k * n;
         if (obs != nullptr) obs->observe(k, t[k], x, xh);
         cfg.system->state_difference(e.data(), x, xh);  // an angle state's wrapped
@@ -115,6 +126,13 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
             r.err_sq[i] += e[i] * e[i];
         }
         if (t[k] >= cfg.settle_time) {
+            if (stated && !frozen) {
+                const double q = nees(f.covariance(), e.data(), n);
+                if (std::isfinite(q)) {
+                    r.nees_sum += q;
+                    r.nees_steps += 1;
+                }
+            }
             r.settled_steps += 1;
             r.sq_pos_settled += pp;
             r.sq_vel_settled += vv;
@@ -140,7 +158,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
 
 void put_stats(ParBytesOut& w, const FilterRunStats& s) {
     for (double v : {s.diverged_at, s.settled_steps, s.sq_pos, s.sq_vel, s.sq_pos_settled, s.sq_vel_settled,
-                     s.error_energy, s.signal_energy, s.seconds})
+                     s.error_energy, s.signal_energy, s.seconds, s.nees_sum, s.nees_steps})
         w.put(v);
     w.put(s.stream_hash);
     for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
@@ -152,7 +170,7 @@ void put_stats(ParBytesOut& w, const FilterRunStats& s) {
 FilterRunStats get_stats(ParBytesIn& rd) {
     FilterRunStats s;
     for (double* v : {&s.diverged_at, &s.settled_steps, &s.sq_pos, &s.sq_vel, &s.sq_pos_settled, &s.sq_vel_settled,
-                      &s.error_energy, &s.signal_energy, &s.seconds})
+                      &s.error_energy, &s.signal_energy, &s.seconds, &s.nees_sum, &s.nees_steps})
         *v = rd.get_double();
     s.stream_hash = rd.get_u64();
     for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,

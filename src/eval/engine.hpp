@@ -17,6 +17,10 @@
 
 namespace hinf {
 
+/// The normalised estimation error squared e'P^-1 e of an error e [n] against a covariance P [n x n] (symmetric);
+/// NaN where P is not positive definite or not finite. About n on average for a filter whose P is its error's.
+double nees(const double* P, const double* e, int n);
+
 /// What stepping one filter over a stream gave.
 struct StreamResult {
     double diverged_at = -1;  // time of the first FILTER_DIVERGED; < 0: never
@@ -105,6 +109,10 @@ struct FilterRunStats {
     std::vector<double> observed;   // StepObserver::end() of this (filter, run)
     std::vector<double> reported;   // OnlineFilter::run_report() after the run
     std::string note;               // OnlineFilter::run_note() after the run ("": nothing to say)
+    // over t >= settle_time, where the filter states its error's statistics (covariance_is_statistical): the sum of
+    // the normalised estimation error squared e'P^-1 e (NEES) and the count of steps it was taken at (P positive
+    // definite, the filter not frozen)
+    double nees_sum = 0, nees_steps = 0;
 };
 
 struct EngineOptions {

@@ -77,6 +77,7 @@ public:
     const double* estimate() const override { return x_.data(); }
     const double* filtered() const override { return xf_.data(); }
     const double* covariance() const override { return P_.data(); }  // symmetric: layout does not matter
+    bool covariance_is_statistical() const override { return false; }  // the game's P, in its own weights
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ExtendedHinfFilter>(*this); }
     std::int64_t level_steps_held() const { return held_; }
     std::vector<double> run_report() const override { return {double(held_)}; }

@@ -110,6 +110,10 @@ public:
     virtual const double* filtered() const { return nullptr; }
     /// [n x n] error covariance of estimate(), or nullptr for filters without one.
     virtual const double* covariance() const { return nullptr; }
+    /// Whether covariance() is the filter's own statement of its error's statistics (EKF, UKF, PF), against which its
+    /// errors can be checked (the NEES of hinf compare, docs/compare.md "Consistency"); not the game's P of the
+    /// extended H-infinity filter.
+    virtual bool covariance_is_statistical() const { return covariance() != nullptr; }
     /// Whether step() reads x_true (the comparison says so next to every figure).
     virtual bool uses_true_state() const { return false; }
     /// Figures a filter keeps about its own run since reset() (e.g. the retraining gain filter's check and trigger

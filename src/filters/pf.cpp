@@ -46,6 +46,7 @@ public:
             }
         w_.assign(np_, 1.0 / double(np_));
         mean(xhat_);
+        cov_.clear();
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
@@ -140,10 +141,28 @@ public:
         mean(xn);
         if (!filter_estimate_ok(xn.data(), n)) return FILTER_DIVERGED;
         xhat_ = xn;
+        cov_.clear();
         return FILTER_OK;
     }
     const double* estimate() const override { return xhat_.data(); }
     const double* filtered() const override { return xf_.data(); }
+    /// The weighted covariance of the cloud about estimate() (computed when asked: O(N n^2)).
+    const double* covariance() const override {
+        const int n = model_.system->state_dim();
+        if (cov_.size() != std::size_t(n) * n) {
+            cov_.assign(std::size_t(n) * n, 0.0);
+            std::vector<double> d(n);
+            for (std::int64_t p = 0; p < np_; ++p) {
+                model_.system->state_difference(d.data(), &X_[p * n], xhat_.data());  // an angle's wrapped
+                for (int i = 0; i < n; ++i)
+                    for (int j = 0; j <= i; ++j) cov_[std::size_t(i) * n + j] += w_[p] * d[i] * d[j];
+            }
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < i; ++j) cov_[std::size_t(j) * n + i] = cov_[std::size_t(i) * n + j];
+        }
+        return cov_.data();
+    }
+    bool covariance_is_statistical() const override { return true; }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ParticleFilter>(*this); }
     std::int64_t resamples() const { return resamples_; }
 
@@ -174,6 +193,7 @@ private:
     std::uint64_t seed_ = 0, run_ = 0;
     std::int64_t resamples_ = 0;
     std::vector<double> X_, w_, xhat_, xf_;  // X_ [np x n], w_ [np] normalised; x^_{k+1|k}, x^_{k|k}
+    mutable std::vector<double> cov_;          // covariance() of the current cloud; empty: not computed yet
 };
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
 #include "net/network.hpp"
+#include "filters/ehf.hpp"
 #include "filters/ekf.hpp"
 #include "filters/open_loop.hpp"
 #include "filters/pf.hpp"
@@ -295,4 +296,53 @@ TEST_CASE("the baselines are told the actual initial error in each state's units
         const double d = missile.x0[i] - missile.xhat0[i];
         CHECK(Pm[std::size_t(i) * missile.n + i] == d * d);
     }
+}
+
+TEST_CASE("nees: the error against a covariance, NaN where the covariance is not positive definite", "[eval][compare]") {
+    const double P[4] = {4.0, 0.0, 0.0, 1.0}, e[2] = {2.0, 1.0};
+    CHECK(nees(P, e, 2) == Approx(2.0));  // 4/4 + 1/1
+    const double Pc[4] = {2.0, 1.0, 1.0, 2.0}, ec[2] = {1.0, -1.0};
+    CHECK(nees(Pc, ec, 2) == Approx(2.0));  // (1, -1) is an eigenvector of eigenvalue 1
+    const double singular[4] = {1.0, 0.0, 0.0, 0.0}, indefinite[4] = {1.0, 0.0, 0.0, -1.0};
+    CHECK(std::isnan(nees(singular, e, 2)));
+    CHECK(std::isnan(nees(indefinite, e, 2)));
+}
+
+TEST_CASE("compare states each Bayesian filter's consistency and names an overconfident one", "[eval][compare]") {
+    RunConfig cfg = missile_config();
+    cfg.settle_time = 0;  // every step counts
+    TempDir d("compare-nees");
+    FilterModel model = filter_model(cfg);
+    // the EKF told the true statistics is consistent; 50 particles on the missile (no process noise on the positions)
+    // collapse; the open-loop predictor and the extended H-infinity filter state no error covariance
+    auto ekf = make_ekf(model), pf = make_particle_filter(model, 50), ol = make_open_loop_filter(model),
+         ehf = make_ehf(model, cfg.Q, cfg.rho);
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 3;
+    opt.until = 1.0;
+    opt.quiet = true;
+    CompareSummary s = compare_run(cfg, {ekf.get(), pf.get(), ol.get(), ehf.get()}, opt);
+    REQUIRE(s.filters.size() == 4);
+    INFO("ekf " << s.filters[0].nees_per_state << ", pf " << s.filters[1].nees_per_state);
+    CHECK(s.filters[0].nees_per_state > 0.3);
+    CHECK(s.filters[0].nees_per_state < 3.0);
+    CHECK(consistency_note(cfg, s.filters[0]).empty());
+    CHECK(s.filters[1].nees_per_state > 100 * kOverconfidentNees);
+    const std::string said = consistency_note(cfg, s.filters[1]);
+    CHECK(said.rfind("note: pf: its settled errors are about ", 0) == 0);
+    CHECK(said.find("--particles") != std::string::npos);
+    CHECK(std::isnan(s.filters[2].nees_per_state));
+    CHECK(std::isnan(s.filters[3].nees_per_state));
+    CHECK(consistency_note(cfg, s.filters[2]).empty());
+    // the EKF's line names its own causes, not the particles
+    CompareFilterResult ekf_over = s.filters[0];
+    ekf_over.nees_per_state = 47.3;
+    const std::string ekf_said = consistency_note(cfg, ekf_over);
+    CHECK(ekf_said.rfind("note: ekf: its settled errors are about 6.88 times", 0) == 0);
+    CHECK(ekf_said.find("--particles") == std::string::npos);
+    h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
+    h5::Handle g_ekf = h5::open_group(f.get(), "ekf"), g_ol = h5::open_group(f.get(), "open_loop");
+    CHECK(h5::get_attr_double(g_ekf.get(), "nees_per_state") == s.filters[0].nees_per_state);
+    CHECK_FALSE(h5::has_attr(g_ol.get(), "nees_per_state"));
 }
