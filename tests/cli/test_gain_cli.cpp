@@ -101,6 +101,7 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         const std::size_t vs = t.output.find(" against the EKF's ");
         REQUIRE(vs != std::string::npos);
         CHECK(t.output.find(" after t = ") == std::string::npos);
+        CHECK(t.output.find("over the whole runs") == std::string::npos);  // the figure is the whole run's already
         auto c = run_hinf("compare " + cfg + " --network " + (d / "run/best.h5") + " --filters dnn,ekf --runs 5 --out " +
                           (d / "vs") + " --quiet");
         INFO(c.output);
@@ -301,9 +302,19 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
           std::string::npos);
     // a level this 0.5 s training meets (Monte Carlo ~0.5, worst case found ~1.9 when written): exit 0, no advice
     auto ok = run_hinf("train " + cfg + " --out " + (d / "run2") +
-                       " --quiet --set filter.rho=5 --set training.require_acceptance=true");
+                       " --quiet --set filter.rho=5 --set training.require_acceptance=true --set online.settle_time=0.25");
     INFO(ok.output);
     CHECK(ok.status == 0);
+    {  // with a settled window the line also gives the whole runs' figures, the transient from x^0 included (method.md
+       // 16.4): the comparison's rmse_position of each filter, as printed
+        hinf::h5::Handle own = hinf::h5::open_file(d / "run2/acceptance/compare.h5", false);
+        hinf::h5::Handle gd = hinf::h5::open_group(own.get(), "dnn_gain_measured"), ge = hinf::h5::open_group(own.get(), "ekf");
+        char want[96];
+        std::snprintf(want, sizeof want, "; over the whole runs %.4g against %.4g, ",
+                      hinf::h5::get_attr_double(gd.get(), "rmse_position"), hinf::h5::get_attr_double(ge.get(), "rmse_position"));
+        CHECK(ok.output.find(" after t = 0.25 s ") != std::string::npos);
+        CHECK(ok.output.find(want) != std::string::npos);
+    }
     CHECK(ok.output.find("PASS") != std::string::npos);
     CHECK(ok.output.find("acceptance: next:") == std::string::npos);
     // after a PASS: a note naming a higher level exactly when the filter settles above 1.25 times the EKF's error on
