@@ -81,8 +81,9 @@ SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>
 std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who);
 
 /// Above this mean NEES per state a filter's covariance() understates its error by more than sqrt(10) = 3.2 times in
-/// RMS: chosen by measurement (docs/compare.md "Consistency": EKF, UKF and PF at 0.87-1.3 on 35 systems where they
-/// track, 2-4 where one is mildly behind, 18-47 for the EKF on UNGM and 10^4-10^40 for particle clouds that collapsed).
+/// RMS: chosen by measurement on 40 systems (docs/compare.md "Consistency": EKF and UKF at 0.87-1.26 where they track,
+/// the PF at 0.93-5.8 where it is at most 1.5 times behind the EKF, the EKF at 18-47 on UNGM, and 307 to 10^42 for
+/// the 12 particle clouds that collapsed).
 constexpr double kOverconfidentNees = 10.0;
 
 /// One line where a filter's settled errors are far larger than its own covariance says (nees_per_state above
