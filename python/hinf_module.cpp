@@ -240,6 +240,15 @@ PYBIND11_MODULE(_hinf, m) {
                                })
         .def_property_readonly("innovation_rms", [](const hinf::FilterTrace& t) { return to_array(t.innovation_rms); })
         .def_property_readonly("innovation_mean", [](const hinf::FilterTrace& t) { return to_array(t.innovation_mean); })
+        .def_property_readonly("nis",
+                               [](py::object self) -> py::object {
+                                   auto& t = self.cast<hinf::FilterTrace&>();
+                                   if (t.nis.empty()) return py::none();
+                                   return view(t.nis, {py::ssize_t(t.steps)}, self);
+                               })
+        .def_readonly("nis_per_output", &hinf::FilterTrace::nis_per_output,
+                      "Mean normalised innovation squared per output from t_0 + settle_time: about 1 where the "
+                      "filter's statistics hold for the record (NaN: the filter states no innovation covariance)")
         .def_readonly("note", &hinf::FilterTrace::note,
                       "What the filter met on the record that the arrays do not say, or '' (a DNN gain filter: its "
                       "estimate went far beyond the region its network was trained on)")

@@ -3,6 +3,7 @@
 // Not the command line (src/cli) and none of the internals (src/): this header includes only the standard
 // library and hinf/error.hpp. docs/library.md shows it in use.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -123,6 +124,12 @@ struct FilterTrace {
     std::vector<double> xhat_final;    ///< [n] the estimate of x(t_{K-1} + dt) after the last measurement
     double diverged_at = -1;           ///< time [s] the filter diverged at (frozen after it); < 0: never
     std::vector<double> innovation_rms, innovation_mean;  ///< [m] over the steps before a divergence
+    /// [K] normalised innovation squared of y_k against the covariance the filter expected for it (EKF, UKF, PF; NaN
+    /// where y_k is missing); empty for filters that state none
+    std::vector<double> nis;
+    /// the mean of nis / m from t_0 + [online] settle_time (from t_0 on a shorter record): about 1 where the filter's
+    /// model and told statistics hold for the record; NaN: none stated
+    double nis_per_output = NAN;
     /// What the filter met on the record that the arrays do not say, or "" (a DNN gain filter: its estimate went far
     /// beyond the region its network was trained on, where its gain is the region's edge's)
     std::string note;

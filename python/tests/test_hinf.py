@@ -114,6 +114,13 @@ def test_missile_filters_match_hinf_filter_bit_for_bit(tmp_path):
             assert trace.covariance is None and "P" not in g
         assert trace.diverged_at == g["attrs"]["diverged_at"]
         assert np.array_equal(trace.innovation_rms, g["attrs"]["innovation_rms"]), f.name
+        # the innovations' consistency: the Bayesian filters state it, the others do not
+        assert ("nis" in g) == (f.name in ("ekf", "ukf", "pf")), f.name
+        if "nis" in g:
+            assert np.array_equal(trace.nis, g["nis"], equal_nan=True), f.name
+            assert trace.nis_per_output == g["attrs"]["nis_per_output"], f.name
+        else:
+            assert trace.nis is None and np.isnan(trace.nis_per_output), f.name
 
 
 def test_expression_system_filters_match_hinf_filter(trained, record, tmp_path):

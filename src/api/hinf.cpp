@@ -359,6 +359,8 @@ FilterTrace Filter::run(const double* t, const double* y, std::int64_t K) const 
     tr.diverged_at = r.diverged_at;
     tr.innovation_rms = r.innovation_rms;
     tr.innovation_mean = r.innovation_mean;
+    tr.nis = std::move(path.nis);
+    tr.nis_per_output = r.nis_per_output;
     tr.note = r.note;
     return tr;
 }

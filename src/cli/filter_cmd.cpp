@@ -122,7 +122,7 @@ void add_filter_command(CLI::App& app) {
 
         std::printf("%-26s %-9s", "filter (mode measured)", "diverged");
         for (int j = 0; j < std::min(cfg.m, 4); ++j) std::printf("  %-26s", ("innovation " + std::to_string(j + 1) + " (mean, rms)").c_str());
-        std::printf("  %9s\n", "us/step");
+        std::printf("  %8s  %9s\n", "NIS/m", "us/step");
         for (const auto& r : res) {
             char div[32];
             if (r.diverged_at < 0) std::snprintf(div, sizeof div, "no");
@@ -133,10 +133,22 @@ void add_filter_command(CLI::App& app) {
                 std::snprintf(cell, sizeof cell, "%.3g, %.3g", r.innovation_mean[j], r.innovation_rms[j]);
                 std::printf("  %-26s", cell);
             }
+            if (std::isfinite(r.nis_per_output)) std::printf("  %8.3g", r.nis_per_output);
+            else std::printf("  %8s", "-");
             std::printf("  %9.2f\n", r.us_per_step);
         }
         for (const auto& r : res)
             if (!r.note.empty()) print_filter_note(r.name, "", r.note);
+        for (const auto& r : res) {
+            const std::string off = innovation_consistency_note(r);
+            if (!off.empty()) std::printf("%s\n", off.c_str());
+        }
+        bool any_nis = false;
+        for (const auto& r : res) any_nis = any_nis || std::isfinite(r.nis_per_output);
+        if (any_nis)
+            std::printf("NIS/m: mean normalised innovation squared per output after t = %g s, against the innovations' "
+                        "covariance each Bayesian filter expects (about 1 where its statistics hold; -: states none)\n",
+                        res.front().nis_from);
         std::printf("files: %s/estimates.h5, estimates_<filter>.csv (xhat[k] estimates x(t_k) from y before t_k)\n",
                     opt.out_dir.c_str());
     });

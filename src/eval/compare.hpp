@@ -47,6 +47,9 @@ struct CompareFilterResult {
     // consistency: the mean over the kept runs' settled steps of e'P^-1 e / n, P the filter's own covariance (about 1
     // for a filter whose covariance is its error's; NaN: it states none, OnlineFilter::covariance_is_statistical)
     double nees_per_state = NAN;
+    // the same steps' normalised innovation squared nu'S^-1 nu / m, S the innovations' covariance the filter expected
+    // (OnlineFilter::nis): the check `hinf filter` makes on recorded data, where no truth gives the NEES
+    double nis_per_output = NAN;
 };
 
 struct CompareSummary {

@@ -142,7 +142,15 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
             }
         }
         r.stream_hash = hash_bytes(r.stream_hash, tr.y.data() + k * m, sizeof(double) * m);
-    }, [&](std::int64_t k, const double* xf) {
+    }, [&](std::int64_t k, const double* xf, bool frozen) {
+        if (stated && !frozen && t[k] >= cfg.settle_time) {
+            const double q = f.nis();  // of y(t_k); NaN without a measurement or a positive definite S
+            if (std::isfinite(q)) {
+                r.nis_sum += q;
+                r.nis_steps += 1;
+            }
+        }
+        if (xf == nullptr) return;
         const double* x = tr.x.data() + k * n;
         if (r.err_sq_filtered.empty()) r.err_sq_filtered.assign(n, 0.0);
         cfg.system->state_difference(e.data(), x, xf);
@@ -158,7 +166,7 @@ FilterRunStats run_one_filter(const RunConfig& cfg, OnlineFilter& f, const Truth
 
 void put_stats(ParBytesOut& w, const FilterRunStats& s) {
     for (double v : {s.diverged_at, s.settled_steps, s.sq_pos, s.sq_vel, s.sq_pos_settled, s.sq_vel_settled,
-                     s.error_energy, s.signal_energy, s.seconds, s.nees_sum, s.nees_steps})
+                     s.error_energy, s.signal_energy, s.seconds, s.nees_sum, s.nees_steps, s.nis_sum, s.nis_steps})
         w.put(v);
     w.put(s.stream_hash);
     for (const auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,
@@ -170,7 +178,7 @@ void put_stats(ParBytesOut& w, const FilterRunStats& s) {
 FilterRunStats get_stats(ParBytesIn& rd) {
     FilterRunStats s;
     for (double* v : {&s.diverged_at, &s.settled_steps, &s.sq_pos, &s.sq_vel, &s.sq_pos_settled, &s.sq_vel_settled,
-                      &s.error_energy, &s.signal_energy, &s.seconds, &s.nees_sum, &s.nees_steps})
+                      &s.error_energy, &s.signal_energy, &s.seconds, &s.nees_sum, &s.nees_steps, &s.nis_sum, &s.nis_steps})
         *v = rd.get_double();
     s.stream_hash = rd.get_u64();
     for (auto* v : {&s.err_sum, &s.err_sq, &s.err_sum_settled, &s.err_sq_settled, &s.err_sub, &s.xhat, &s.observed,

@@ -43,16 +43,18 @@ std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& sta
 /// nullptr: no range), stays frozen at its last estimate (visit is still called, with frozen = true). x_true [K x n]
 /// is handed to oracle filters (nullptr for recorded data). missing [K] (nullptr: none): rows without a
 /// measurement, stepped with FilterInput::y = nullptr (predict only).
-/// After step k calls visit_filtered(k, xhat_filtered) with the filtered estimate x^_{k|k} (f.filtered(); a frozen
-/// filter's last estimate); not called for filters without a filtered estimate.
-template <class Visit, class VisitFiltered>
+/// After step k calls after(k, xhat_filtered, frozen) with the filtered estimate x^_{k|k} (f.filtered(); a frozen
+/// filter's last estimate; nullptr for filters without one), frozen = true when the filter was not stepped or
+/// failed at this step (its f.nis() is then not of this measurement).
+template <class Visit, class After>
 StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
                            const double* x_true, int n, const double* bound, const unsigned char* missing,
-                           Visit&& visit, VisitFiltered&& visit_filtered) {
+                           Visit&& visit, After&& after) {
     StreamResult r;
     for (std::int64_t k = 0; k < K; ++k) {
         visit(k, f.estimate(), r.diverged_at >= 0);
-        if (r.diverged_at < 0) {
+        const bool was_frozen = r.diverged_at >= 0;
+        if (!was_frozen) {
             auto c0 = std::chrono::steady_clock::now();
             const double* yk = missing != nullptr && missing[k] ? nullptr : y + k * m;
             FilterStatus st = f.step(FilterInput{yk, t[k], k, x_true != nullptr ? x_true + k * n : nullptr});
@@ -68,7 +70,8 @@ StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double
                     }
             }
         }
-        if (f.filtered() != nullptr) visit_filtered(k, r.diverged_at >= 0 ? f.estimate() : f.filtered());
+        const bool frozen = r.diverged_at >= 0;
+        after(k, f.filtered() == nullptr ? nullptr : frozen ? f.estimate() : f.filtered(), was_frozen || frozen);
     }
     return r;
 }
@@ -77,7 +80,7 @@ template <class Visit>
 StreamResult filter_stream(OnlineFilter& f, const double* y, int m, const double* t, std::int64_t K,
                            const double* x_true, int n, const double* bound, const unsigned char* missing,
                            Visit&& visit) {
-    return filter_stream(f, y, m, t, K, x_true, n, bound, missing, visit, [](std::int64_t, const double*) {});
+    return filter_stream(f, y, m, t, K, x_true, n, bound, missing, visit, [](std::int64_t, const double*, bool) {});
 }
 
 /// Watches one filter's run step by step (one instance per thread: clone()). begin/end bracket each (filter,
@@ -113,6 +116,9 @@ struct FilterRunStats {
     // the normalised estimation error squared e'P^-1 e (NEES) and the count of steps it was taken at (P positive
     // definite, the filter not frozen)
     double nees_sum = 0, nees_steps = 0;
+    // over the same steps, where the filter states its innovations' covariance (OnlineFilter::nis finite): the sum
+    // of the normalised innovation squared and the count of steps it was taken at
+    double nis_sum = 0, nis_steps = 0;
 };
 
 struct EngineOptions {

@@ -33,6 +33,7 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
     if (p.has_cov)
         for (int i = 0; i < n; ++i) out << ",sd_" << names[i];
     for (int j = 0; j < m; ++j) out << ",innovation_" << (j + 1);
+    if (!p.nis.empty()) out << ",nis";
     out << '\n';
     char buf[32];
     auto put = [&](double v) {
@@ -46,6 +47,7 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
         if (p.has_cov)
             for (int i = 0; i < n; ++i) put(std::sqrt(std::max(0.0, p.P[(k * n + i) * n + i])));
         for (int j = 0; j < m; ++j) put(p.innov[k * m + j]);
+        if (!p.nis.empty()) put(p.nis[k]);
         out << '\n';
     }
     });
@@ -128,6 +130,10 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             h5::set_attr(g.get(), "innovation_rms", r.innovation_rms);
             h5::set_attr(g.get(), "innovation_mean", r.innovation_mean);
             if (!r.note.empty()) h5::set_attr(g.get(), "note", r.note);  // what the figures do not say
+            if (std::isfinite(r.nis_per_output)) {
+                h5::set_attr(g.get(), "nis_per_output", r.nis_per_output);
+                h5::set_attr(g.get(), "nis_from", r.nis_from);
+            }
             h5::write_doubles(g.get(), "xhat", p.xhat.data(), {hsize_t(K), hsize_t(n)}, units,
                               "estimate of x(t_k) from y(t_0..t_{k-1}); frozen after a divergence");
             h5::write_doubles(g.get(), "xhat_final", p.xhat_final.data(), {hsize_t(n)}, units,
@@ -137,6 +143,10 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
             if (!p.xhat_filtered.empty())
                 h5::write_doubles(g.get(), "xhat_filtered", p.xhat_filtered.data(), {hsize_t(K), hsize_t(n)}, units,
                                   "filtered estimate x^_{k|k} of x(t_k) from y(t_0..t_k); frozen after a divergence");
+            if (!p.nis.empty())
+                h5::write_doubles(g.get(), "nis", p.nis.data(), {hsize_t(K)}, "1",
+                                  "normalised innovation squared of y_k against the covariance the filter expected for "
+                                  "it (mean m where its statistics hold); NaN: no measurement, or frozen");
             if (p.has_cov)
                 h5::write_doubles(g.get(), "P", p.P.data(), {hsize_t(K), hsize_t(n), hsize_t(n)}, "state units squared",
                                   "the filter's error covariance of xhat[k]");
@@ -154,6 +164,28 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
     }
     for (const auto& f : stale) std::filesystem::remove(f);
     return results;
+}
+
+std::string innovation_consistency_note(const RecordedResult& r) {
+    const double q = r.nis_per_output;
+    if (!(q > kOverconfidentNis || q < kUnderconfidentNis)) return "";  // NaN: no S stated
+    char buf[1024];
+    if (q > kOverconfidentNis)
+        std::snprintf(buf, sizeof buf,
+                      "note: %s: its innovations are about %.3g times (RMS) what it expects (mean NIS per output %.3g "
+                      "after t = %g s, about 1 where its model and the statistics it is told hold for this record): "
+                      "it is overconfident here; the noise or disturbance it is told ([baseline] or [online] "
+                      "noise_std, disturbance_std), its start (--initial-std) or its linearisation does not hold for "
+                      "this record (docs/compare.md \"Consistency\")",
+                      r.name.c_str(), std::sqrt(q), q, r.nis_from);
+    else
+        std::snprintf(buf, sizeof buf,
+                      "note: %s: its innovations are about %.3g times (RMS) smaller than it expects (mean NIS per output "
+                      "%.3g after t = %g s, about 1 where its statistics hold): it is told more noise or disturbance "
+                      "than this record has ([baseline] or [online] noise_std, disturbance_std), and states more "
+                      "uncertainty than its errors have here (docs/compare.md \"Consistency\")",
+                      r.name.c_str(), 1.0 / std::sqrt(q), q, r.nis_from);
+    return buf;
 }
 
 RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const Measurements& ms,
@@ -179,6 +211,10 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
     start.P0 = P0;
     f.reset(start);
     p.has_cov = f.covariance() != nullptr;
+    const bool states_nis = f.covariance_is_statistical();  // the Bayesian filters (OnlineFilter::nis)
+    if (states_nis) p.nis.reserve(std::size_t(K));
+    if (K > 0) r.nis_from = ms.t[0] + cfg.settle_time <= ms.t[K - 1] ? ms.t[0] + cfg.settle_time : ms.t[0];
+    double nis_sum = 0, nis_steps = 0;
     p.xhat.reserve(std::size_t(K) * n);
     p.innov.reserve(std::size_t(K) * m);
     if (p.has_cov) p.P.reserve(std::size_t(K) * n * n);
@@ -212,7 +248,17 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
         }
         ++used;
         if (k % 1000 == 999) progress.update(k + 1, "");
-    }, [&](std::int64_t, const double* xf) { p.xhat_filtered.insert(p.xhat_filtered.end(), xf, xf + n); });
+    }, [&](std::int64_t k, const double* xf, bool frozen) {
+        if (xf != nullptr) p.xhat_filtered.insert(p.xhat_filtered.end(), xf, xf + n);
+        if (!states_nis) return;
+        const double q = frozen ? NAN : f.nis();  // NaN where y_k is missing
+        p.nis.push_back(q);
+        if (std::isfinite(q) && ms.t[k] >= r.nis_from) {
+            nis_sum += q;
+            nis_steps += 1;
+        }
+    });
+    if (nis_steps > 0) r.nis_per_output = nis_sum / nis_steps / double(m);
     r.diverged_at = sr.diverged_at;
     const double seconds = sr.seconds;
     r.note = f.run_note();

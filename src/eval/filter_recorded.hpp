@@ -2,6 +2,7 @@
 // (and covariances where a filter has them) and truth-free diagnostics (innovation statistics).
 // Not the reading of the record (io/measurements.cpp) nor the filters (src/filters).
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,7 +29,22 @@ struct RecordedResult {
     std::vector<double> innovation_mean;  // [m]
     double us_per_step = 0;
     std::string note;  // OnlineFilter::run_note() after the record ("": nothing to say)
+    // consistency without a truth: the mean normalised innovation squared nu'S^-1 nu / m over the measured steps at
+    // t >= nis_from (OnlineFilter::nis, S the innovations' covariance the filter expected); about 1 where its model
+    // and told statistics hold for the record. NaN: the filter states no S (not a Bayesian filter), or no step.
+    double nis_per_output = NAN;
+    double nis_from = NAN;  // t_0 + [online] settle_time, or t_0 where the record is shorter than that
 };
+
+/// Mean NIS per output above which `hinf filter` says the filter is overconfident on the record (its innovations
+/// more than 3.2 times, RMS, what it expects: the threshold of the NEES in `hinf compare`), and below which it says
+/// the filter expects far more than the record's innovations (more than 3.2 times less, RMS). docs/compare.md
+/// "Consistency".
+constexpr double kOverconfidentNis = 10.0, kUnderconfidentNis = 0.1;
+
+/// One line where a filter's innovations on the record are far from what it expects (nis_per_output above
+/// kOverconfidentNis or below kUnderconfidentNis): "note: ekf: its innovations are about ..."; "" otherwise.
+std::string innovation_consistency_note(const RecordedResult& r);
 
 /// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt.
 void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source);
@@ -44,6 +60,7 @@ struct RecordedPath {
     std::vector<double> xhat, P, innov;  // [K x n], [K x n x n] (covariance filters), [K x m]
     std::vector<double> xhat_final;      // [n]
     std::vector<double> xhat_filtered;   // [K x n] x^_{k|k} (filters that have one; docs/compare.md)
+    std::vector<double> nis;             // [K] OnlineFilter::nis() of y_k (NaN: none); empty: the filter states no S
     bool has_cov = false;
 };
 

@@ -21,6 +21,7 @@ public:
         const int n = model_.system->state_dim();
         x_ = Eigen::Map<const Vec>(start.xhat0.data(), n);
         P_ = Eigen::Map<const RowMat>(start.P0.data(), n, n);
+        nis_ = NAN;
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
@@ -43,9 +44,11 @@ public:
         Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
         Vec xu = x_;
         Mat Pu = P_;
+        nis_ = NAN;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
             Vec e(m);  // y - C(x^), an angle output's wrapped
             sys.output_difference(e.data(), in.y, c.data());
+            nis_ = normalised_square(llt, e);
             xu += K * e;
             Mat IKH = Mat::Identity(n, n) - K * H;
             // Joseph form: stays symmetric PSD
@@ -66,12 +69,14 @@ public:
     const double* estimate() const override { return x_.data(); }
     const double* filtered() const override { return xf_.data(); }
     const double* covariance() const override { return P_.data(); }  // symmetric: layout does not matter
+    double nis() const override { return nis_; }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ExtendedKalmanFilter>(*this); }
 
 private:
     FilterModel model_;
     Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
+    double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
 };
 
 }  // namespace

@@ -88,6 +88,7 @@ public:
     const double* filtered() const override { return inner_->filtered(); }
     const double* covariance() const override { return inner_->covariance(); }
     bool covariance_is_statistical() const override { return inner_->covariance_is_statistical(); }
+    double nis() const override { return inner_->nis(); }  // S and nu both in the inner filter's units
     bool uses_true_state() const override { return inner_->uses_true_state(); }
     std::vector<double> run_report() const override { return inner_->run_report(); }
     std::string run_note() const override { return inner_->run_note(); }

@@ -8,6 +8,7 @@
 // published tables use (docs/compare.md, "Predicted and filtered scores").
 // Shape legend: n = states, nv = disturbance inputs, m = outputs.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -114,6 +115,12 @@ public:
     /// errors can be checked (the NEES of hinf compare, docs/compare.md "Consistency"); not the game's P of the
     /// extended H-infinity filter.
     virtual bool covariance_is_statistical() const { return covariance() != nullptr; }
+    /// After step(y(t_k)): the normalised innovation squared nu'S^-1 nu of nu = y(t_k) - C(x^_k), S the covariance of nu
+    /// the filter itself expected (EKF: H P H' + R; UKF: its sigma points' output covariance + R; PF: its prior
+    /// cloud's output covariance + R), all in the filter's own (model) units. Its mean is m for a filter whose
+    /// statistics hold, and it needs no true state: the consistency check of recorded data (docs/compare.md
+    /// "Consistency"). NaN: the step had no measurement, S was not positive definite, or the filter states none.
+    virtual double nis() const { return NAN; }
     /// Whether step() reads x_true (the comparison says so next to every figure).
     virtual bool uses_true_state() const { return false; }
     /// Figures a filter keeps about its own run since reset() (e.g. the retraining gain filter's check and trigger
@@ -139,6 +146,13 @@ struct RunNotes {
         }
     }
 };
+
+/// nu' S^-1 nu through a Cholesky factor of S; NaN where S is not positive definite (OnlineFilter::nis).
+inline double normalised_square(const Eigen::LLT<Eigen::MatrixXd>& S, const Eigen::VectorXd& nu) {
+    if (S.info() != Eigen::Success) return NAN;
+    const double q = nu.dot(S.solve(nu));
+    return std::isfinite(q) && q >= 0 ? q : NAN;
+}
 
 /// true when every entry is finite and |x| < 1e12 (the divergence bound of eval/operate.cpp).
 inline bool filter_estimate_ok(const double* x, int n) {

@@ -47,6 +47,8 @@ public:
         w_.assign(np_, 1.0 / double(np_));
         mean(xhat_);
         cov_.clear();
+        nis_pending_ = false;
+        nis_ = NAN;
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
@@ -55,8 +57,14 @@ public:
         // unchanged, no resampling, the filtered estimate is the prediction
         if (in.y != nullptr) {
             // normalised with the max subtracted
-            std::vector<double> c(static_cast<std::size_t>(np_) * m), logw(np_);
+            // the prior cloud's outputs, weights and y stay for nis(), which is computed only when asked
+            c_.resize(static_cast<std::size_t>(np_) * m);
+            std::vector<double>& c = c_;
+            std::vector<double> logw(np_);
             sys.measurement(c.data(), X_.data(), in.t, np_);
+            prior_w_ = w_;
+            y_.assign(in.y, in.y + m);
+            nis_pending_ = true;
             const double inv_r = 1.0 / (model_.noise_std * model_.noise_std);
             std::vector<double> wj(m, 1.0);  // (sn / sn_j)^2 per output (model_.noise_weight)
             for (int j = 0; j < m && !model_.noise_weight.empty(); ++j)
@@ -125,6 +133,8 @@ public:
             }
         } else {
             mean(xf_);
+            nis_pending_ = false;
+            nis_ = NAN;
         }
         // propagate through the transition (the shared step: Euler or the discrete map), v ~ sv N(0, I)
         std::vector<double> v(static_cast<std::size_t>(np_) * nv);
@@ -149,6 +159,7 @@ public:
     /// The weighted covariance of the cloud about estimate() (computed when asked: O(N n^2)).
     const double* covariance() const override {
         const int n = model_.system->state_dim();
+        if (X_.size() != std::size_t(np_) * n) return nullptr;  // never reset: no cloud
         if (cov_.size() != std::size_t(n) * n) {
             cov_.assign(std::size_t(n) * n, 0.0);
             std::vector<double> d(n);
@@ -163,6 +174,32 @@ public:
         return cov_.data();
     }
     bool covariance_is_statistical() const override { return true; }
+    /// The last measurement's NIS against the prior cloud's weighted output covariance plus R (computed when asked:
+    /// O(N m^2)); an angle output's offsets are taken from the heaviest particle's output, as mean() does for states.
+    double nis() const override {
+        if (!nis_pending_) return nis_;
+        nis_pending_ = false;
+        const System& sys = *model_.system;
+        const int m = sys.output_dim();
+        const std::int64_t ref = std::max_element(prior_w_.begin(), prior_w_.end()) - prior_w_.begin();
+        const double* cref = &c_[std::size_t(ref) * m];
+        Eigen::VectorXd off = Eigen::VectorXd::Zero(m), d(m);
+        for (std::int64_t p = 0; p < np_; ++p) {
+            sys.output_difference(d.data(), &c_[std::size_t(p) * m], cref);
+            off += prior_w_[p] * d;
+        }
+        Eigen::MatrixXd S = noise_covariance(model_, m);
+        for (std::int64_t p = 0; p < np_; ++p) {
+            sys.output_difference(d.data(), &c_[std::size_t(p) * m], cref);
+            d -= off;
+            S.noalias() += prior_w_[p] * d * d.transpose();
+        }
+        Eigen::VectorXd chat(m), nu(m);  // the predicted output: the heaviest particle's plus the mean offset
+        for (int j = 0; j < m; ++j) chat[j] = cref[j] + off[j];
+        sys.output_difference(nu.data(), y_.data(), chat.data());
+        nis_ = normalised_square(Eigen::LLT<Eigen::MatrixXd>(S), nu);
+        return nis_;
+    }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<ParticleFilter>(*this); }
     std::int64_t resamples() const { return resamples_; }
 
@@ -194,6 +231,9 @@ private:
     std::int64_t resamples_ = 0;
     std::vector<double> X_, w_, xhat_, xf_;  // X_ [np x n], w_ [np] normalised; x^_{k+1|k}, x^_{k|k}
     mutable std::vector<double> cov_;          // covariance() of the current cloud; empty: not computed yet
+    std::vector<double> c_, prior_w_, y_;      // the last update's prior outputs [np x m], weights [np] and y [m]
+    mutable bool nis_pending_ = false;         // nis() not yet computed from them
+    mutable double nis_ = NAN;
 };
 
 }  // namespace

@@ -30,6 +30,7 @@ public:
         const int n = model_.system->state_dim();
         x_ = Eigen::Map<const Vec>(start.xhat0.data(), n);
         P_ = Eigen::Map<const RowMat>(start.P0.data(), n, n);
+        nis_ = NAN;
     }
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
@@ -59,9 +60,11 @@ public:
         Mat K = llt.solve(Pxz.transpose()).transpose();
         Vec xu = x_;
         Mat Pu = P_;
+        nis_ = NAN;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
             Vec e(m);  // y - zbar, an angle output's wrapped
             sys.output_difference(e.data(), in.y, zbar.data());
+            nis_ = normalised_square(llt, e);
             xu += K * e;
             Pu = P_ - K * S * K.transpose();
             Pu = 0.5 * (Pu + Pu.transpose()).eval();
@@ -92,6 +95,7 @@ public:
     const double* estimate() const override { return x_.data(); }
     const double* filtered() const override { return xf_.data(); }
     const double* covariance() const override { return P_.data(); }
+    double nis() const override { return nis_; }
     std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<UnscentedKalmanFilter>(*this); }
 
 private:
@@ -132,6 +136,7 @@ private:
     std::vector<double> wm_, wc_;
     Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
+    double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
 };
 
 }  // namespace

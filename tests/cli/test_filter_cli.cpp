@@ -304,3 +304,69 @@ TEST_CASE("hinf filter says when the config's start makes the Bayesian filters c
         CHECK_FALSE(hinf::test::bitwise_equal(a, read_group_doubles(d / "b/estimates.h5", g, "xhat")));  // told more
     }
 }
+
+TEST_CASE("hinf filter checks each Bayesian filter's innovations against what it expects", "[cli][filter][nis]") {
+    TempDir d("cli-filter-nis");
+    // a damped oscillator seen through its position; the record is a compare run of the same model
+    const std::string cfg = write_file(
+        d, "osc.toml",
+        "[system]\nkind = \"expr\"\nstates = [\"p\", \"v\"]\ndisturbances = 1\nmeasurements = 1\n"
+        "f = [\"v\", \"-p - 0.5*v\"]\ng = [[\"0\"], [\"1\"]]\nh = [\"p\"]\n"
+        "[filter]\nrho = 2\nx0 = [1.0, 0.0]\nxhat0 = [0.8, 0.2]\ndt = 0.01\nt_final = 20\n"
+        "[online]\ndisturbance_std = 1\nnoise_std = 0.1\nruns = 1\nsettle_time = 2\n");
+    auto c = run_hinf("compare " + cfg + " --filters ekf --quiet --out " + (d / "c"));
+    INFO(c.output);
+    REQUIRE(c.status == 0);
+    const std::string rec = d / "c/compare.h5";
+    auto r = run_hinf("filter " + cfg + " --filters ekf,ukf,pf,open_loop --particles 500 --quiet --out " + (d / "o") +
+                      " --measurements " + rec);
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK(r.output.find("NIS/m") != std::string::npos);
+    CHECK(r.output.find("its innovations are about") == std::string::npos);  // told the record's statistics
+    const std::string est = d / "o/estimates.h5";
+    hinf::h5::Handle f = hinf::h5::open_file(est, false);
+    const std::vector<double> t = hinf::h5::read_doubles(f.get(), "t");
+    REQUIRE(t.size() == 2000u);
+    for (const char* name : {"ekf", "ukf", "pf"}) {
+        hinf::h5::Handle g = hinf::h5::open_group(f.get(), name);
+        const double per_output = hinf::h5::get_attr_double(g.get(), "nis_per_output");
+        const double from = hinf::h5::get_attr_double(g.get(), "nis_from");
+        CHECK(from == Approx(2.0));
+        // the attribute is the mean of the per-step dataset over the window (m = 1)
+        const std::vector<double> nis = hinf::h5::read_doubles(g.get(), "nis");
+        REQUIRE(nis.size() == t.size());
+        double sum = 0, count = 0;
+        for (std::size_t k = 0; k < t.size(); ++k)
+            if (t[k] >= from) {
+                REQUIRE(std::isfinite(nis[k]));
+                sum += nis[k];
+                count += 1;
+            }
+        INFO(name << ": NIS per output " << per_output);
+        CHECK(per_output == Approx(sum / count).epsilon(1e-12));
+        CHECK(per_output > 0.8);
+        CHECK(per_output < 1.25);
+    }
+    hinf::h5::Handle g_ol = hinf::h5::open_group(f.get(), "open_loop");
+    CHECK_FALSE(hinf::h5::has_attr(g_ol.get(), "nis_per_output"));
+    std::string head_ekf, head_ol;
+    std::getline(std::ifstream(d / "o/estimates_ekf.csv") >> std::ws, head_ekf);
+    std::getline(std::ifstream(d / "o/estimates_open_loop.csv") >> std::ws, head_ol);
+    CHECK(head_ekf.size() > 4);
+    CHECK(head_ekf.compare(head_ekf.size() - 4, 4, ",nis") == 0);
+    CHECK(head_ol.find("nis") == std::string::npos);
+
+    // told a tenth of the record's noise: overconfident; ten times: it expects far more than it meets
+    auto over = run_hinf("filter " + cfg + " --filters ekf --quiet --out " + (d / "over") + " --measurements " + rec +
+                         " --set online.noise_std=0.01");
+    INFO(over.output);
+    REQUIRE(over.status == 0);
+    CHECK(over.output.find("note: ekf: its innovations are about ") != std::string::npos);
+    CHECK(over.output.find("it is overconfident here") != std::string::npos);
+    auto under = run_hinf("filter " + cfg + " --filters ekf --quiet --out " + (d / "under") + " --measurements " + rec +
+                          " --set online.noise_std=1");
+    INFO(under.output);
+    REQUIRE(under.status == 0);
+    CHECK(under.output.find("smaller than it expects") != std::string::npos);
+}

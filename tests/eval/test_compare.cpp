@@ -332,6 +332,7 @@ TEST_CASE("compare states each Bayesian filter's consistency and names an overco
     const std::string said = consistency_note(cfg, s.filters[1]);
     CHECK(said.rfind("note: pf: its settled errors are about ", 0) == 0);
     CHECK(said.find("--particles") != std::string::npos);
+    CHECK(said.find("`hinf filter` would say so too") != std::string::npos);  // its NIS, 9696, shows it
     CHECK(std::isnan(s.filters[2].nees_per_state));
     CHECK(std::isnan(s.filters[3].nees_per_state));
     CHECK(consistency_note(cfg, s.filters[2]).empty());
@@ -341,8 +342,18 @@ TEST_CASE("compare states each Bayesian filter's consistency and names an overco
     const std::string ekf_said = consistency_note(cfg, ekf_over);
     CHECK(ekf_said.rfind("note: ekf: its settled errors are about 6.88 times", 0) == 0);
     CHECK(ekf_said.find("--particles") == std::string::npos);
+    CHECK(ekf_said.find("would pass unnoticed") != std::string::npos);  // its NIS, about 1, does not
     h5::Handle f = h5::open_file(opt.out_dir + "/compare.h5", false);
     h5::Handle g_ekf = h5::open_group(f.get(), "ekf"), g_ol = h5::open_group(f.get(), "open_loop");
     CHECK(h5::get_attr_double(g_ekf.get(), "nees_per_state") == s.filters[0].nees_per_state);
     CHECK_FALSE(h5::has_attr(g_ol.get(), "nees_per_state"));
+    // the truth-free check on the same steps: the innovations against the covariance each filter expected for them
+    INFO("NIS per output: ekf " << s.filters[0].nis_per_output << ", pf " << s.filters[1].nis_per_output);
+    CHECK(s.filters[0].nis_per_output > 0.5);
+    CHECK(s.filters[0].nis_per_output < 2.0);
+    CHECK(s.filters[1].nis_per_output > 100);  // the collapsed cloud misjudges its innovations too (9696 here)
+    CHECK(std::isnan(s.filters[2].nis_per_output));
+    CHECK(std::isnan(s.filters[3].nis_per_output));
+    CHECK(h5::get_attr_double(g_ekf.get(), "nis_per_output") == s.filters[0].nis_per_output);
+    CHECK_FALSE(h5::has_attr(g_ol.get(), "nis_per_output"));
 }

@@ -154,6 +154,56 @@ TEST_CASE("particle filter mean converges to the Kalman mean as particles grow",
     }
 }
 
+TEST_CASE("each Bayesian filter's NIS is its innovation against the covariance it expected for it", "[filters][nis]") {
+    // linear-Gaussian: the EKF's and UKF's S are H P H' + R of their own P, to round-off, and a filter told the
+    // truth has a mean NIS of m (here 2 outputs, 400 steps: the sum is chi-square with 800 degrees of freedom, sd 40)
+    Setup su(2.0, 0.3, 4.0, 400);
+    auto ekf = make_ekf(su.model), ukf = make_ukf(su.model), ol = make_open_loop_filter(su.model);
+    for (OnlineFilter* f : {ekf.get(), ukf.get()}) {
+        f->reset(su.start);
+        double worst = 0, sum = 0;
+        for (std::int64_t k = 0; k < su.steps; ++k) {
+            // by hand, from the filter's own estimate and P before the step: S = H P H' + sn^2 I
+            const Eigen::Map<const Eigen::Vector2d> y(su.ys.data() + 2 * k);
+            const Eigen::Vector2d nu = y - su.sys.H * Eigen::Map<const Eigen::Vector3d>(f->estimate());
+            const Eigen::Matrix3d P = Eigen::Map<const Eigen::Matrix3d>(f->covariance());
+            const Eigen::Matrix2d S = su.sys.H * P * su.sys.H.transpose() + 0.09 * Eigen::Matrix2d::Identity();
+            const double expect = nu.dot(S.inverse() * nu);
+            REQUIRE(f->step(FilterInput{su.ys.data() + 2 * k, k * su.model.dt, k, nullptr}) == FILTER_OK);
+            worst = std::max(worst, std::fabs(f->nis() - expect) / expect);
+            sum += f->nis();
+        }
+        INFO(f->name() << ": mean NIS per output " << sum / 800.0 << ", worst relative difference from H P H' + R "
+                       << worst);
+        CHECK(worst < 1e-9);
+        CHECK(sum / 800.0 > 0.85);
+        CHECK(sum / 800.0 < 1.15);
+        // a missing measurement: no innovation
+        REQUIRE(f->step(FilterInput{nullptr, 400 * su.model.dt, 400, nullptr}) == FILTER_OK);
+        CHECK(std::isnan(f->nis()));
+    }
+    ol->reset(su.start);  // states no covariance, so no S
+    REQUIRE(ol->step(FilterInput{su.ys.data(), 0.0, 0, nullptr}) == FILTER_OK);
+    CHECK(std::isnan(ol->nis()));
+    // the PF's S is its prior cloud's output covariance plus R: with 40000 particles the Kalman filter's own
+    Setup pu(2.0, 0.8, 0.5, 4);
+    auto pf = make_particle_filter(pu.model, 40000);
+    CHECK(pf->covariance() == nullptr);  // never reset: no cloud to state
+    pf->reset(pu.start);
+    for (std::int64_t k = 0; k < pu.steps; ++k) {
+        const Eigen::Vector2d y = Eigen::Map<const Eigen::Vector2d>(pu.ys.data() + 2 * k);
+        const Eigen::Vector2d nu = y - pu.kf.H * pu.kf.x;
+        const Eigen::MatrixXd S = pu.kf.H * pu.kf.P * pu.kf.H.transpose() + pu.kf.R;
+        const double kalman = nu.dot(S.inverse() * nu);
+        REQUIRE(pf->step(FilterInput{pu.ys.data() + 2 * k, k * pu.model.dt, k, nullptr}) == FILTER_OK);
+        pu.kf.step(y);
+        INFO("step " << k << ": PF " << pf->nis() << ", Kalman " << kalman);
+        CHECK(std::fabs(pf->nis() - kalman) < 0.05 * (1.0 + kalman));
+    }
+    REQUIRE(pf->step(FilterInput{nullptr, 4 * pu.model.dt, 4, nullptr}) == FILTER_OK);
+    CHECK(std::isnan(pf->nis()));
+}
+
 TEST_CASE("open-loop predictor ignores measurements and a diverging EKF is reported", "[filters]") {
     Setup su(1.0, 1.0, 1.0, 3);
     auto ol = make_open_loop_filter(su.model);
