@@ -66,6 +66,7 @@ void print_acceptance(const AcceptanceOutcome& a) {
     if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
     if (!a.settle_note.empty()) std::printf("%s\n", a.settle_note.c_str());
     if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
+    if (!a.search_note.empty()) std::printf("%s\n", a.search_note.c_str());
     std::fflush(stdout);  // before what comes next on stderr
 }
 

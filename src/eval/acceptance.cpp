@@ -498,6 +498,17 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
     o.worst_small_signal = search && w.skipped.empty() ? w.small : NAN;
     o.settle_note = vs.settle_note;
+    if (pass && search && w.skipped.empty()) {  // the short search's PASS is a lower bound's, method.md 16.12
+        char buf[900];
+        std::snprintf(buf, sizeof buf,
+                      "acceptance: note: the check's worst-case search is short (%lld evaluations): rho = %g held for "
+                      "what it found, which is not a proof; before relying on the level, run the full search: hinf "
+                      "worst %s --network %s --filters dnn,ekf,ukf --mode measured (with the training's --set options; "
+                      "on examples/systems/brusselator.toml the check found 4.17 and the full search 11.17, docs/method.md "
+                      "section 16.12)",
+                      static_cast<long long>(w.evals), cfg.rho, advice_config(cfg).c_str(), path.c_str());
+        o.search_note = buf;
+    }
     if (pass && cfg.variant == "gain" && vs.behind() > kBehindEkf)  // NaN (a diverged run) is no PASS
         o.note = acceptance_behind_note(cfg, path, vs.dnn / vs.ekf, vs.dnn_q / vs.ekf_q, vs.furthest);
     if (!pass) {

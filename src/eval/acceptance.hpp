@@ -84,6 +84,9 @@ struct AcceptanceOutcome {
     // where the config names no settle_time and the EKF's error is still falling after the default one: that
     // window's figures hold its transient (compare.hpp settle_note), one line ("acceptance: note: ..."); else empty
     std::string settle_note;
+    // after a PASS whose worst-case search ran: the check's short search found no ratio above rho, which is not a
+    // proof; the full search's command, one line ("acceptance: note: ..."); empty otherwise
+    std::string search_note;
     double rmse_position = std::numeric_limits<double>::quiet_NaN();  // the Monte Carlo's position RMSE
     // the DNN filter's and the EKF's on the same runs after settle_time (the whole run where that is empty; the DNN
     // filter's is NaN when a run diverged): the mean error the verdict, which judges rho, does not

@@ -291,6 +291,7 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     INFO(t.output);
     CHECK(t.status == 5);
     CHECK(t.output.find("FAIL") != std::string::npos);
+    CHECK(t.output.find("the check's worst-case search is short") == std::string::npos);  // only after a PASS
     CHECK(t.output.find("failed its acceptance check") != std::string::npos);
     // what to try, under the FAIL line: a level below rho* (hinf rho) and 50 steps x 2 Adam steps (a short run), each
     // with its fix, then the comparison with the Bayesian filters on the judged checkpoint
@@ -320,6 +321,10 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     }
     CHECK(ok.output.find("PASS") != std::string::npos);
     CHECK(ok.output.find("acceptance: next:") == std::string::npos);
+    // the short search's PASS is no proof: the full search's command, on the checkpoint judged
+    CHECK(ok.output.find("acceptance: note: the check's worst-case search is short (") != std::string::npos);
+    CHECK(ok.output.find("run the full search: hinf worst " + cfg + " --network " + (d / "run2/best.h5") +
+                         " --filters dnn,ekf,ukf --mode measured") != std::string::npos);
     // after a PASS: a note naming a higher level exactly when the filter settles above 1.25 times the EKF's error on
     // the check's runs, in position or over all states Q-weighted (the line's "(1.69x)" and "(2.1x)"; method.md
     // 16.12, "Kept, and behind the EKF")
