@@ -76,7 +76,7 @@ TEST_CASE("hinf filter reproduces operate's measured DNN filter from the measure
                                      " --out " + (d / "png"));
     INFO(p.output);
     CHECK(p.status == 0);
-    for (const char* png : {"estimates.png", "innovations.png"}) {
+    for (const char* png : {"estimates.png", "innovations.png", "nis.png"}) {  // nis.png: the ekf and ukf state one
         std::ifstream img(d / (std::string("png/") + png), std::ios::binary);
         char magic[4] = {0, 0, 0, 0};
         img.read(magic, 4);
