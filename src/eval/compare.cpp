@@ -386,7 +386,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
             << st[i] << "_mean_settled," << st[i] << "_mean_settled_ci95," << st[i] << "_std_settled," << st[i]
             << "_std_settled_ci95";
     csv << ",rmse_position,rmse_velocity,rmse_position_settled,rmse_velocity_settled,attenuation_ratio,"
-           "attenuation_ratio_ci95,us_per_step,mse,mse_db,mse_filtered,mse_filtered_db,truth_escaped_runs\n";
+           "attenuation_ratio_ci95,us_per_step,mse,mse_db,mse_filtered,mse_filtered_db,truth_escaped_runs,"
+           "nees_per_state,nis_per_output\n";
     csv.precision(10);
     for (const auto& fr : sum.filters) {
         csv << sum.scenario << ',' << fr.name << ',' << fr.mode << ',' << R << ',' << fr.diverged_runs;
@@ -397,7 +398,8 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
         csv << ',' << fr.rmse_position << ',' << fr.rmse_velocity << ',' << fr.rmse_position_settled << ','
             << fr.rmse_velocity_settled << ',' << fr.attenuation_ratio << ',' << fr.attenuation_ratio_ci << ','
             << fr.us_per_step << ',' << fr.mse << ',' << fr.mse_db << ',' << fr.mse_filtered << ','
-            << fr.mse_filtered_db << ',' << sum.truth_escaped_runs << '\n';
+            << fr.mse_filtered_db << ',' << sum.truth_escaped_runs << ',' << fr.nees_per_state << ','
+            << fr.nis_per_output << '\n';
     }
     });
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

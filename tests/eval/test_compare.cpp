@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <map>
 #include <mutex>
+#include <sstream>
+#include <fstream>
 #include <omp.h>
 
 #include "eval/compare.hpp"
@@ -356,4 +358,21 @@ TEST_CASE("compare states each Bayesian filter's consistency and names an overco
     CHECK(std::isnan(s.filters[3].nis_per_output));
     CHECK(h5::get_attr_double(g_ekf.get(), "nis_per_output") == s.filters[0].nis_per_output);
     CHECK_FALSE(h5::has_attr(g_ol.get(), "nis_per_output"));
+    // compare.csv: both figures by column name, nan for a filter that states no covariance
+    std::ifstream csv(opt.out_dir + "/compare.csv");
+    std::map<std::string, std::map<std::string, std::string>> rows;  // filter -> column -> cell
+    std::string line, cell;
+    std::vector<std::string> head;
+    for (bool first = true; std::getline(csv, line); first = false) {
+        std::vector<std::string> cells;
+        std::istringstream in(line);
+        while (std::getline(in, cell, ',')) cells.push_back(cell);
+        if (first) head = cells;
+        else
+            for (std::size_t c = 0; c < cells.size() && c < head.size(); ++c) rows[cells[1]][head[c]] = cells[c];
+    }
+    CHECK(std::stod(rows["ekf"]["nees_per_state"]) == Approx(s.filters[0].nees_per_state).epsilon(1e-8));
+    CHECK(std::stod(rows["ekf"]["nis_per_output"]) == Approx(s.filters[0].nis_per_output).epsilon(1e-8));
+    CHECK(rows["open_loop"]["nees_per_state"] == "nan");
+    CHECK(rows["open_loop"]["nis_per_output"] == "nan");
 }
