@@ -176,14 +176,14 @@ std::string innovation_consistency_note(const RecordedResult& r) {
                       "after t = %g s, about 1 where its model and the statistics it is told hold for this record): "
                       "it is overconfident here; the noise or disturbance it is told ([baseline] or [online] "
                       "noise_std, disturbance_std), its start (--initial-std) or its linearisation does not hold for "
-                      "this record (docs/compare.md \"Consistency\")",
+                      "this record (docs/compare.md \"Consistency without the truth\")",
                       r.name.c_str(), std::sqrt(q), q, r.nis_from);
     else
         std::snprintf(buf, sizeof buf,
                       "note: %s: its innovations are about %.3g times (RMS) smaller than it expects (mean NIS per output "
                       "%.3g after t = %g s, about 1 where its statistics hold): it is told more noise or disturbance "
                       "than this record has ([baseline] or [online] noise_std, disturbance_std), and states more "
-                      "uncertainty than its errors have here (docs/compare.md \"Consistency\")",
+                      "uncertainty than its errors have here (docs/compare.md \"Consistency without the truth\")",
                       r.name.c_str(), 1.0 / std::sqrt(q), q, r.nis_from);
     return buf;
 }

@@ -119,7 +119,7 @@ public:
     /// the filter itself expected (EKF: H P H' + R; UKF: its sigma points' output covariance + R; PF: its prior
     /// cloud's output covariance + R), all in the filter's own (model) units. Its mean is m for a filter whose
     /// statistics hold, and it needs no true state: the consistency check of recorded data (docs/compare.md
-    /// "Consistency"). NaN: the step had no measurement, S was not positive definite, or the filter states none.
+    /// "Consistency without the truth"). NaN: the step had no measurement, S was not positive definite, or the filter states none.
     virtual double nis() const { return NAN; }
     /// Whether step() reads x_true (the comparison says so next to every figure).
     virtual bool uses_true_state() const { return false; }
