@@ -115,11 +115,12 @@ public:
     /// errors can be checked (the NEES of hinf compare, docs/compare.md "Consistency"); not the game's P of the
     /// extended H-infinity filter.
     virtual bool covariance_is_statistical() const { return covariance() != nullptr; }
-    /// After step(y(t_k)): the normalised innovation squared nu'S^-1 nu of nu = y(t_k) - C(x^_k), S the covariance of nu
-    /// the filter itself expected (EKF: H P H' + R; UKF: its sigma points' output covariance + R; PF: its prior
+    /// After step(y(t_k)): the normalised innovation squared nu'S^-1 nu of nu = y(t_k) - C(x^_k), S the covariance
+    /// of nu the filter itself expected (EKF: H P H' + R; UKF: its sigma points' output covariance + R; PF: its prior
     /// cloud's output covariance + R), all in the filter's own (model) units. Its mean is m for a filter whose
     /// statistics hold, and it needs no true state: the consistency check of recorded data (docs/compare.md
-    /// "Consistency without the truth"). NaN: the step had no measurement, S was not positive definite, or the filter states none.
+    /// "Consistency without the truth"). NaN: the step had no measurement, S was not positive definite, or the
+    /// filter states none.
     virtual double nis() const { return NAN; }
     /// Whether step() reads x_true (the comparison says so next to every figure).
     virtual bool uses_true_state() const { return false; }
