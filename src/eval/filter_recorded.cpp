@@ -168,7 +168,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
 
 std::string innovation_consistency_note(const RecordedResult& r) {
     const double q = r.nis_per_output;
-    if (!(q > kOverconfidentNis || q < kUnderconfidentNis)) return "";  // NaN: no S stated
+    if (!(q > kOverconfidentNis || q < kUnderconfidentNis) || r.nis_dof < kNisMinDof) return "";  // NaN: no S stated
     char buf[1024];
     if (q > kOverconfidentNis)
         std::snprintf(buf, sizeof buf,
@@ -181,9 +181,10 @@ std::string innovation_consistency_note(const RecordedResult& r) {
     else
         std::snprintf(buf, sizeof buf,
                       "note: %s: its innovations are about %.3g times (RMS) smaller than it expects (mean NIS per output "
-                      "%.3g after t = %g s, about 1 where its statistics hold): it is told more noise or disturbance "
-                      "than this record has ([baseline] or [online] noise_std, disturbance_std), and states more "
-                      "uncertainty than its errors have here (docs/compare.md \"Consistency without the truth\")",
+                      "%.3g after t = %g s, about 1 where its statistics hold): it states more uncertainty than its "
+                      "innovations show; the noise or disturbance it is told ([baseline] or [online] noise_std, "
+                      "disturbance_std) may be larger than this record's, or its linearisation or sigma points "
+                      "overstate the spread (docs/compare.md \"Consistency without the truth\")",
                       r.name.c_str(), 1.0 / std::sqrt(q), q, r.nis_from);
     return buf;
 }
@@ -259,6 +260,7 @@ RecordedResult filter_record_path(OnlineFilter& f, const RunConfig& cfg, const M
         }
     });
     if (nis_steps > 0) r.nis_per_output = nis_sum / nis_steps / double(m);
+    r.nis_dof = nis_steps * double(m);
     r.diverged_at = sr.diverged_at;
     const double seconds = sr.seconds;
     r.note = f.run_note();

@@ -34,17 +34,21 @@ struct RecordedResult {
     // and told statistics hold for the record. NaN: the filter states no S (not a Bayesian filter), or no step.
     double nis_per_output = NAN;
     double nis_from = NAN;  // t_0 + [online] settle_time, or t_0 where the record is shorter than that
+    double nis_dof = 0;     // the degrees of freedom behind the mean: m per measured step in the window
 };
 
-/// Mean NIS per output above which `hinf filter` says the filter is overconfident on the record (its innovations
-/// more than 3.2 times, RMS, what it expects: the threshold of the NEES in `hinf compare`), and below which it says
-/// the filter expects far more than the record's innovations (more than 3.2 times less, RMS). Measured on 39 configs
-/// (docs/compare.md "Consistency without the truth"): 0.97-1.07 wherever the NEES was 0.8-1.3, 13.7 to 3e7 on 8 of
-/// the 13 overconfident filters, 1.01-1.7 on the other 5 (they lost states the outputs barely see).
-constexpr double kOverconfidentNis = 10.0, kUnderconfidentNis = 0.1;
+/// Mean NIS per output above which `hinf filter` says the filter is overconfident on the record (it expects less than
+/// a third of its innovations' variance), and below which it says the filter expects more than three times it; only
+/// over at least kNisMinDof degrees of freedom (below, chance alone crosses 3 or 1/3 too often: chi-square(30)/30
+/// exceeds 3 with probability 1e-7 and falls below 1/3 with 4e-4). Measured on 39 configs (docs/compare.md
+/// "Consistency without the truth"): 0.90-1.18 on single records wherever the NEES was 0.8-1.3, 13.7 to 3e7 on 8 of
+/// the 13 overconfident filters, 1.01-1.7 on the other 5 (they lost states the outputs barely see); an EKF told
+/// covariances 10 times too small or large reads 10 or 0.1, which a threshold of 10 / 0.1 left to chance.
+constexpr double kOverconfidentNis = 3.0, kUnderconfidentNis = 1.0 / 3.0, kNisMinDof = 30.0;
 
 /// One line where a filter's innovations on the record are far from what it expects (nis_per_output above
-/// kOverconfidentNis or below kUnderconfidentNis): "note: ekf: its innovations are about ..."; "" otherwise.
+/// kOverconfidentNis or below kUnderconfidentNis, over at least kNisMinDof degrees of freedom): "note: ekf: its
+/// innovations are about ..."; "" otherwise.
 std::string innovation_consistency_note(const RecordedResult& r);
 
 /// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt.

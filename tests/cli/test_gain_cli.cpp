@@ -263,10 +263,9 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         REQUIRE(at != std::string::npos);
         CHECK(far_start.output.find(line, at + 1) == std::string::npos);
         CHECK(far_start.output.find("If the system does go there, train over it") != std::string::npos);
-        // the EKF's one line is its innovation check: told the config's P0, it starts 400 off and does not know it
-        const std::size_t ekf_at = far_start.output.find("note: ekf: ");
-        CHECK(far_start.output.compare(ekf_at, 37, "note: ekf: its innovations are about ") == 0);
-        CHECK(far_start.output.find("note: ekf: ", ekf_at + 1) == std::string::npos);
+        // no line for the EKF: the excursion note is the gain filter's, and the record's settled window holds too
+        // few degrees of freedom for its innovation check (kNisMinDof)
+        CHECK(far_start.output.find("note: ekf: ") == std::string::npos);
         hinf::h5::Handle f = hinf::h5::open_file(d / "filtfar/estimates.h5", false);
         hinf::h5::Handle g = hinf::h5::open_group(f.get(), "dnn_gain_measured");
         REQUIRE(hinf::h5::has_attr(g.get(), "note"));

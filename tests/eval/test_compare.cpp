@@ -10,6 +10,7 @@
 
 #include "eval/compare.hpp"
 #include "eval/engine.hpp"
+#include "eval/filter_recorded.hpp"
 #include "filters/dnn.hpp"
 #include "helpers.hpp"
 #include "hinf/h5.hpp"
@@ -375,4 +376,29 @@ TEST_CASE("compare states each Bayesian filter's consistency and names an overco
     CHECK(std::stod(rows["ekf"]["nis_per_output"]) == Approx(s.filters[0].nis_per_output).epsilon(1e-8));
     CHECK(rows["open_loop"]["nees_per_state"] == "nan");
     CHECK(rows["open_loop"]["nis_per_output"] == "nan");
+}
+
+TEST_CASE("the recorded-data NIS note: beyond 3 or 1/3 and only over enough degrees of freedom", "[eval][nis]") {
+    RecordedResult r;
+    r.name = "ekf";
+    r.nis_from = 2.0;
+    CHECK(innovation_consistency_note(r).empty());  // NaN: no innovation covariance stated
+    r.nis_dof = 100;
+    r.nis_per_output = 9.0;  // innovations 3 times (RMS) what the filter expects
+    const std::string over = innovation_consistency_note(r);
+    CHECK(over.rfind("note: ekf: its innovations are about 3 times (RMS) what it expects (mean NIS per output 9 after "
+                     "t = 2 s", 0) == 0);
+    CHECK(over.find("overconfident") != std::string::npos);
+    r.nis_per_output = 0.25;  // half
+    const std::string under = innovation_consistency_note(r);
+    CHECK(under.rfind("note: ekf: its innovations are about 2 times (RMS) smaller than it expects", 0) == 0);
+    for (double q : {2.9, 0.34, 1.0}) {  // within the band
+        r.nis_per_output = q;
+        CHECK(innovation_consistency_note(r).empty());
+    }
+    r.nis_per_output = 9.0;
+    r.nis_dof = 29;  // too few degrees of freedom to tell a filter from chance
+    CHECK(innovation_consistency_note(r).empty());
+    r.nis_dof = 30;
+    CHECK_FALSE(innovation_consistency_note(r).empty());
 }
