@@ -80,11 +80,8 @@ std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& sta
 
 double nees(const double* P, const double* e, int n) {
     const Eigen::Map<const Eigen::MatrixXd> Pm(P, n, n);  // symmetric: layout does not matter
-    const Eigen::Map<const Eigen::VectorXd> em(e, n);
-    const Eigen::LLT<Eigen::MatrixXd> llt(Pm);
-    if (llt.info() != Eigen::Success || !Pm.allFinite()) return NAN;
-    const double q = em.dot(llt.solve(em));
-    return std::isfinite(q) && q >= 0 ? q : NAN;
+    if (!Pm.allFinite()) return NAN;
+    return normalised_square(Eigen::LLT<Eigen::MatrixXd>(Pm), Eigen::Map<const Eigen::VectorXd>(e, n));  // as the NIS
 }
 
 namespace {
