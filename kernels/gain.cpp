@@ -559,13 +559,6 @@ void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first,
         for (int a = 0; a < n; ++a) in[s * n + a] = T(z[i * n + a]);
     }
 }
-template <typename T>
-const T* pack_weights(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
-    if (gemm_path_available(sh.gemm) != GEMM_OWN) return nullptr;
-    ws.pack.resize(mlp_pack_size(sh, sizeof(T)));
-    mlp_pack_weights(ws.pack.data(), theta, sh);
-    return ws.pack.data();
-}
 }  // namespace
 
 int gain_step_chunks(int M, const StepConfig& cfg) {
@@ -601,7 +594,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
     ws.reserve(cfg, M);  // M rows' room: as many chunks as M samples make
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare(sh.gemm);
-    const T* wt = pack_weights(ws, theta, sh);
+    const T* wt = step_pack_weights(ws.pack, theta, sh);
     GainLossParams lp = gs.loss;
     lp.xt0 = gs.xt0.data();
     lp.dx = gs.dx.data();
@@ -771,7 +764,8 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
 
 template <typename T>
 void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
-                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws, const double* Fx, double* A) {
+                       std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws, const double* Fx, double* A,
+                       const T* pack) {
     const MlpShape& sh = cfg.shape;
     const GainSpec& gs = cfg.gain;
     const int n = cfg.head.n, m = gs.m, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
@@ -781,7 +775,7 @@ void gain_network_eval(double* K, const T* theta, const double* z, const double*
     assert(!gs.kalman || (Fx != nullptr && Hx != nullptr));
     ws.reserve(cfg, static_cast<int>(count));
     gemm_prepare(sh.gemm);
-    const T* wt = pack_weights(ws, theta, sh);
+    const T* wt = pack != nullptr ? pack : step_pack_weights(ws.pack, theta, sh);
     const int chunks = static_cast<int>((count + C - 1) / C);
 #pragma omp parallel for schedule(static) if (chunks > 1)
     for (int c = 0; c < chunks; ++c) {
@@ -1104,7 +1098,7 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
                                             const StepSplit*);                                                   \
     template void gain_network_eval<T>(double*, const T*, const double*, const double*, const double*,            \
                                        std::int64_t, const StepConfig&, StepWorkspace<T>&, const double*,       \
-                                       double*);                                                                 \
+                                       double*, const T*);                                                       \
     template void gain_storage_eval<T>(double*, double*, const T*, double, const StepConfig&);                    \
     template StepLoss gain_step_gradient_naive<T>(T*, const T*, const HjieSystemView&, const double*,            \
                                                   const std::int64_t*, int, const StepConfig&);                  \

@@ -119,11 +119,12 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
 /// K [count x n x m] at standardised inputs z [count x n] (the Riccati-form head needs the times t [count] and Hx
 /// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0; the Kalman-form head
 /// needs Hx and Fx [count x n x n], the map's Jacobians). A [count x n x m] (may be null; Kalman-form head only)
-/// receives the filtered estimate's gains P H' W^-1.
+/// receives the filtered estimate's gains P H' W^-1. pack: step_pack_weights(theta) or null (then packed here, into
+/// ws.pack: once a call, which a filter evaluating one estimate a step should not pay).
 template <typename T>
 void gain_network_eval(double* K, const T* theta, const double* z, const double* Hx, const double* t,
                        std::int64_t count, const StepConfig& cfg, StepWorkspace<T>& ws, const double* Fx = nullptr,
-                       double* A = nullptr);
+                       double* A = nullptr, const T* pack = nullptr);
 /// S [n x n] and Sdot [n x n] (either may be null) at time t: constant S and Sdot = 0 when knots = 0.
 template <typename T>
 void gain_storage_eval(double* S, double* Sdot, const T* theta, double t, const StepConfig& cfg);

@@ -17,15 +17,15 @@ void load_inputs(T* in, const double* xt, const std::int64_t* idx, std::int64_t 
         for (int a = 0; a < n; ++a) in[s * n + a] = T(xt[i * n + a] * inv);
     }
 }
-// the own kernels' weight panels, once per call (shared by all chunks); null for the other paths
-template <typename T>
-const T* pack(StepWorkspace<T>& ws, const T* theta, const MlpShape& sh) {
-    if (gemm_path_available(sh.gemm) != GEMM_OWN) return nullptr;
-    ws.pack.resize(mlp_pack_size(sh, sizeof(T)));
-    mlp_pack_weights(ws.pack.data(), theta, sh);
-    return ws.pack.data();
-}
 }  // namespace
+
+template <typename T>
+const T* step_pack_weights(LineVector<T>& pack, const T* theta, const MlpShape& shape) {
+    if (gemm_path_available(shape.gemm) != GEMM_OWN) return nullptr;
+    pack.resize(mlp_pack_size(shape, sizeof(T)));
+    mlp_pack_weights(pack.data(), theta, shape);
+    return pack.data();
+}
 
 std::int64_t step_acts_stride(const StepConfig& cfg) {
     return (std::int64_t(cfg.chunk) * cfg.shape.act_per_sample() + 15) / 16 * 16;
@@ -66,7 +66,7 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
     ws.reserve(cfg, M);
     if (std::int64_t(ws.partial.size()) < chunks * Ps) ws.partial.assign(chunks * Ps, T(0));
     gemm_prepare(sh.gemm);
-    const T* wt = pack(ws, theta, sh);
+    const T* wt = step_pack_weights(ws.pack, theta, sh);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
     // this process's chunks [c_first, c_last): all of them without a split
     const int ranks = split != nullptr ? split->ranks : 1, rank = split != nullptr ? split->rank : 0;
@@ -148,12 +148,12 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
 
 template <typename T>
 void network_eval(double* p, double* P, const T* theta, const double* xt, std::int64_t count, const StepConfig& cfg,
-                  StepWorkspace<T>& ws) {
+                  StepWorkspace<T>& ws, const T* pack) {
     const MlpShape& sh = cfg.shape;
     const int n = cfg.head.n, C = cfg.chunk, O = sh.outputs(), D0 = sh.inputs();
     ws.reserve(cfg, static_cast<int>(count));
     gemm_prepare(sh.gemm);
-    const T* wt = pack(ws, theta, sh);
+    const T* wt = pack != nullptr ? pack : step_pack_weights(ws.pack, theta, sh);
     const int chunks = static_cast<int>((count + C - 1) / C);
     const bool quad = cfg.head.kind == HEAD_QUADRATIC;
 #pragma omp parallel for schedule(static) if (chunks > 1)
@@ -182,9 +182,11 @@ template StepLoss step_gradient<float>(float*, const float*, const HjieSystemVie
 template StepLoss step_gradient<double>(double*, const double*, const HjieSystemView&, const std::int64_t*, int,
                                         const StepConfig&, StepWorkspace<double>&, const StepSplit*);
 template void network_eval<float>(double*, double*, const float*, const double*, std::int64_t, const StepConfig&,
-                                  StepWorkspace<float>&);
+                                  StepWorkspace<float>&, const float*);
 template void network_eval<double>(double*, double*, const double*, const double*, std::int64_t, const StepConfig&,
-                                   StepWorkspace<double>&);
+                                   StepWorkspace<double>&, const double*);
+template const float* step_pack_weights<float>(LineVector<float>&, const float*, const MlpShape&);
+template const double* step_pack_weights<double>(LineVector<double>&, const double*, const MlpShape&);
 
 template <typename T>
 void sum_chunk_partials(T* grad, const T* partial, int chunks, std::int64_t stride, std::int64_t P) {

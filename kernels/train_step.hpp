@@ -98,10 +98,17 @@ StepLoss step_gradient(T* grad, const T* theta, const HjieSystemView& sys, const
 template <typename T>
 void sum_chunk_partials(T* grad, const T* partial, int chunks, std::int64_t stride, std::int64_t P);
 
+/// The own GEMM kernels' weight panels of theta (mlp_pack_weights) in `pack`, resized, and a pointer to them; null
+/// where the shape's GEMM path is not GEMM_OWN (the others need none). What the `pack` argument of mlp_forward,
+/// network_eval and gain_network_eval takes: a caller whose theta does not change between calls (a frozen network)
+/// packs once instead of once a call.
+template <typename T>
+const T* step_pack_weights(LineVector<T>& pack, const T* theta, const MlpShape& shape);
+
 /// Forward only: p [count x n] = dV/dx~ at xt [count x n]; P [count x n x n] for the quadratic head
-/// (may be null). count <= ws.capacity.
+/// (may be null). count <= ws.capacity. pack: step_pack_weights(theta) or null (then packed here, into ws.pack).
 template <typename T>
 void network_eval(double* p, double* P, const T* theta, const double* xt, std::int64_t count, const StepConfig& cfg,
-                  StepWorkspace<T>& ws);
+                  StepWorkspace<T>& ws, const T* pack = nullptr);
 
 }  // namespace hinf::kern

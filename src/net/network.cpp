@@ -632,7 +632,7 @@ class FrozenImpl : public FrozenNetwork {
 public:
     explicit FrozenImpl(Network<T> net) : net_(std::move(net)) {}
     void gradient(double* p, const double* xt, std::int64_t count) override {
-        kern::network_eval(p, nullptr, net_.theta.data(), xt, count, net_.step, ws_);
+        kern::network_eval(p, nullptr, net_.theta.data(), xt, count, net_.step, ws_, packed());
     }
     void gain(double* K, double* S, double* Sdot, const double* xhat, double t, const System& sys,
               std::int64_t count) override {
@@ -652,16 +652,28 @@ public:
             for (std::int64_t i = 0; i < count; ++i) sys.drift_jacobian(fx_.data() + i * n * n, xhat + i * n, t);
         }
         kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), tt_.data(), count, net_.step, ws_,
-                                fx_.data());
+                                fx_.data(), nullptr, packed());
         kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
     const kern::StepConfig& step_config() const override { return net_.step; }
     std::unique_ptr<FrozenNetwork> clone() const override { return std::make_unique<FrozenImpl<T>>(net_); }
 
 private:
+    // the weights never change: packed for the own GEMM kernels once, not at every evaluation (a filter evaluates
+    // one estimate a step, where packing both directions' panels cost more than the forward pass itself)
+    const T* packed() {
+        if (!packed_) {
+            pack_ptr_ = kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
+            packed_ = true;
+        }
+        return pack_ptr_;
+    }
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
     std::vector<double> z_, hx_, tt_, fx_;
+    kern::LineVector<T> pack_;
+    const T* pack_ptr_ = nullptr;
+    bool packed_ = false;
 };
 }  // namespace
 
