@@ -26,35 +26,42 @@ public:
     FilterStatus step(const FilterInput& in) override {
         const System& sys = *model_.system;
         const int n = sys.state_dim(), m = sys.output_dim();
-        // measurement update with y(t_k)
-        RowMat H(m, n);
+        // measurement update with y(t_k); the step's matrices live in the filter (sized once, not each step)
+        RowMat& H = H_;
+        H.resize(m, n);
         sys.measurement_jacobian(H.data(), x_.data(), in.t);
-        Vec c(m);
-        sys.measurement(c.data(), x_.data(), in.t, 1);
+        c_.resize(m);
+        sys.measurement(c_.data(), x_.data(), in.t, 1);
         const double r = model_.noise_std * model_.noise_std;
-        Vec rj(m);  // R = diag(rj): sn^2 per output (model_.noise_weight)
-        for (int j = 0; j < m; ++j) rj[j] = model_.noise_std_of(j) * model_.noise_std_of(j);
-        Mat S = H * P_ * H.transpose();
+        rj_.resize(m);  // R = diag(rj): sn^2 per output (model_.noise_weight)
+        for (int j = 0; j < m; ++j) rj_[j] = model_.noise_std_of(j) * model_.noise_std_of(j);
+        Mat& S = S_;
+        S.noalias() = H * P_ * H.transpose();
         const bool full = !model_.noise_chol.empty();  // correlated: R = noise_covariance (filters/filter.hpp)
         const Mat R = full ? noise_covariance(model_, m) : Mat();
         if (full) S += R;
-        else S.diagonal() += rj;
-        Eigen::LLT<Mat> llt(S);
+        else S.diagonal() += rj_;
+        Eigen::LLT<Mat>& llt = llt_;
+        llt.compute(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
-        Mat K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
-        Vec xu = x_;
-        Mat Pu = P_;
+        Mat& K = K_;
+        K = llt.solve(H * P_).transpose();  // P H^T S^-1 (S, P symmetric)
+        Vec& xu = xu_;
+        Mat& Pu = Pu_;
+        xu = x_;
+        Pu = P_;
         nis_ = NAN;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
-            Vec e(m);  // y - C(x^), an angle output's wrapped
-            sys.output_difference(e.data(), in.y, c.data());
-            nis_ = normalised_square(llt, e);
-            xu += K * e;
-            Mat IKH = Mat::Identity(n, n) - K * H;
+            e_.resize(m);  // y - C(x^), an angle output's wrapped
+            sys.output_difference(e_.data(), in.y, c_.data());
+            nis_ = normalised_square(llt, e_);
+            xu += K * e_;
+            IKH_.noalias() = -K * H;
+            IKH_.diagonal().array() += 1.0;
             // Joseph form: stays symmetric PSD
-            Pu = full                         ? Mat(IKH * P_ * IKH.transpose() + K * R * K.transpose())
-                 : model_.noise_weight.empty() ? Mat(IKH * P_ * IKH.transpose() + r * K * K.transpose())
-                                               : Mat(IKH * P_ * IKH.transpose() + K * rj.asDiagonal() * K.transpose());
+            Pu = full                         ? Mat(IKH_ * P_ * IKH_.transpose() + K * R * K.transpose())
+                 : model_.noise_weight.empty() ? Mat(IKH_ * P_ * IKH_.transpose() + r * K * K.transpose())
+                                               : Mat(IKH_ * P_ * IKH_.transpose() + K * rj_.asDiagonal() * K.transpose());
         }
         // predict to t_{k+1} through the shared step
         Vec xn;
@@ -77,6 +84,11 @@ private:
     Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
     double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
+    // step's scratch
+    RowMat H_;
+    Vec c_, rj_, e_, xu_;
+    Mat S_, K_, Pu_, IKH_;
+    Eigen::LLT<Mat> llt_;
 };
 
 }  // namespace

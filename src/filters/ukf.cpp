@@ -44,13 +44,14 @@ public:
             sys.output_difference(d, a, b);
         }) : plain_mean(Z);
         Mat S = Mat::Zero(m, m), Pxz = Mat::Zero(n, m);
+        // the loops' vectors live in the filter (no allocation per sigma point; the same products as before)
+        dz_.resize(m);
+        dx_.resize(n);
         for (int s = 0; s < ns; ++s) {
-            Vec dz(m);
-            sys.output_difference(dz.data(), Z.row(s).data(), zbar.data());
-            S += wc_[s] * dz * dz.transpose();
-            Vec dx(n);  // an angle state's offset wrapped
-            sys.state_difference(dx.data(), X.row(s).data(), x_.data());
-            Pxz += wc_[s] * dx * dz.transpose();
+            sys.output_difference(dz_.data(), Z.row(s).data(), zbar.data());
+            S += wc_[s] * dz_ * dz_.transpose();
+            sys.state_difference(dx_.data(), X.row(s).data(), x_.data());  // an angle state's offset wrapped
+            Pxz += wc_[s] * dx_ * dz_.transpose();
         }
         if (!model_.noise_chol.empty()) S += noise_covariance(model_, m);  // correlated
         else
@@ -79,9 +80,8 @@ public:
         }) : plain_mean(Xn);
         Mat Pn = Mat::Zero(n, n);
         for (int s = 0; s < ns; ++s) {
-            Vec dx(n);
-            sys.state_difference(dx.data(), Xn.row(s).data(), xn.data());
-            Pn += wc_[s] * dx * dx.transpose();
+            sys.state_difference(dx_.data(), Xn.row(s).data(), xn.data());
+            Pn += wc_[s] * dx_ * dx_.transpose();
         }
         system_advance_jacobian(sys, nullptr, G.data(), xu.data(), in.t, model_.dt);
         Pn += process_noise(Mat(G), model_);
@@ -137,6 +137,7 @@ private:
     Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
     double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
+    Vec dz_, dx_;  // step's scratch: a point's output and state offsets
 };
 
 }  // namespace
