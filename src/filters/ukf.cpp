@@ -36,15 +36,18 @@ public:
         const System& sys = *model_.system;
         const int n = sys.state_dim(), nv = sys.disturbance_dim(), m = sys.output_dim(), ns = 2 * n + 1;
         // measurement update: sigma points of (x^-, P^-) through C
-        RowMat X(ns, n), Z(ns, m);
+        RowMat &X = X_, &Z = Z_;  // the step's matrices live in the filter (sized once, not each step)
+        X.resize(ns, n);
+        Z.resize(ns, m);
         if (!sigma_points(&X, x_, P_)) return FILTER_DIVERGED;
         sys.measurement(Z.data(), X.data(), in.t, ns);
         // an angle output: the mean of the points' differences from the centre's
         const Vec zbar = sys.wraps_outputs() ? centred_mean(Z, [&](double* d, const double* a, const double* b) {
             sys.output_difference(d, a, b);
         }) : plain_mean(Z);
-        Mat S = Mat::Zero(m, m), Pxz = Mat::Zero(n, m);
-        // the loops' vectors live in the filter (no allocation per sigma point; the same products as before)
+        Mat &S = S_, &Pxz = Pxz_;
+        S.setZero(m, m);
+        Pxz.setZero(n, m);
         dz_.resize(m);
         dx_.resize(n);
         for (int s = 0; s < ns; ++s) {
@@ -56,14 +59,19 @@ public:
         if (!model_.noise_chol.empty()) S += noise_covariance(model_, m);  // correlated
         else
             for (int j = 0; j < m; ++j) S(j, j) += model_.noise_std_of(j) * model_.noise_std_of(j);
-        Eigen::LLT<Mat> llt(S);
+        Eigen::LLT<Mat>& llt = llt_;
+        llt.compute(S);
         if (llt.info() != Eigen::Success) return FILTER_DIVERGED;
-        Mat K = llt.solve(Pxz.transpose()).transpose();
-        Vec xu = x_;
-        Mat Pu = P_;
+        Mat& K = K_;
+        K = llt.solve(Pxz.transpose()).transpose();
+        Vec& xu = xu_;
+        Mat& Pu = Pu_;
+        xu = x_;
+        Pu = P_;
         nis_ = NAN;
         if (in.y != nullptr) {  // a missing measurement: the prediction alone
-            Vec e(m);  // y - zbar, an angle output's wrapped
+            Vec& e = e_;  // y - zbar, an angle output's wrapped
+            e.resize(m);
             sys.output_difference(e.data(), in.y, zbar.data());
             nis_ = normalised_square(llt, e);
             xu += K * e;
@@ -72,13 +80,16 @@ public:
         }
         // predict: sigma points of (x^+, P^+) through the Euler step; additive process noise dt B v
         if (!sigma_points(&X, xu, Pu)) return FILTER_DIVERGED;
-        RowMat Xn(ns, n), G(n, nv);
+        RowMat &Xn = Xn_, &G = G_;
+        Xn.resize(ns, n);
+        G.resize(n, nv);
         system_advance(sys, Xn.data(), X.data(), nullptr, in.t, model_.dt, ns);
         // an angle state: the mean of the points' offsets from the centre's
         const Vec xn = !sys.angle_states().empty() ? centred_mean(Xn, [&](double* d, const double* a, const double* b) {
             sys.state_difference(d, a, b);
         }) : plain_mean(Xn);
-        Mat Pn = Mat::Zero(n, n);
+        Mat& Pn = Pn_;
+        Pn.setZero(n, n);
         for (int s = 0; s < ns; ++s) {
             sys.state_difference(dx_.data(), Xn.row(s).data(), xn.data());
             Pn += wc_[s] * dx_ * dx_.transpose();
@@ -118,9 +129,9 @@ private:
     }
 
     // rows of X: x, x + sqrt(n + lambda) L_j, x - sqrt(n + lambda) L_j with L L^T = P
-    bool sigma_points(RowMat* X, const Vec& x, const Mat& P) const {
+    bool sigma_points(RowMat* X, const Vec& x, const Mat& P) {
         const int n = static_cast<int>(x.size());
-        Mat L;
+        Mat& L = L_;
         if (!psd_sqrt(P, &L)) return false;
         L *= std::sqrt(n + lambda_);
         X->row(0) = x.transpose();
@@ -137,7 +148,11 @@ private:
     Vec x_, xf_;  // x^_{k+1|k}, x^_{k|k}
     Mat P_;
     double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
-    Vec dz_, dx_;  // step's scratch: a point's output and state offsets
+    // the step's scratch (kept between steps so that a step allocates little)
+    Vec dz_, dx_, xu_, e_;
+    RowMat X_, Z_, Xn_, G_;
+    Mat S_, Pxz_, K_, Pu_, Pn_, L_;
+    Eigen::LLT<Mat> llt_;
 };
 
 }  // namespace
