@@ -64,12 +64,10 @@ public:
                                                : Mat(IKH_ * P_ * IKH_.transpose() + K * rj_.asDiagonal() * K.transpose());
         }
         // predict to t_{k+1} through the shared step
-        Vec xn;
-        Mat Pn;
-        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return process_noise(G, model_); }, &xn, &Pn))
+        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return process_noise(G, model_); }, &xn_, &Pn_))
             return FILTER_DIVERGED;
-        x_ = xn;
-        P_ = Pn;
+        x_ = xn_;
+        P_ = Pn_;
         xf_ = xu;
         return FILTER_OK;
     }
@@ -86,8 +84,8 @@ private:
     double nis_ = NAN;  // of the last step's measurement (OnlineFilter::nis)
     // step's scratch
     RowMat H_;
-    Vec c_, rj_, e_, xu_;
-    Mat S_, K_, Pu_, IKH_;
+    Vec c_, rj_, e_, xu_, xn_;
+    Mat S_, K_, Pu_, IKH_, Pn_;
     Eigen::LLT<Mat> llt_;
 };
 
