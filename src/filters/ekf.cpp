@@ -56,7 +56,7 @@ public:
             sys.output_difference(e_.data(), in.y, c_.data());
             nis_ = normalised_square(llt, e_);
             xu += K * e_;
-            IKH_.noalias() = -K * H;
+            IKH_.noalias() = -K * H;  // I - K H (the same bits as forming it from the identity)
             IKH_.diagonal().array() += 1.0;
             // Joseph form: stays symmetric PSD
             Pu = full                         ? Mat(IKH_ * P_ * IKH_.transpose() + K * R * K.transpose())
