@@ -661,18 +661,18 @@ public:
 private:
     // the weights never change: packed for the own GEMM kernels once, not at every evaluation (a filter evaluates
     // one estimate a step, where packing both directions' panels cost more than the forward pass itself)
+    // (no pointer kept: a copy of this object points into its own panels; empty where the path packs nothing)
     const T* packed() {
         if (!packed_) {
-            pack_ptr_ = kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
+            kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
             packed_ = true;
         }
-        return pack_ptr_;
+        return pack_.empty() ? nullptr : pack_.data();
     }
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
     std::vector<double> z_, hx_, tt_, fx_;
     kern::LineVector<T> pack_;
-    const T* pack_ptr_ = nullptr;
     bool packed_ = false;
 };
 }  // namespace

@@ -171,11 +171,11 @@ private:
         if (g.knots > 0 || g.kalman) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
         if (g.kalman) cfg_->system->drift_jacobian(fx_.data(), xhat_.data(), t);
         if (pack_stale_) {  // theta changes only when retraining: its GEMM panels are packed once per change
-            pack_ptr_ = kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
+            kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
             pack_stale_ = false;
         }
         kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_, fx_.data(),
-                                nullptr, pack_ptr_);
+                                nullptr, pack_.empty() ? nullptr : pack_.data());
         kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
 
@@ -228,8 +228,7 @@ private:
     std::vector<T> m_, v_, grad_;
     std::int64_t adam_step_ = 0;
     kern::StepWorkspace<T> ws_;
-    kern::LineVector<T> pack_;  // eval's weight panels of net_.theta (ws_.pack is the gradient's)
-    const T* pack_ptr_ = nullptr;
+    kern::LineVector<T> pack_;  // eval's weight panels of net_.theta (ws_.pack is the gradient's; empty: none needed)
     bool pack_stale_ = true;
     GainSamples check_, train_;
     std::vector<std::int64_t> idx_;
