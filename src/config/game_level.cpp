@@ -20,6 +20,13 @@ double game_level_lost_at(const ProblemConfig& c, double rho, int repeats) {
     const Mat I = Mat::Identity(n, n);
     Mat P = Mat::Zero(n, n);
     RowMat H(m, n), F(n, n), G(n, nv);
+    // the step's matrices, sized once: a bisection walks up to kGameLevelMaxSteps steps for each level it tries. Each
+    // product below is one Eigen evaluated nested before, into the same type (F R S is row-major, as Eigen's own
+    // temporary of F * (R * S) is), so the walk gives the same bits as the one-expression form it replaces
+    Mat R(n, n), Rt(n, n), A(n, n), B(n, n), HtH(n, n), S(n, n), RS(n, n), FRSFt(n, n), GGt(n, n);
+    RowMat FRS(n, n);
+    Eigen::LLT<Mat> chol(n), cond(n), z(n);
+    Eigen::SelfAdjointEigenSolver<Mat> es(n);
     std::vector<double> x = c.x0, x_half;
     const std::int64_t steps = std::min(c.steps_until(), kGameLevelMaxSteps), half = steps / 2;
     // repeats > 0: then the walk's second half again that many times, from the state and the time at its middle, P
@@ -33,26 +40,42 @@ double game_level_lost_at(const ProblemConfig& c, double rho, int repeats) {
         // a factor P = R R': Cholesky where P is positive definite; the symmetric square root where it is singular
         // (P(0) = 0, and G G' in general). Any factor gives the same conditions (R = P^1/2 U with U orthogonal: the
         // matrices below change by the congruence U) and the same P+ = R (I + w R'(H'H - Q/rho) R)^-1 R'
-        Mat R;
-        Eigen::LLT<Mat> chol(P);
-        if (chol.info() == Eigen::Success && chol.matrixL().toDenseMatrix().diagonal().minCoeff() > 0) {
+        chol.compute(P);
+        if (chol.info() == Eigen::Success && chol.matrixLLT().diagonal().minCoeff() > 0) {  // L's diagonal
             R = chol.matrixL();
         } else {
-            Eigen::SelfAdjointEigenSolver<Mat> es(0.5 * (P + P.transpose()));
+            es.compute(0.5 * (P + P.transpose()));
             if (es.info() != Eigen::Success) return -1;
             R = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() *
                 es.eigenvectors().transpose();
         }
-        // the existence condition at step k: no error direction whose weight Q/rho outgrows what P allows
-        Eigen::LLT<Mat> cond(I - w * R.transpose() * Qr * R);
+        // the existence condition at step k: no error direction whose weight Q/rho outgrows what P allows:
+        // I - w R' (Q/rho) R > 0
+        A.noalias() = w * R.transpose() * Qr;
+        B = I;
+        B.noalias() -= A * R;
+        cond.compute(B);
         if (cond.info() != Eigen::Success) return t_walk;
         sys.measurement_jacobian(H.data(), x.data(), t);
         system_advance_jacobian(sys, F.data(), G.data(), x.data(), t, c.dt);
         if (!H.allFinite() || !F.allFinite() || !G.allFinite()) return -1;
-        Eigen::LLT<Mat> z(I + w * R.transpose() * (Mat(H.transpose() * H) - Qr) * R);
+        // Z = I + w R' (H'H - Q/rho) R > 0, then P+ = F R Z^-1 R' F' + G G' / w
+        HtH.noalias() = H.transpose() * H;
+        B = HtH - Qr;
+        A.noalias() = w * R.transpose() * B;
+        B = I;
+        B.noalias() += A * R;
+        z.compute(B);
         if (z.info() != Eigen::Success) return t_walk;
-        P = F * (R * z.solve(Mat(R.transpose()))) * F.transpose() + G * G.transpose() / w;
-        P = 0.5 * (P + P.transpose()).eval();
+        Rt = R.transpose();
+        S = z.solve(Rt);
+        RS.noalias() = R * S;
+        FRS.noalias() = F * RS;
+        FRSFt.noalias() = FRS * F.transpose();
+        GGt.noalias() = G * G.transpose();
+        P = FRSFt + GGt / w;
+        B = P + P.transpose();
+        P = 0.5 * B;
         if (!P.allFinite()) return -1;
         system_advance(sys, x.data(), x.data(), nullptr, t, c.dt);
         for (double v : x)
