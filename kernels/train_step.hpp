@@ -105,6 +105,26 @@ void sum_chunk_partials(T* grad, const T* partial, int chunks, std::int64_t stri
 template <typename T>
 const T* step_pack_weights(LineVector<T>& pack, const T* theta, const MlpShape& shape);
 
+/// step_pack_weights for a caller whose theta changes rarely (a frozen network; the on-line retrainer, between its
+/// retrainings): packed at the first get() after construction or stale(), not at every evaluation. It keeps no
+/// pointer into itself, so a copy is safe.
+template <typename T>
+class PackedWeights {
+public:
+    const T* get(const T* theta, const MlpShape& shape) {
+        if (stale_) {
+            step_pack_weights(pack_, theta, shape);
+            stale_ = false;
+        }
+        return pack_.empty() ? nullptr : pack_.data();
+    }
+    void stale() { stale_ = true; }  ///< theta changed: pack again at the next get()
+
+private:
+    LineVector<T> pack_;
+    bool stale_ = true;
+};
+
 /// Forward only: p [count x n] = dV/dx~ at xt [count x n]; P [count x n x n] for the quadratic head
 /// (may be null). count <= ws.capacity. pack: step_pack_weights(theta) or null (then packed here, into ws.pack).
 template <typename T>

@@ -661,19 +661,11 @@ public:
 private:
     // the weights never change: packed for the own GEMM kernels once, not at every evaluation (a filter evaluates
     // one estimate a step, where packing both directions' panels cost more than the forward pass itself)
-    // (no pointer kept: a copy of this object points into its own panels; empty where the path packs nothing)
-    const T* packed() {
-        if (!packed_) {
-            kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
-            packed_ = true;
-        }
-        return pack_.empty() ? nullptr : pack_.data();
-    }
+    const T* packed() { return pack_.get(net_.theta.data(), net_.step.shape); }
     Network<T> net_;
     kern::StepWorkspace<T> ws_;
     std::vector<double> z_, hx_, tt_, fx_;
-    kern::LineVector<T> pack_;
-    bool packed_ = false;
+    kern::PackedWeights<T> pack_;
 };
 }  // namespace
 

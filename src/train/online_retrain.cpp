@@ -156,7 +156,7 @@ private:
         m_ = origin_->adam_m;
         v_ = origin_->adam_v;
         adam_step_ = origin_->state.adam_step;
-        pack_stale_ = true;
+        pack_.stale();
     }
 
     // K(x^, t) [n x m], S(t) and dS/dt [n x n] of the current network at the current estimate (FrozenNetwork::gain's
@@ -170,12 +170,9 @@ private:
         fx_.resize(std::size_t(n) * n);
         if (g.knots > 0 || g.kalman) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);
         if (g.kalman) cfg_->system->drift_jacobian(fx_.data(), xhat_.data(), t);
-        if (pack_stale_) {  // theta changes only when retraining: its GEMM panels are packed once per change
-            kern::step_pack_weights(pack_, net_.theta.data(), net_.step.shape);
-            pack_stale_ = false;
-        }
+        // theta changes only when retraining: its GEMM panels are packed once per change
         kern::gain_network_eval(K, net_.theta.data(), z_.data(), hx_.data(), &t, 1, net_.step, ws_, fx_.data(),
-                                nullptr, pack_.empty() ? nullptr : pack_.data());
+                                nullptr, pack_.get(net_.theta.data(), net_.step.shape));
         kern::gain_storage_eval(S, Sdot, net_.theta.data(), t, net_.step);
     }
 
@@ -214,7 +211,7 @@ private:
             adam_step_ = k0;
             counts_.rejected += 1;
         }
-        pack_stale_ = true;
+        pack_.stale();
     }
 
     FilterModel model_;
@@ -228,8 +225,7 @@ private:
     std::vector<T> m_, v_, grad_;
     std::int64_t adam_step_ = 0;
     kern::StepWorkspace<T> ws_;
-    kern::LineVector<T> pack_;  // eval's weight panels of net_.theta (ws_.pack is the gradient's; empty: none needed)
-    bool pack_stale_ = true;
+    kern::PackedWeights<T> pack_;  // eval's weight panels of net_.theta (ws_.pack is the gradient's)
     GainSamples check_, train_;
     std::vector<std::int64_t> idx_;
     std::vector<double> xhat_, a_, ch_, e_, K_, S_, Sd_, z_, hx_, fx_;
