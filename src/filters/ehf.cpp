@@ -67,7 +67,8 @@ public:
         }
         Vec xn;
         Mat Pn;  // the game's process weight G G' / tau
-        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return Mat(G * G.transpose() / tau_); }, &xn, &Pn))
+        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return Mat(G * G.transpose() / tau_); }, &xn, &Pn,
+                         &predict_))
             return FILTER_DIVERGED;
         x_ = xn;
         P_ = Pn;
@@ -89,6 +90,7 @@ private:
     Vec x_, xf_;  // x^_{k+1}, x^_{k} corrected by y_k
     Mat P_;
     std::int64_t held_ = 0;
+    EkfPredictScratch predict_;  // the prediction's matrices between steps
 };
 
 }  // namespace

@@ -64,7 +64,8 @@ public:
                                                : Mat(IKH_ * P_ * IKH_.transpose() + K * rj_.asDiagonal() * K.transpose());
         }
         // predict to t_{k+1} through the shared step
-        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return process_noise(G, model_); }, &xn_, &Pn_))
+        if (!ekf_predict(model_, in.t, xu, Pu, [&](const Mat& G) { return process_noise(G, model_); }, &xn_, &Pn_,
+                         &predict_))
             return FILTER_DIVERGED;
         x_ = xn_;
         P_ = Pn_;
@@ -87,6 +88,7 @@ private:
     Vec c_, rj_, e_, xu_, xn_;
     Mat S_, K_, Pu_, IKH_, Pn_;
     Eigen::LLT<Mat> llt_;
+    EkfPredictScratch predict_;
 };
 
 }  // namespace
@@ -94,16 +96,22 @@ private:
 std::unique_ptr<OnlineFilter> make_ekf(const FilterModel& model) { return std::make_unique<ExtendedKalmanFilter>(model); }
 
 bool ekf_predict(const FilterModel& model, double t, const Vec& xu, const Mat& Pu,
-                 const std::function<Mat(const Mat&)>& process, Vec* xn, Mat* Pn) {
+                 const std::function<Mat(const Mat&)>& process, Vec* xn, Mat* Pn, EkfPredictScratch* scratch) {
     const System& sys = *model.system;
     const int n = sys.state_dim(), nv = sys.disturbance_dim();
-    RowMat F(n, n), Gr(n, nv);  // Phi = d x_next / dx, G = d x_next / dv
-    system_advance_jacobian(sys, F.data(), Gr.data(), xu.data(), t, model.dt);
-    Mat Phi = F, G = Gr;
+    EkfPredictScratch& s = *scratch;
+    s.F.resize(n, n);  // Phi = d x_next / dx, G = d x_next / dv
+    s.Gr.resize(n, nv);
+    system_advance_jacobian(sys, s.F.data(), s.Gr.data(), xu.data(), t, model.dt);
+    s.Phi = s.F;
+    s.G = s.Gr;
     xn->resize(n);
     system_advance(sys, xn->data(), xu.data(), nullptr, t, model.dt);
-    *Pn = Phi * Pu * Phi.transpose() + process(G);
-    *Pn = 0.5 * (*Pn + Pn->transpose()).eval();
+    s.FP.noalias() = s.Phi * Pu;
+    s.FPFt.noalias() = s.FP * s.Phi.transpose();
+    *Pn = s.FPFt + process(s.G);
+    s.sym = *Pn + Pn->transpose();
+    *Pn = 0.5 * s.sym;
     return filter_estimate_ok(xn->data(), n) && Pn->allFinite();
 }
 
