@@ -21,8 +21,8 @@ double game_level_lost_at(const ProblemConfig& c, double rho, int repeats) {
     Mat P = Mat::Zero(n, n);
     RowMat H(m, n), F(n, n), G(n, nv);
     // the step's matrices, sized once: a bisection walks up to kGameLevelMaxSteps steps for each level it tries. Each
-    // product below is one Eigen evaluated nested before, into the same type (F R S is row-major, as Eigen's own
-    // temporary of F * (R * S) is), so the walk gives the same bits as the one-expression form it replaces
+    // product below is one that Eigen evaluated nested inside a longer expression before, now evaluated into the
+    // type of Eigen's own temporary for it (F R S is row-major, as that of F * (R * S) was): the same bits as before
     Mat R(n, n), Rt(n, n), A(n, n), B(n, n), HtH(n, n), S(n, n), RS(n, n), FRSFt(n, n), GGt(n, n);
     RowMat FRS(n, n);
     Eigen::LLT<Mat> chol(n), cond(n), z(n);
