@@ -505,3 +505,49 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         }
     }
 }
+
+TEST_CASE("PackedWeights: panels packed once give the bits of packing at each call; a copy packs its own; stale() "
+          "packs a changed theta", "[kernel][gain][pack]") {
+    // the frozen network's and the on-line retrainer's evaluation (src/net/network.cpp, src/train/online_retrain.cpp):
+    // a paper-size f32 network on the default GEMM path (the own kernels where built: their panels; elsewhere none)
+    const int n = 6, m = 6, N = 5;
+    StepConfig sc;
+    sc.shape.sizes = {n, 256, 128, 32, n * m};
+    sc.head.n = n;
+    sc.chunk = 100;
+    sc.gain.enabled = true;
+    sc.gain.m = m;
+    sc.gain.dx = {1e4, 6e3, 9e3, 300, 320, 410};
+    sc.gain.dy = {2e3, 1e3, 1.5e3, 80, 60, 90};
+    sc.gain.xt0 = {1e4, 6e3, 9e3, 300, -300, 400};
+    sc.gain.rate = 0.14;
+    sc.gain.storage_scale = 2.5;
+    const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
+    std::vector<double> theta_d(P), z(N * n);
+    rng_normal(theta_d.data(), P, 11, RNG_STREAM_INIT, 0, 0);
+    rng_normal(z.data(), N * n, 11, RNG_STREAM_SAMPLES, 0, 0);
+    std::vector<float> theta(P), changed(P);
+    for (std::int64_t k = 0; k < P; ++k) {
+        theta[k] = float(0.05 * theta_d[k]);
+        changed[k] = float(0.06 * theta_d[k]);
+    }
+    auto eval = [&](const std::vector<float>& th, const float* pack) {
+        StepWorkspace<float> ws;
+        std::vector<double> K(N * n * m);
+        gain_network_eval(K.data(), th.data(), z.data(), nullptr, nullptr, N, sc, ws, nullptr, nullptr, pack);
+        return K;
+    };
+    const std::vector<double> K = eval(theta, nullptr), K_changed = eval(changed, nullptr);  // packed inside each call
+    REQUIRE(K != K_changed);
+    PackedWeights<float> packed;
+    const float* first = packed.get(theta.data(), sc.shape);
+    CHECK(eval(theta, first) == K);
+    CHECK(packed.get(theta.data(), sc.shape) == first);  // not packed again
+    PackedWeights<float> copy = packed;  // its own panels: a pointer into the original's would dangle once it goes
+    const float* own = copy.get(theta.data(), sc.shape);
+    packed = PackedWeights<float>();
+    CHECK(eval(theta, own) == K);
+    if (first != nullptr) CHECK(own != first);
+    copy.stale();  // theta changed (a retraining): the next get packs it
+    CHECK(eval(changed, copy.get(changed.data(), sc.shape)) == K_changed);
+}
