@@ -506,7 +506,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
     }
 }
 
-TEST_CASE("PackedWeights: panels packed once give the bits of packing at each call; a copy packs its own; stale() "
+TEST_CASE("PackedWeights: panels packed once give the bits of packing at each call, a copy packs its own, stale() "
           "packs a changed theta", "[kernel][gain][pack]") {
     // the frozen network's and the on-line retrainer's evaluation (src/net/network.cpp, src/train/online_retrain.cpp):
     // a paper-size f32 network on the default GEMM path (the own kernels where built: their panels; elsewhere none)
