@@ -239,6 +239,24 @@ StepConfig small_gain_config(int n, int m) {
     sc.gain.loss.kappa = 0.3;
     return sc;
 }
+
+// the missile's paper-size gain network (6 states, 6 outputs, 6-256-128-32-36, chunks of 100, the default GEMM path)
+// with its scales; the loss's settings are each test's own
+StepConfig paper_gain_config() {
+    const int n = 6, m = 6;
+    StepConfig sc;
+    sc.shape.sizes = {n, 256, 128, 32, n * m};
+    sc.head.n = n;
+    sc.chunk = 100;
+    sc.gain.enabled = true;
+    sc.gain.m = m;
+    sc.gain.dx = {1e4, 6e3, 9e3, 300, 320, 410};
+    sc.gain.dy = {2e3, 1e3, 1.5e3, 80, 60, 90};
+    sc.gain.xt0 = {1e4, 6e3, 9e3, 300, -300, 400};
+    sc.gain.rate = 0.14;
+    sc.gain.storage_scale = 2.5;
+    return sc;
+}
 }  // namespace
 
 TEST_CASE("gain variant: graded knots run from 0 to the span with the last interval the ratio times the first",
@@ -404,17 +422,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
                           Case{35, false, true, 4, false, 30.0}}) {
         INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale << " group "
                       << cs.group << " masked " << cs.masked << " ratio " << cs.ratio);
-        StepConfig sc;
-        sc.shape.sizes = {n, 256, 128, 32, n * m};
-        sc.head.n = n;
-        sc.chunk = 100;
-        sc.gain.enabled = true;
-        sc.gain.m = m;
-        sc.gain.dx = {1e4, 6e3, 9e3, 300, 320, 410};
-        sc.gain.dy = {2e3, 1e3, 1.5e3, 80, 60, 90};
-        sc.gain.xt0 = {1e4, 6e3, 9e3, 300, -300, 400};
-        sc.gain.rate = 0.14;
-        sc.gain.storage_scale = 2.5;
+        StepConfig sc = paper_gain_config();
         sc.gain.loss.rho = 0.03;
         sc.gain.loss.margin = 0.02;
         sc.gain.loss.horizon = 70.0;
@@ -511,17 +519,7 @@ TEST_CASE("PackedWeights: panels packed once give the bits of packing at each ca
     // the frozen network's and the on-line retrainer's evaluation (src/net/network.cpp, src/train/online_retrain.cpp):
     // a paper-size f32 network on the default GEMM path (the own kernels where built: their panels; elsewhere none)
     const int n = 6, m = 6, N = 5;
-    StepConfig sc;
-    sc.shape.sizes = {n, 256, 128, 32, n * m};
-    sc.head.n = n;
-    sc.chunk = 100;
-    sc.gain.enabled = true;
-    sc.gain.m = m;
-    sc.gain.dx = {1e4, 6e3, 9e3, 300, 320, 410};
-    sc.gain.dy = {2e3, 1e3, 1.5e3, 80, 60, 90};
-    sc.gain.xt0 = {1e4, 6e3, 9e3, 300, -300, 400};
-    sc.gain.rate = 0.14;
-    sc.gain.storage_scale = 2.5;
+    const StepConfig sc = paper_gain_config();
     const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
     std::vector<double> theta_d(P), z(N * n);
     rng_normal(theta_d.data(), P, 11, RNG_STREAM_INIT, 0, 0);
