@@ -13,6 +13,9 @@ endif()
 if(HINF_PYTHON AND pybind11_FOUND AND NOT HINF_SANITIZE AND NOT HINF_FUZZ)
   pybind11_add_module(hinf_python MODULE ${CMAKE_CURRENT_SOURCE_DIR}/python/hinf_module.cpp)
   target_link_libraries(hinf_python PRIVATE hinf hinf_warnings)
+  # pybind11 links the module with -flto; GCC then runs its link-time pass on one core and says so in a warning
+  # ("using serial compilation"): -flto=auto lets it use the make's job slots or the cores
+  target_link_options(hinf_python PRIVATE $<$<CXX_COMPILER_ID:GNU>:-flto=auto>)
   set_target_properties(hinf_python PROPERTIES OUTPUT_NAME _hinf
                         LIBRARY_OUTPUT_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}/python/hinf)
   configure_file(${CMAKE_CURRENT_SOURCE_DIR}/python/hinf/__init__.py ${CMAKE_CURRENT_BINARY_DIR}/python/hinf/__init__.py COPYONLY)

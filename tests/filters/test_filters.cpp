@@ -246,8 +246,12 @@ TEST_CASE("DNN adapter: one step of eq. (19) with gain (8), oracle and measured"
         f->reset(su.start);
         REQUIRE(f->step(FilterInput{y.data(), 0.0, 0, x.data()}) == FILTER_OK);
         // oracle: network input x - x^, dC = H (x - x^); measured: x~ = least-squares H^+ e, dC = e
-        Eigen::Vector3d xt = measured ? Eigen::Vector3d(Eigen::MatrixXd(su.sys.H).completeOrthogonalDecomposition().solve(Eigen::VectorXd(e)))
-                                      : Eigen::Vector3d(x - xh);
+        // (e through a Map: GCC 12 warned of an AVX-512 load beyond a Vector2d copied into a VectorXd, a branch that
+        // never runs for two entries)
+        const Eigen::Map<const Eigen::VectorXd> e_dyn(e.data(), 2);
+        Eigen::Vector3d xt =
+            measured ? Eigen::Vector3d(Eigen::MatrixXd(su.sys.H).completeOrthogonalDecomposition().solve(e_dyn))
+                     : Eigen::Vector3d(x - xh);
         Eigen::Vector2d dc = measured ? e : Eigen::Vector2d(su.sys.H * (x - xh));
         Eigen::Matrix<double, 3, 2> k = 2.0 * rho * xt * dc.transpose() / xt.squaredNorm();
         Eigen::Vector3d expect = xh + su.model.dt * (su.sys.F * xh + k * e);
