@@ -2,14 +2,18 @@
 #pragma once
 #include <omp.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
 #include "config/run_config.hpp"
+#include "filters/factory.hpp"
 #include "filters/filter.hpp"
 
 namespace hinf::cli {
@@ -25,6 +29,21 @@ inline RunConfig load_config_with_overrides(const std::string& path, const std::
 inline void apply_threads(int threads) {
     HINF_CHECK(threads >= 0 && threads <= 1024, "--threads " + std::to_string(threads) + " must be between 1 and 1024");
     if (threads > 0) omp_set_num_threads(threads);
+}
+
+/// The classical filters' options of compare, filter and worst, one help text each, into args' particles, roughening
+/// and glf_vertices (checked by check_baseline_options)
+inline void add_baseline_options(CLI::App* c, FilterSetArgs& args) {
+    c->add_option("--particles", args.particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--pf-roughening", args.roughening,
+                  "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
+    c->add_option("--glf-vertices", args.glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+}
+
+inline void check_baseline_options(const FilterSetArgs& args) {
+    HINF_CHECK(args.particles >= 1, "--particles must be >= 1");
+    HINF_CHECK(std::isfinite(args.roughening) && args.roughening >= 0,
+               "--pf-roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
 }
 
 /// runs/out/<config file stem>/<suffix>

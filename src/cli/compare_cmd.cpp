@@ -23,9 +23,8 @@ std::string join_names(const std::vector<std::string>& names) {
 struct CompareArgs {
     std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", scenario = "nominal";
     std::vector<std::string> networks, sets;
-    std::int64_t runs = 50, particles = 2000;
-    int glf_vertices = 8;
-    double roughening = 0.0;
+    std::int64_t runs = 50;
+    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
     double until = -1;
     int threads = 0;
     bool ensemble = false;
@@ -44,10 +43,7 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
     c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
     c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
-    c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
-    c->add_option("--pf-roughening", a->roughening,
-                  "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
-    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    add_baseline_options(c, a->baseline);
     c->add_option("--scenario", a->scenario,
                   "One of: " + join_names(scenario_names()) +
                       " (cov_small / cov_large: EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
@@ -63,7 +59,7 @@ void add_compare_command(CLI::App& app) {
     c->callback([a]() {
         apply_threads(a->threads);
         HINF_CHECK(a->runs >= 1, "--runs must be >= 1");
-        HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
+        check_baseline_options(a->baseline);
         RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         CompareOptions opt;
         opt.scenario = scenario_named(a->scenario);
@@ -74,7 +70,8 @@ void add_compare_command(CLI::App& app) {
         // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
         const FilterModel told = scenario_told_model(cfg, opt.scenario), exact = filter_model(cfg);
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, a->roughening, a->glf_vertices, a->ensemble}, told, exact);
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->baseline.particles, a->baseline.roughening,
+                          a->baseline.glf_vertices, a->ensemble}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

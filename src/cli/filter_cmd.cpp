@@ -19,9 +19,7 @@ struct FilterArgs {
     double time_tolerance = kUniformTolerance;
     std::vector<std::string> networks, sets;
     std::vector<double> xhat0, initial_std;
-    std::int64_t particles = 2000;
-    double roughening = 0.0;
-    int glf_vertices = 8;
+    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
     int threads = 0;
     bool ensemble = false;
     bool quiet = false;
@@ -53,9 +51,7 @@ void add_filter_command(CLI::App& app) {
                   "EKF/UKF/PF: standard deviation of x^(t_0)'s error per state, 0 for a known state (default: the "
                   "config's [baseline] initial_std, else |x0 - xhat0| of the config)")
         ->delimiter(',');
-    c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
-    c->add_option("--pf-roughening", a->roughening, "Particle filter: roughening constant K (default 0)");
-    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    add_baseline_options(c, a->baseline);
     c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/filter)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_option("--threads", a->threads, "OpenMP threads");
@@ -65,7 +61,7 @@ void add_filter_command(CLI::App& app) {
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a]() {
         apply_threads(a->threads);
-        HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
+        check_baseline_options(a->baseline);
         RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
@@ -106,8 +102,8 @@ void add_filter_command(CLI::App& app) {
             const std::string note = baseline_certain_note(cfg, opt.P0);
             if (!note.empty()) std::printf("%s\n", note.c_str());
         }
-        FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->particles, a->roughening,
-                                                            a->glf_vertices, a->ensemble},
+        FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->baseline.particles,
+                                                            a->baseline.roughening, a->baseline.glf_vertices, a->ensemble},
                                          told, model);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<OnlineFilter*> filters;

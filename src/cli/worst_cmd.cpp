@@ -22,8 +22,8 @@ struct WorstArgs {
     std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", replay;
     std::string scenario_starts = "nominal,energy_pulse,bias", algorithm = "LN_SBPLX";
     std::vector<std::string> networks, sets;
-    std::int64_t particles = 2000;
-    int glf_vertices = 8, pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
+    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
+    int pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
     int linear_pieces = 20;
     double linear_steps = 1e7;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
@@ -79,8 +79,7 @@ void add_worst_command(CLI::App& app) {
     c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
     c->add_option("--filters", a->filters, "Comma list of: " + filter_names() + " (default dnn,ekf,ukf,pf,open_loop)");
     c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
-    c->add_option("--particles", a->particles, "Particle filter: particle count (default 2000)");
-    c->add_option("--glf-vertices", a->glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    add_baseline_options(c, a->baseline);
     CLI::Option* energy_opt = c->add_option("--energy", a->energy,
                   "Energy budget int (v'v + n'n) dt of every candidate (default: the nominal draws' expected energy "
                   "(disturbance_std^2 nv + noise_std^2 m) T)");
@@ -115,7 +114,7 @@ void add_worst_command(CLI::App& app) {
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a, energy_opt]() {
         apply_threads(a->threads);
-        HINF_CHECK(a->particles >= 1, "--particles must be >= 1");
+        check_baseline_options(a->baseline);
         RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
         WorstOptions opt;
         if (energy_opt->count() > 0) {
@@ -144,7 +143,8 @@ void add_worst_command(CLI::App& app) {
         // the worst signals were found for a budget, not a scenario: the Bayesian filters are told the nominal statistics
         const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->particles, 0.0, a->glf_vertices, a->ensemble}, told, exact);
+            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->baseline.particles, a->baseline.roughening,
+                          a->baseline.glf_vertices, a->ensemble}, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

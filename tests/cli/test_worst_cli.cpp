@@ -50,6 +50,12 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
         INFO(png);
         CHECK(std::string(magic + 1, 3) == "PNG");
     }
+    // the particle filter with compare's and filter's --pf-roughening, on the same signals
+    auto pr = run_hinf("worst " + cfg + " --replay " + (d / "w/worst.h5") +
+                       " --filters pf --particles 100 --pf-roughening 0.2 --quiet --out " + (d / "rpf"));
+    INFO(pr.output);
+    REQUIRE(pr.status == 0);
+    CHECK(pr.output.find("pf_roughened") != std::string::npos);
     auto tab = hinf::test::run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/worst-table") + " " +
                                        (d / "w/worst.h5"));
     INFO(tab.output);
@@ -66,6 +72,8 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
     expect_one_line_error(base + " --pieces 0 --sines 0", "not both 0");
     expect_one_line_error(base + " --linear-pieces -1", "--linear-pieces must be in [0, 1000]");
     expect_one_line_error(base + " --linear-steps -1", "--linear-steps must be a finite number >= 0");
+    expect_one_line_error(base + " --pf-roughening -1", "--pf-roughening must be a finite number >= 0");
+    expect_one_line_error(base + " --particles 0", "--particles must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --evals 0", "--evals must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --scenario-starts nominal,windy", "is not one of");
     const std::string vdp = hinf::test::source_path("runs/vanderpol.toml");
