@@ -1,14 +1,11 @@
 // See measurements.hpp.
 #include "io/measurements.hpp"
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <algorithm>
-#include <fstream>
-#include <sstream>
 
+#include "core/csv.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/isolate.hpp"
@@ -19,32 +16,6 @@ namespace {
 
 bool ends_with(const std::string& s, const std::string& suffix) {
     return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-std::string trim(const std::string& s) {
-    const auto a = s.find_first_not_of(" \t\r");
-    if (a == std::string::npos) return "";
-    const auto b = s.find_last_not_of(" \t\r");
-    return s.substr(a, b - a + 1);
-}
-
-std::vector<std::string> split_commas(const std::string& line) {
-    std::vector<std::string> cells;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) cells.push_back(trim(cell));
-    if (!line.empty() && line.back() == ',') cells.push_back("");
-    return cells;
-}
-
-// true and *v when the whole cell is one number (strtod also accepts "nan" and "inf": caught by the
-// finiteness check with its own message)
-bool parse_number(const std::string& cell, double* v) {
-    if (cell.empty()) return false;
-    char* end = nullptr;
-    errno = 0;
-    *v = std::strtod(cell.c_str(), &end);
-    return end == cell.c_str() + cell.size();
 }
 
 template <typename Where>
@@ -122,49 +93,37 @@ void resample_rows(Measurements& ms, const std::string& path, double tolerance, 
 }
 
 Measurements read_csv(const MeasurementSource& src) {
-    std::ifstream in(src.path);
-    HINF_CHECK(in.good(), "measurements '" + src.path + "' cannot be opened (check the path)");
+    const CsvTable table = read_csv_table(src.path, "measurements");
     Measurements ms;
     ms.m = src.outputs;
-    std::vector<std::int64_t> line_of;  // file line number (1-based) of each data row
-    std::string line;
-    std::int64_t lineno = 0;
-    bool seen_data = false;
-    while (std::getline(in, line)) {
-        ++lineno;
-        if (lineno == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
-        const std::string s = trim(line);
-        if (s.empty() || s[0] == '#') continue;
-        const std::vector<std::string> cells = split_commas(s);
-        double first = 0;
-        if (!seen_data && ms.columns.empty() && !parse_number(cells[0], &first)) {  // the header row
-            HINF_CHECK(int(cells.size()) == 1 + ms.m,
-                       "measurements '" + src.path + "' line " + std::to_string(lineno) + ": the header has " +
-                           std::to_string(cells.size()) + " columns, expected " + std::to_string(1 + ms.m) +
-                           " (time + " + std::to_string(ms.m) + " output(s) of the config's system)");
-            ms.columns.assign(cells.begin() + 1, cells.end());
-            continue;
-        }
-        seen_data = true;
+    if (table.header_line > 0) {
+        HINF_CHECK(int(table.header.size()) == 1 + ms.m,
+                   "measurements '" + src.path + "' line " + std::to_string(table.header_line) + ": the header has " +
+                       std::to_string(table.header.size()) + " columns, expected " + std::to_string(1 + ms.m) +
+                       " (time + " + std::to_string(ms.m) + " output(s) of the config's system)");
+        ms.columns.assign(table.header.begin() + 1, table.header.end());
+    }
+    for (std::size_t r = 0; r < table.rows.size(); ++r) {
+        const std::vector<std::string>& cells = table.rows[r];
+        const std::string lineno = std::to_string(table.line_of[r]);
         HINF_CHECK(int(cells.size()) == 1 + ms.m,
-                   "measurements '" + src.path + "' line " + std::to_string(lineno) + ": " +
-                       std::to_string(cells.size()) + " columns, expected " + std::to_string(1 + ms.m) + " (time + " +
-                       std::to_string(ms.m) + " output(s) of the config's system)");
+                   "measurements '" + src.path + "' line " + lineno + ": " + std::to_string(cells.size()) +
+                       " columns, expected " + std::to_string(1 + ms.m) + " (time + " + std::to_string(ms.m) +
+                       " output(s) of the config's system)");
         for (std::size_t c = 0; c < cells.size(); ++c) {
             double v = NAN;  // an empty output cell: a missing measurement
             if (c > 0 && cells[c].empty()) {
                 ms.y.push_back(v);
                 continue;
             }
-            HINF_CHECK(parse_number(cells[c], &v), "measurements '" + src.path + "' line " + std::to_string(lineno) +
-                                                       ", column " + std::to_string(c + 1) + ": '" + cells[c] +
-                                                       "' is not a number");
+            HINF_CHECK(csv_number(cells[c], &v), "measurements '" + src.path + "' line " + lineno + ", column " +
+                                                     std::to_string(c + 1) + ": '" + cells[c] + "' is not a number");
             (c == 0 ? ms.t : ms.y).push_back(v);
         }
-        line_of.push_back(lineno);
     }
     ms.rows = std::int64_t(ms.t.size());
-    check_rows(ms, src.path, src.time_tolerance, src.resample, [&](std::int64_t k) { return "line " + std::to_string(line_of[k]); });
+    check_rows(ms, src.path, src.time_tolerance, src.resample,
+               [&](std::int64_t k) { return "line " + std::to_string(table.line_of[k]); });
     return ms;
 }
 
