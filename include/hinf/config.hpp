@@ -74,6 +74,8 @@ public:
     std::vector<std::vector<std::string>> get_string_rows(const std::string& key);
     /// A table of named numbers ({ mu = 1.0, k = 2 } or a [section.key] sub-table), sorted by name.
     std::vector<std::pair<std::string, double>> get_number_table(const std::string& key);
+    /// A table of named lists of finite numbers, all of one length >= 2 ({ t = [0, 1], u = [2, 3] }), sorted by name.
+    std::vector<std::pair<std::string, std::vector<double>>> get_column_table(const std::string& key);
     /// A square matrix given as a list of rows, or a list of n numbers for a diagonal.
     std::vector<double> get_matrix(const std::string& key, const std::vector<double>& fallback, int rows, int cols);
     /// Throws on keys never asked for. Call once after all get_*.

@@ -2,6 +2,8 @@
 #include "config/run_config.hpp"
 #include "config/game_level.hpp"
 
+#include <sys/stat.h>
+
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
@@ -10,6 +12,7 @@
 #include <Eigen/Dense>
 
 #include "gain.hpp"
+#include "core/csv.hpp"
 #include "hinf/error.hpp"
 #include "models/weighted_system.hpp"
 
@@ -360,6 +363,70 @@ std::string default_variant(const std::string& type, int n, int m, int nv) {
     return type == "hinf" && std::max({n, m, nv}) <= kern::kGainMaxDim ? "gain" : "dissipative";
 }
 
+namespace {
+
+// [system] inputs = "file.csv" (kind = "expr"): the table of known inputs is read here, checked row by row, and put
+// in the file's place in the effective config (inputs = { t = [...], name = [...] }, numbers as read), so that
+// checkpoints and result files carry the inputs they were made with: a resumed run, a checkpoint loaded elsewhere
+// or a compare of its network needs no file. A relative path is taken from the config file's directory.
+constexpr std::int64_t kMaxInputRows = 100000;
+void embed_input_file(ConfigDoc& doc) {
+    toml::table* sys = doc.root()["system"].as_table();
+    if (!sys || !sys->get("inputs") || !sys->get("inputs")->is_string()) return;
+    if (const toml::node* kind = sys->get("kind"); !kind || kind->value<std::string>().value_or("") != "expr") return;
+    ConfigSection s(doc, "system");
+    std::string path = sys->get("inputs")->value<std::string>().value_or("");
+    if (path.empty()) s.reject("inputs", "is empty: name a CSV file of the known inputs (a time column, then one column per input)");
+    const std::string& source = doc.source();
+    const auto slash = source.rfind('/');
+    if (path.front() != '/' && slash != std::string::npos) {
+        struct stat st {};
+        if (::stat(source.c_str(), &st) == 0 && S_ISREG(st.st_mode)) path = source.substr(0, slash + 1) + path;
+    }
+    const std::string what = s.where("inputs") + " file";
+    // the table is stored in every checkpoint and result file: a bound, thin the table to the filter's rate
+    const CsvTable table = read_csv_table(path, what, kMaxInputRows);
+    const std::string file = "inputs '" + path + "'";
+    HINF_CHECK(table.header.size() >= 2,
+               s.where("inputs") + ": " + file + " needs a header row naming its columns, the time first, then one name "
+               "per input as f, g and h use it (e.g. t,V)" + (table.header.empty() ? "" : "; its header has 1 column"));
+    const std::size_t q = table.header.size() - 1;
+    for (std::size_t i = 1; i <= q; ++i) {
+        HINF_CHECK(table.header[i] != "t", file + " line " + std::to_string(table.header_line) + ": column " +
+                                               std::to_string(i + 1) + " is named t, the time's symbol: rename the input");
+        for (std::size_t j = 1; j < i; ++j)
+            HINF_CHECK(table.header[i] != table.header[j], file + " line " + std::to_string(table.header_line) +
+                                                               ": two columns are named '" + table.header[i] +
+                                                               "': give each input its own name");
+    }
+    HINF_CHECK(table.rows.size() >= 2, file + ": " + std::to_string(table.rows.size()) +
+                                           " row(s) of values; a table of inputs needs at least 2");
+    std::vector<toml::array> columns(q + 1);
+    double before = -std::numeric_limits<double>::infinity();
+    for (std::size_t r = 0; r < table.rows.size(); ++r) {
+        const std::string line = file + " line " + std::to_string(table.line_of[r]);
+        HINF_CHECK(table.rows[r].size() == q + 1, line + ": " + std::to_string(table.rows[r].size()) +
+                                                      " columns, the header names " + std::to_string(q + 1));
+        for (std::size_t c = 0; c <= q; ++c) {
+            double v = 0;
+            HINF_CHECK(csv_number(table.rows[r][c], &v) && std::isfinite(v),
+                       line + ", column " + std::to_string(c + 1) + ": '" + table.rows[r][c] +
+                           "' is not a finite number (a table of known inputs has no gaps: fill them)");
+            columns[c].push_back(v);
+        }
+        const double t = *columns[0].back().value<double>();
+        HINF_CHECK(t > before, line + ": time " + table.rows[r][0] + " is not after the row before it (the times "
+                                                                          "must increase strictly)");
+        before = t;
+    }
+    toml::table inline_table;
+    inline_table.insert("t", std::move(columns[0]));
+    for (std::size_t i = 1; i <= q; ++i) inline_table.insert(table.header[i], std::move(columns[i]));
+    sys->insert_or_assign("inputs", std::move(inline_table));
+}
+
+}  // namespace
+
 RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     {  // seed 002's delay systems have their own commands: say so before their sections read as unknown
         ConfigSection sys(doc, "system");
@@ -370,6 +437,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
                                    "\"missile\" or \"maneuvering_missile\"");
     }
     config_check_sections(doc, {"system", "filter", "network", "training", "sampling", "objective", "online", "baseline"});
+    embed_input_file(doc);
     RunConfig c;
     c.system = make_system(doc);
     c.n = c.system->state_dim();
@@ -447,6 +515,14 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     if (std::llround(c.t_final / c.dt) < 1)
         f.reject("t_final", "= " + format_g(c.t_final) + " s is less than one time step dt = " +
                                 format_g(c.dt) + " s: nothing would run (raise t_final or lower dt)");
+    {  // a table of known inputs ([system] inputs) must cover the run, [0, t_final]
+        const std::pair<double, double> span = c.system->time_span();
+        const double slack = 1e-9 * c.dt;
+        if (span.first > slack || span.second < c.t_final - slack)
+            HINF_FAIL(ConfigSection(doc, "system").where("inputs") + ": the table of known inputs covers [" +
+                      format_g(span.first) + ", " + format_g(span.second) + "] s, the run needs [0, " +
+                      format_g(c.t_final) + "] s (extend the table, or lower [filter] t_final)");
+    }
     f.finish();
     // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
     // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained

@@ -388,6 +388,31 @@ std::vector<std::pair<std::string, double>> ConfigSection::get_number_table(cons
     return out;
 }
 
+std::vector<std::pair<std::string, std::vector<double>>> ConfigSection::get_column_table(const std::string& key) {
+    known_.insert(key);
+    std::vector<std::pair<std::string, std::vector<double>>> out;
+    if (!has(key)) return out;
+    const toml::node* n = table_->get(key);
+    if (!n->is_table()) reject(key, "must be a table of equal-length lists of numbers, e.g. { t = [0, 1], u = [2, 3] }");
+    for (auto&& [k, v] : *n->as_table()) {
+        const std::string name(k.str());
+        if (!v.is_array()) reject(key, "entry '" + name + "' must be a list of numbers");
+        std::vector<double> column;
+        for (const toml::node& e : *v.as_array()) {
+            std::optional<double> d = e.value<double>();
+            if (!d || e.is_boolean()) reject(key, "entry '" + name + "' must be a list of numbers");
+            if (!std::isfinite(*d)) reject(key, "entry '" + name + "' must hold finite numbers only");
+            column.push_back(*d);
+        }
+        if (column.size() < 2) reject(key, "entry '" + name + "' has " + std::to_string(column.size()) + " value(s), at least 2 are needed");
+        if (!out.empty() && column.size() != out.front().second.size())
+            reject(key, "entry '" + name + "' has " + std::to_string(column.size()) + " values, '" + out.front().first +
+                            "' has " + std::to_string(out.front().second.size()) + " (one value per row of the table)");
+        out.emplace_back(name, std::move(column));
+    }
+    return out;
+}
+
 std::vector<double> ConfigSection::get_matrix(const std::string& key, const std::vector<double>& fallback, int rows,
                                               int cols) {
     known_.insert(key);

@@ -61,6 +61,17 @@ void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const
                source + ": the record is sampled every " + std::to_string(ms.dt) + " s, the discrete-time system of " +
                    cfg.doc.source() + " steps every [filter] dt = " + std::to_string(cfg.dt) +
                    " s (set dt to the record's period)");
+    // a table of known inputs ([system] inputs) must cover the record's times (a system without one: any time)
+    const std::pair<double, double> span = cfg.system->time_span();
+    if (ms.rows > 0) {
+        const double slack = 1e-9 * ms.dt;
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "the record runs over [%.10g, %.10g] s, beyond its table of known inputs "
+                      "([%.10g, %.10g] s)", ms.t.front(), ms.t.back(), span.first, span.second);
+        HINF_CHECK(ms.t.front() >= span.first - slack && ms.t.back() <= span.second + slack,
+                   source + ": " + buf + " in " + cfg.doc.source() + " [system] inputs (name the inputs that "
+                   "were applied during this record, on its clock)");
+    }
 }
 
 std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vector<OnlineFilter*>& filters,

@@ -51,7 +51,8 @@ constexpr double kOverconfidentNis = 3.0, kUnderconfidentNis = 1.0 / 3.0, kNisMi
 /// innovations are about ..."; "" otherwise.
 std::string innovation_consistency_note(const RecordedResult& r);
 
-/// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt.
+/// Throws unless the record fits the system: a discrete-time system needs the record sampled at its [filter] dt, and a
+/// table of known inputs ([system] inputs) must cover the record's times.
 void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source);
 
 /// Runs every filter (each reset to opt.xhat0 / opt.P0) over the whole record, feeding y_k at time t_k;

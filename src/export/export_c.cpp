@@ -118,6 +118,44 @@ const std::set<std::string>& c_reserved() {
     return names;
 }
 
+// The known inputs u(t) of an expression system ([system] inputs): the table the checkpoint was trained with, held or
+// interpolated as ExprSystem::inputs_at does, so that the C reproduces `hinf filter` on the record the table belongs to.
+// Built with -DPREFIX_EXTERNAL_INPUTS the table is left out and the caller defines PREFIX_inputs_at (live inputs).
+std::string inputs_c(const ExprSystem& sys, const std::string& P) {
+    const std::vector<std::string>& inputs = sys.inputs();
+    const std::vector<double>& times = sys.input_times();
+    const std::vector<double>& values = sys.input_values();
+    const std::size_t q = inputs.size(), rows = times.size();
+    std::string names;
+    for (const auto& u : inputs) names += (names.empty() ? "" : ", ") + u;
+    std::ostringstream c;
+    c << "/* the known inputs u(t) = (" << names << ") of [system] inputs. Compiled as it is, the table of the\n"
+      << "   checkpoint's config (" << rows << " rows, " << (sys.input_linear() ? "linear between rows" : "each row held until the next")
+      << "; the first and last rows beyond its ends);\n   with -D" << P
+      << "_EXTERNAL_INPUTS define void " << P << "_inputs_at(double t, double* u) [" << q << "] yourself (live inputs) */\n"
+      << "#ifdef " << P << "_EXTERNAL_INPUTS\nvoid " << P << "_inputs_at(double t, double* u);\n#else\n"
+      << "static const double " << P << "_input_t[" << rows << "] = {";
+    for (std::size_t r = 0; r < rows; ++r) c << (r ? ", " : "") << (r % 4 == 0 ? "\n    " : "") << lit(times[r]);
+    c << "};\nstatic const double " << P << "_input_u[" << rows * q << "] = {";
+    for (std::size_t k = 0; k < rows * q; ++k) c << (k ? ", " : "") << (k % 4 == 0 ? "\n    " : "") << lit(values[k]);
+    c << "};\n"
+      << "static void " << P << "_inputs_at(double t, double* u) {\n"
+      << "    /* the last row at or before t; a row stamped up to a billionth of the mean step after t counts */\n"
+      << "    const double s = t + " << lit(sys.input_early()) << ";\n"
+      << "    int lo = 0, hi = " << rows << ", j, i;\n    const double* a;\n"
+      << "    while (lo < hi) {\n        const int mid = lo + (hi - lo) / 2;\n"
+      << "        if (" << P << "_input_t[mid] > s) hi = mid;\n        else lo = mid + 1;\n    }\n"
+      << "    j = lo == 0 ? 0 : lo - 1;\n    a = " << P << "_input_u + j * " << q << ";\n";
+    if (sys.input_linear())
+        c << "    if (j + 1 < " << rows << " && t > " << P << "_input_t[j]) {\n"
+          << "        double w = (t - " << P << "_input_t[j]) / (" << P << "_input_t[j + 1] - " << P << "_input_t[j]);\n"
+          << "        if (w > 1.0) w = 1.0;\n"
+          << "        for (i = 0; i < " << q << "; ++i) u[i] = a[i] + w * (a[i + " << q << "] - a[i]);\n"
+          << "        return;\n    }\n";
+    c << "    for (i = 0; i < " << q << "; ++i) u[i] = a[i];\n}\n#endif\n\n";
+    return c.str();
+}
+
 // An expression system through GiNaC's C print (the texts muParser evaluates in hinf, models/expr_system.cpp):
 // the states, parameters and t (and a discrete system's step index k) become local constants of each function.
 // In discrete time PREFIX_drift is the map f(x, k), not a vector field.
@@ -129,13 +167,20 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
                    "export: the " + what + " '" + name + "' is a C keyword or a name the exported C uses; rename it "
                    "in [system] and train again to export this system");
     };
+    const std::vector<std::string>& inputs = sys.inputs();
     for (const auto& s : states) check_name(s, "state");
     for (const auto& p : params) check_name(p.first, "parameter");
+    for (const auto& u : inputs) check_name(u, "input");
     auto locals = [&]() {
         std::ostringstream c;
         for (std::size_t i = 0; i < states.size(); ++i)
             c << "    const double " << states[i] << " = hinf_x_[" << i << "];\n";
         for (const auto& p : params) c << "    const double " << p.first << " = " << lit(p.second) << ";\n";
+        if (!inputs.empty()) {
+            c << "    double hinf_u_[" << inputs.size() << "];\n    " << P << "_inputs_at(hinf_t_, hinf_u_);\n";
+            for (std::size_t i = 0; i < inputs.size(); ++i)
+                c << "    const double " << inputs[i] << " = hinf_u_[" << i << "];\n    (void)" << inputs[i] << ";\n";
+        }
         c << "    const double t = hinf_t_;\n";
         // a discrete system's step index, rounded as models/expr_system.cpp does (t = k dt)
         if (sys.discrete_time()) c << "    const double k = nearbyint(hinf_t_ / " << lit(sys.period()) << ");\n";
@@ -162,6 +207,7 @@ std::string expr_c(const ExprSystem& sys, const std::string& P) {
         for (const std::string& text : sys.compiled(which)) uses_step = uses_step || text.find("step(") != std::string::npos;
     }
     std::ostringstream c;
+    if (!inputs.empty()) c << inputs_c(sys, P);
     c << "/* the expression system of the checkpoint's config ([system] kind = \"expr\"), printed by GiNaC as C */\n"
       << (uses_step ? "static double step(double s) { return s >= 0 ? 1.0 : 0.0; } /* as models/expr_system.cpp */\n" : "")
       << "#define Pi " << P << "_PI\n\n"
@@ -933,8 +979,19 @@ ExportResult write_export(const std::vector<std::string>& paths, const RunConfig
       << "   " << P << "_step(&s, y, t_k, " << P << "_DT); s.xhat [n] is then the estimate of x(t_k + dt)"
       << (cfg.system->discrete_time() ? ",\n   the one-step prediction of x_(k+1) (a discrete-time system: t_k = k dt gives the step index k)"
                                       : "")
-      << ". */\n"
-      << "#ifndef " << upper << "_H\n#define " << upper << "_H\n\n"
+      << ". */\n";
+    std::vector<std::string> known_inputs;
+    const System* inner = cfg.system.get();
+    if (auto* w = dynamic_cast<const WeightedSystem*>(inner)) inner = &w->inner();
+    if (auto* e = dynamic_cast<const ExprSystem*>(inner)) known_inputs = e->inputs();
+    if (!known_inputs.empty()) {
+        std::string names;
+        for (const auto& u : known_inputs) names += (names.empty() ? "" : ", ") + u;
+        h << "/* The system reads known inputs u(t) = (" << names << "): " << P << ".c holds the table of the config it was\n"
+          << "   trained with. To feed live inputs, compile " << P << ".c with -D" << P << "_EXTERNAL_INPUTS and define\n"
+          << "   void " << P << "_inputs_at(double t, double* u); u [" << known_inputs.size() << "] is read at each time the step evaluates the model. */\n";
+    }
+    h << "#ifndef " << upper << "_H\n#define " << upper << "_H\n\n"
       << "#ifdef __cplusplus\nextern \"C\" {\n#endif\n\n"
       << "#define " << P << "_N " << n << "  /* states */\n"
       << "#define " << P << "_M " << m << "  /* outputs */\n"

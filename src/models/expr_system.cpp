@@ -26,7 +26,7 @@ struct ExprSystem::Compiled {
 
 struct ExprSystem::Workspace {
     std::vector<std::unique_ptr<mu::Parser>> parsers;  // one per program
-    std::vector<double> point;                         // [n + 2]: the state being evaluated, then t, then k
+    std::vector<double> point;                         // [n + 2 + inputs]: the state being evaluated, t, k, u(t)
 };
 
 namespace {
@@ -446,7 +446,11 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
       units_(spec.units),
       angles_(spec.angle_outputs),
       angle_states_(spec.angle_states),
-      parameters_(spec.parameters) {
+      parameters_(spec.parameters),
+      inputs_(spec.inputs),
+      input_t_(spec.input_t),
+      input_values_(spec.input_values),
+      input_linear_(spec.input_linear) {
     // names: identifiers, distinct, not t / pi / a function
     HINF_CHECK(n_ >= 1, spec.where + " states: give at least one state name, e.g. states = [\"x1\", \"x2\"]");
     if (units_.empty()) units_.assign(n_, "");
@@ -465,6 +469,19 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
     };
     for (const auto& s : states_) add_name(s, "state");
     for (const auto& p : parameters_) add_name(p.first, "parameter");
+    for (const auto& u : inputs_) add_name(u, "input");
+    if (!inputs_.empty()) {
+        const std::size_t rows = input_t_.size();
+        HINF_CHECK(rows >= 2 && input_values_.size() == rows * inputs_.size(),
+                   spec.where + " inputs: the table needs at least 2 rows and one value per input and row");
+        for (std::size_t r = 0; r < rows; ++r)
+            HINF_CHECK(std::isfinite(input_t_[r]) && (r == 0 || input_t_[r] > input_t_[r - 1]),
+                       spec.where + " inputs: time " + std::to_string(input_t_[r]) + " s of row " + std::to_string(r + 1) +
+                           " is not after the row before it (the table's times must increase strictly)");
+        for (double v : input_values_)
+            HINF_CHECK(std::isfinite(v), spec.where + " inputs: the table holds a value that is not finite");
+        input_early_ = 1e-9 * (input_t_.back() - input_t_.front()) / double(rows - 1);
+    }
     symbols.push_back("t");
     if (discrete_) {
         HINF_CHECK(period_ > 0 && std::isfinite(period_),
@@ -490,6 +507,7 @@ ExprSystem::ExprSystem(const ExprSpec& spec)
         table[s] = state_symbols.back();
     }
     for (const auto& p : parameters_) table[p.first] = GiNaC::realsymbol(p.first);
+    for (const auto& u : inputs_) table[u] = GiNaC::realsymbol(u);  // known signals: no derivative in x
     table["t"] = GiNaC::realsymbol("t");
     if (discrete_) table["k"] = GiNaC::realsymbol("k");
     table["pi"] = GiNaC::Pi;
@@ -594,7 +612,7 @@ std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
         }
     }
     auto ws = std::make_unique<Workspace>();
-    ws->point.assign(std::size_t(n_ + 2), 0.0);
+    ws->point.assign(std::size_t(n_ + 2) + inputs_.size(), 0.0);
     for (const auto& text : programs_) {
         auto p = std::make_unique<mu::Parser>();
         define_functions(*p);
@@ -602,6 +620,7 @@ std::unique_ptr<ExprSystem::Workspace> ExprSystem::workspace_acquire() const {
         for (int j = 0; j < n_; ++j) p->DefineVar(states_[j], &ws->point[std::size_t(j)]);
         p->DefineVar("t", &ws->point[std::size_t(n_)]);
         if (discrete_) p->DefineVar("k", &ws->point[std::size_t(n_ + 1)]);
+        for (std::size_t i = 0; i < inputs_.size(); ++i) p->DefineVar(inputs_[i], &ws->point[std::size_t(n_ + 2) + i]);
         p->SetExpr(text);
         ws->parsers.push_back(std::move(p));
     }
@@ -645,6 +664,7 @@ void ExprSystem::evaluate(double* out, const std::vector<Compiled>& exprs, const
         double* point = ws.point.data();
         point[n_] = t;
         point[n_ + 1] = discrete_ ? std::nearbyint(t / period_) : 0.0;  // t = k dt, so k is exact after rounding
+        if (!inputs_.empty()) inputs_at(t, point + n_ + 2);
         for (std::int64_t s = begin; s < end; ++s) {
             for (int j = 0; j < n_; ++j) point[j] = x[s * n_ + j];
             double* o = out + s * k_count;
@@ -670,6 +690,26 @@ void ExprSystem::evaluate(double* out, const std::vector<Compiled>& exprs, const
         run(*ws, begin, begin + chunk + (me < extra ? 1 : 0));
         workspace_release(std::move(ws));
     }
+}
+
+std::pair<double, double> ExprSystem::time_span() const {
+    if (inputs_.empty()) return System::time_span();
+    return {input_t_.front(), input_t_.back()};
+}
+
+void ExprSystem::inputs_at(double t, double* u) const {
+    const std::size_t q = inputs_.size(), rows = input_t_.size();
+    if (q == 0) return;
+    const auto after = std::upper_bound(input_t_.begin(), input_t_.end(), t + input_early_);
+    const std::size_t j = after == input_t_.begin() ? 0 : std::size_t(after - input_t_.begin()) - 1;
+    const double* a = input_values_.data() + j * q;
+    if (!input_linear_ || j + 1 == rows || t <= input_t_[j]) {
+        std::copy(a, a + q, u);
+        return;
+    }
+    const double* b = a + q;
+    const double w = std::min(1.0, (t - input_t_[j]) / (input_t_[j + 1] - input_t_[j]));
+    for (std::size_t i = 0; i < q; ++i) u[i] = a[i] + w * (b[i] - a[i]);
 }
 
 void ExprSystem::drift(double* a, const double* x, double t, std::int64_t count) const {
@@ -729,6 +769,28 @@ std::unique_ptr<System> make_expr_system(ConfigSection& s, double period) {
     spec.disturbance_dim = int(s.get_int("disturbances", 1, 1, 10000));
     spec.output_dim = int(s.get_int("measurements", 1, 1, 10000));
     spec.parameters = s.get_number_table("parameters");
+    // known inputs: config/run_config.cpp has put a file's table in place (inputs = "file.csv" reads as this table)
+    const std::vector<std::pair<std::string, std::vector<double>>> columns = s.get_column_table("inputs");
+    if (!columns.empty()) {
+        const auto time = std::find_if(columns.begin(), columns.end(), [](const auto& c) { return c.first == "t"; });
+        if (time == columns.end())
+            s.reject("inputs", "has no column t (the times of its rows, in s; e.g. inputs = { t = [0, 10], u = [1, 1] })");
+        if (columns.size() < 2) s.reject("inputs", "has only the times t: name at least one input beside them");
+        spec.input_t = time->second;
+        const std::size_t rows = spec.input_t.size();
+        for (const auto& c : columns)
+            if (c.first != "t") spec.inputs.push_back(c.first);
+        spec.input_values.resize(rows * spec.inputs.size());
+        std::size_t i = 0;
+        for (const auto& c : columns) {
+            if (c.first == "t") continue;
+            for (std::size_t r = 0; r < rows; ++r) spec.input_values[r * spec.inputs.size() + i] = c.second[r];
+            ++i;
+        }
+    }
+    if (spec.inputs.empty() && s.has("input_interpolation"))
+        s.reject("input_interpolation", "applies to a table of known inputs, and [system] names none (inputs = \"file.csv\")");
+    spec.input_linear = s.get_string("input_interpolation", "hold", {"hold", "linear"}) == "linear";
     auto texts = [&](const std::string& key, const std::vector<std::string>& list) {
         std::vector<ExprText> out;
         for (std::size_t i = 0; i < list.size(); ++i)

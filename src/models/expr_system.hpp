@@ -34,6 +34,11 @@ struct ExprSpec {
     double period = 0.0;    // discrete only: the sampling period dt ([filter] dt), k = round(t / period)
     std::vector<int> angle_outputs;  // outputs that are angles in radians (0-based, ascending): differences wrap
     std::vector<int> angle_states;   // states that are angles in radians (0-based, ascending): differences wrap
+    // known inputs u(t) ([system] inputs): their names, the table's strictly increasing times [rows >= 2] and values
+    // [rows x inputs] row-major; between rows a zero-order hold (the last row at or before t) or linear interpolation
+    std::vector<std::string> inputs;
+    std::vector<double> input_t, input_values;
+    bool input_linear = false;
 };
 
 /// The system of an ExprSpec (seed 000 eq. (1) with A = f, B = g, C = h; in discrete time
@@ -59,6 +64,19 @@ class ExprSystem : public System {
     bool discrete_time() const override { return discrete_; }
     const std::vector<int>& angle_outputs() const override { return angles_; }
     const std::vector<int>& angle_states() const override { return angle_states_; }
+    std::pair<double, double> time_span() const override;
+    /// The names of the known inputs ([system] inputs), in the table's order; empty without a table.
+    const std::vector<std::string>& inputs() const { return inputs_; }
+    /// u(t) [inputs]: the table's zero-order hold or linear interpolation; before its first row (after its last) the
+    /// first (last) row. A row stamped up to a billionth of the table's mean step after t already holds at t (t = k dt
+    /// and the row's k dt may differ in the last bit).
+    void inputs_at(double t, double* u) const;
+    /// The table behind inputs_at (the C export writes it out): times [rows], values [rows x inputs], linear or held,
+    /// and how early a row takes hold (a billionth of the mean step).
+    const std::vector<double>& input_times() const { return input_t_; }
+    const std::vector<double>& input_values() const { return input_values_; }
+    bool input_linear() const { return input_linear_; }
+    double input_early() const { return input_early_; }
     /// Discrete time: the sampling period that stamps the steps (k = round(t / period)); 0 in continuous time.
     double period() const { return period_; }
     /// The expressions muParser evaluates (GiNaC's C-style print): "f", "g", "h", "df" (dA/dx), "dh" (dC/dx).
@@ -81,6 +99,10 @@ class ExprSystem : public System {
     std::vector<int> angles_;
     std::vector<int> angle_states_;
     std::vector<std::pair<std::string, double>> parameters_;
+    std::vector<std::string> inputs_;
+    std::vector<double> input_t_, input_values_;
+    bool input_linear_ = false;
+    double input_early_ = 0.0;  // a billionth of the table's mean step (inputs_at)
     std::vector<Compiled> f_, g_, h_, df_, dh_;  // row-major [n], [n x nv], [m], [n x n], [m x n]
     std::vector<std::string> programs_;          // the texts of the non-constant entries
     mutable std::mutex pool_mutex_;

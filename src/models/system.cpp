@@ -2,6 +2,7 @@
 // place where continuous time (forward Euler) and discrete time (the map itself) differ. Not the systems themselves.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "models/system.hpp"
@@ -32,6 +33,10 @@ void System::output_difference(double* r, const double* y, const double* c, std:
 const std::vector<int>& System::angle_states() const {
     static const std::vector<int> none;
     return none;
+}
+
+std::pair<double, double> System::time_span() const {
+    return {-std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
 }
 
 void System::state_difference(double* d, const double* a, const double* b, std::int64_t count) const {

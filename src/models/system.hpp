@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hinf {
@@ -51,6 +52,9 @@ public:
     /// The states that are angles in radians (0-based, ascending; [system] angle_states): a heading, a pendulum that
     /// spins. Empty for every built-in system.
     virtual const std::vector<int>& angle_states() const;
+    /// The times [first, last] over which the system is defined: a table of known inputs covers only its own rows
+    /// ([system] inputs); every other system is defined at any time (-inf, inf). Runs check their span against it.
+    virtual std::pair<double, double> time_span() const;
     /// d [count x n] = a - b for states a, b [count x n]: an estimation error x - x^, a sigma point's or particle's
     /// offset. The plain difference, with the angle states' wrapped into [-pi, pi] (bit for bit a - b where no state
     /// is an angle); every error statistic, the UKF's and PF's means, and the oracle networks' x~ take it here. d may

@@ -47,6 +47,7 @@ public:
     /// r~ = W wrap(W^-1 y~ - W^-1 c~) (a plain subtraction, bit for bit, where no output is an angle).
     const std::vector<int>& angle_outputs() const override { return inner_->angle_outputs(); }
     const std::vector<int>& angle_states() const override { return inner_->angle_states(); }  // states: unweighted
+    std::pair<double, double> time_span() const override { return inner_->time_span(); }
     void output_difference(double* r, const double* y, const double* c, std::int64_t count = 1) const override;
 
     const System& inner() const { return *inner_; }

@@ -293,6 +293,52 @@ TEST_CASE("exported C filter of a discrete-time system matches hinf filter to do
     }
 }
 
+TEST_CASE("exported C filter of a system with known inputs carries their table and matches hinf filter",
+          "[export][gain][inputs]") {
+    // a motor driven by a recorded voltage staircase ([system] inputs), held and interpolated: the C looks the table
+    // up as hinf does; built with -DPREFIX_EXTERNAL_INPUTS it leaves the table out for the caller's own u(t)
+    for (const std::string interpolation : {"hold", "linear"}) {
+        SECTION(interpolation) {
+            TempDir d("export-inputs");
+            std::ostringstream table;
+            table << "t,volt\n";
+            for (int r = 0; r <= 40; ++r) table << 0.05 * r << "," << (r % 7 < 3 ? 6.0 : -4.0) + 0.25 * r << "\n";
+            write_file(d, "volt.csv", table.str());
+            const std::string cfg = write_file(
+                d, "m.toml",
+                "[system]\nkind = \"expr\"\nstates = [\"w\", \"i\"]\ndisturbances = 2\nmeasurements = 1\n"
+                "f = [\"(0.5*i - 0.2*w)/0.05\", \"(volt - i - 0.5*w)/0.3\"]\ng = [[\"1\", \"0\"], [\"0\", \"1\"]]\n"
+                "h = [\"w\"]\ninputs = \"volt.csv\"\ninput_interpolation = \"" + interpolation + "\"\n"
+                "[filter]\nx0 = [0.0, 0.0]\nxhat0 = [1.0, 0.5]\ndt = 0.01\nt_final = 2.0\nrho = 2\n"
+                "[network]\nhidden = [8, 8]\nprecision = \"double\"\n"
+                "[training]\nsamples = 64\nbatch = 32\nadam_steps = 3\ncheckpoint_every = 5\n"
+                "[online]\ndisturbance_std = 0.5\nnoise_std = 0.05\n");
+            Compared c = export_and_compare(d, cfg, "--until 0.3", "dnn_gain_measured");
+            INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+            CHECK(c.rows == 201);
+            CHECK(c.compared == 201);
+            CHECK(c.scale > 1);
+            CHECK(c.max_abs <= 1e-11 * c.scale);
+            const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
+            CHECK(code.find("static const double hinf_filter_input_t[41]") != std::string::npos);
+            CHECK((code.find("double w = (t - hinf_filter_input_t[j])") != std::string::npos) ==
+                  (interpolation == "linear"));
+            CHECK(hinf::test::read_text(d / "c/hinf_filter.h").find("hinf_filter_EXTERNAL_INPUTS") != std::string::npos);
+            // live inputs: the caller's function, no table
+            write_file(d, "live.c", "void hinf_filter_inputs_at(double t, double* u);\n"
+                                    "void hinf_filter_inputs_at(double t, double* u) { u[0] = 12.0 * t; }\n");
+            auto cc = run_command("cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -Dhinf_filter_EXTERNAL_INPUTS -I " +
+                                  (d / "c") + " -o " + (d / "live") + " " +
+                                  hinf::test::source_path("tests/export/run_record.c") + " " + (d / "c/hinf_filter.c") +
+                                  " " + (d / "live.c") + " -lm");
+            INFO(cc.output);
+            CHECK(cc.status == 0);
+            auto nm = run_command("nm " + (d / "live"));
+            CHECK(nm.output.find("hinf_filter_input_t") == std::string::npos);
+        }
+    }
+}
+
 TEST_CASE("exported C filter with an angle output matches hinf filter across the bearing's +-pi cut",
           "[export][gain][angles]") {
     // a target passing the negative x axis of a radar (bearing from +pi to -pi at step 15): the step wraps the

@@ -1,0 +1,203 @@
+// Known inputs of expression systems ([system] inputs): the table's hold and interpolation, a file read from the
+// config's directory and carried in the effective config (a checkpoint needs no file), the one-line errors, the
+// same bits as the expression of t it tabulates through truth, EKF and UKF, and a record beyond the table refused.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "helpers.hpp"
+#include "hinf/config.hpp"
+#include "hinf/h5.hpp"
+#include "models/expr_system.hpp"
+
+using namespace hinf;
+using hinf::test::TempDir;
+using hinf::test::write_file;
+
+namespace {
+
+ExprSpec input_spec(bool linear) {
+    ExprSpec s;
+    s.states = {"x"};
+    s.f = {{"f", "u*x + u"}};
+    s.g = {{{"g", "1"}}};
+    s.h = {{"h", "x"}};
+    s.where = "t.toml: [system]";
+    s.inputs = {"u"};
+    s.input_t = {0.0, 0.03, 0.07};
+    s.input_values = {1.0, 2.0, 4.0};
+    s.input_linear = linear;
+    return s;
+}
+
+double u_at(const ExprSystem& sys, double t) {
+    double u = 0;
+    sys.inputs_at(t, &u);
+    return u;
+}
+
+// a continuous first-order system driven by a known input; `drive` is the input's expression
+std::string driven_config(const std::string& drive, const std::string& extra = "") {
+    return "[system]\nkind = \"expr\"\nstates = [\"x\"]\nmeasurements = 1\nf = [\"-x + " + drive +
+           "\"]\ng = [[\"1\"]]\nh = [\"x\"]\n" + extra +
+           "[filter]\nx0 = [0.5]\nxhat0 = [0.0]\ndt = 0.01\nt_final = 2\nrho = 2\n"
+           "[online]\ndisturbance_std = 0.3\nnoise_std = 0.05\n";
+}
+
+// u(t_k) = sin(t_k) at t_k = k dt, printed with 17 digits (the same doubles back)
+std::string sine_table(int rows) {
+    std::ostringstream out;
+    out.precision(17);
+    out << "# a known input\ntime,u\n";
+    for (int k = 0; k < rows; ++k) out << double(k) * 0.01 << "," << std::sin(double(k) * 0.01) << "\n";
+    return out.str();
+}
+
+}  // namespace
+
+TEST_CASE("known inputs: a row holds from its time (t = k dt a bit early included), linear between rows, ends held",
+          "[model][expr][inputs]") {
+    const ExprSystem held(input_spec(false)), linear(input_spec(true));
+    CHECK(held.time_span() == std::make_pair(0.0, 0.07));
+    CHECK(u_at(held, -1.0) == 1.0);
+    CHECK(u_at(held, 0.0) == 1.0);
+    CHECK(u_at(held, 0.02) == 1.0);
+    CHECK(u_at(held, 0.03) == 2.0);
+    CHECK(u_at(held, std::nextafter(0.03, 0.0)) == 2.0);  // the last bit early: the row already holds
+    CHECK(u_at(held, 0.03 - 1e-6) == 1.0);                // well before it: the row before
+    CHECK(u_at(held, 0.05) == 2.0);
+    CHECK(u_at(held, 0.07) == 4.0);
+    CHECK(u_at(held, 9.0) == 4.0);
+    CHECK(u_at(linear, -1.0) == 1.0);
+    CHECK(u_at(linear, 0.05) == Approx(3.0).epsilon(1e-15));
+    CHECK(u_at(linear, 0.015) == Approx(1.5).epsilon(1e-15));
+    CHECK(u_at(linear, 0.07) == 4.0);
+    CHECK(u_at(linear, 9.0) == 4.0);
+    // f = u x + u and its Jacobian u: the input enters as a signal of t, never differentiated in x
+    const double x = 2.0;
+    double f = 0, J = 0;
+    held.drift(&f, &x, 0.05, 1);
+    held.drift_jacobian(&J, &x, 0.05);
+    CHECK(f == 6.0);
+    CHECK(J == 2.0);
+    linear.drift(&f, &x, 0.05, 1);
+    CHECK(f == Approx(9.0).epsilon(1e-15));
+    // the same values from a batch split over threads
+    std::vector<double> xs(1000, x), fs(1000);
+    held.drift(fs.data(), xs.data(), 0.05, 1000);
+    for (double v : fs) CHECK(v == 6.0);
+    // GiNaC's Jacobian names the input, not a derivative of it
+    CHECK(held.compiled("df") == std::vector<std::string>{"u"});
+}
+
+TEST_CASE("known inputs from a file: read from the config's directory, carried in the effective config",
+          "[model][expr][inputs]") {
+    TempDir d("inputs-file");
+    std::filesystem::create_directory(d / "sub");
+    write_file(d, "sub/u.csv", sine_table(201));
+    const std::string cfg = write_file(d, "sub/c.toml", driven_config("u", "inputs = \"u.csv\"\n"));
+    // from another working directory: the path is the config's
+    const RunConfig a = load_run_config(ConfigDoc::from_file(cfg));
+    const std::string text = a.doc.text();
+    CHECK(text.find("u.csv") == std::string::npos);
+    CHECK(text.find("inputs") != std::string::npos);
+    // the effective config loads without the file, to the same system
+    std::filesystem::remove(d / "sub/u.csv");
+    const RunConfig b = load_run_config(ConfigDoc::from_text(text, "checkpoint.h5:/config"));
+    for (int k = 0; k <= 200; ++k) {
+        const double t = double(k) * 0.01, x = 0.3;
+        double fa = 0, fb = 0;
+        a.system->drift(&fa, &x, t, 1);
+        b.system->drift(&fb, &x, t, 1);
+        REQUIRE(fa == fb);
+        REQUIRE(fa == -x + std::sin(t));
+    }
+    CHECK(b.doc.text() == text);
+}
+
+TEST_CASE("known inputs: a bad table is one line naming the file, the line and the fix", "[model][expr][inputs]") {
+    TempDir d("inputs-bad");
+    struct Case {
+        std::string csv, extra, fragment;
+    };
+    const Case cases[] = {
+        {"0,1\n1,2\n", "", "needs a header row naming its columns"},
+        {"t\n0\n1\n", "", "needs a header row naming its columns"},
+        {"t,u\n0,1\n0,2\n3,1\n", "", "line 3: time 0 is not after the row before it"},
+        {"t,u\n0,1\n1,\n3,1\n", "", "line 3, column 2: '' is not a finite number"},
+        {"t,u\n0,1\n1,nan\n3,1\n", "", "is not a finite number"},
+        {"t,u\n0,1\n1,2,3\n3,1\n", "", "line 3: 3 columns, the header names 2"},
+        {"t,u\n0,1\n1,2\n", "", "covers [0, 1] s, the run needs [0, 2] s"},
+        {"t,u\n0.5,1\n3,2\n", "", "covers [0.5, 3] s, the run needs [0, 2] s"},
+        {"t,u\n0,1\n", "", "1 row(s) of values; a table of inputs needs at least 2"},
+        {"time,t\n0,1\n3,2\n", "", "column 2 is named t"},
+        {"t,u,u\n0,1,1\n3,2,2\n", "", "two columns are named 'u'"},
+        {"t,x\n0,1\n3,2\n", "", "'x' is defined twice"},
+        {"t,u v\n0,1\n3,2\n", "", "input 'u v' is not a name"},
+        {"t,sin\n0,1\n3,2\n", "", "input 'sin' is reserved"},
+        {"t,u\n0,1\n3,2\n", "input_interpolation = \"cubic\"\n", "is not one of"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const std::string name = "case" + std::to_string(++i);
+        write_file(d, name + ".csv", c.csv);
+        const std::string cfg =
+            write_file(d, name + ".toml", driven_config("u", "inputs = \"" + name + ".csv\"\n" + c.extra));
+        INFO(c.csv);
+        REQUIRE_THROWS_WITH(load_run_config(ConfigDoc::from_file(cfg)), Catch::Contains(c.fragment));
+    }
+    // no file, an inline table without times, interpolation with no table: the config's own lines
+    const std::string missing = write_file(d, "missing.toml", driven_config("u", "inputs = \"nope.csv\"\n"));
+    REQUIRE_THROWS_WITH(load_run_config(ConfigDoc::from_file(missing)),
+                        Catch::Contains("[system] inputs file") && Catch::Contains("nope.csv") &&
+                            Catch::Contains("No such file"));
+    REQUIRE_THROWS_WITH(load_run_config(ConfigDoc::from_text(driven_config("u", "inputs = { s = [0, 3], u = [1, 2] }\n"),
+                                                             "t.toml")),
+                        Catch::Contains("has no column t"));
+    REQUIRE_THROWS_WITH(load_run_config(ConfigDoc::from_text(
+                            driven_config("sin(t)", "input_interpolation = \"linear\"\n"), "t.toml")),
+                        Catch::Contains("applies to a table of known inputs"));
+}
+
+TEST_CASE("a held table of sin(t_k) runs truth, EKF and UKF to the bits of the expression sin(t)",
+          "[cli][expr][inputs]") {
+    TempDir d("inputs-bits");
+    write_file(d, "u.csv", sine_table(201));
+    const std::string table = write_file(d, "table.toml", driven_config("u", "inputs = \"u.csv\"\n"));
+    const std::string expr = write_file(d, "expr.toml", driven_config("sin(t)"));
+    for (const auto& [cfg, out] : {std::make_pair(table, d / "a"), std::make_pair(expr, d / "b")}) {
+        auto r = hinf::test::run_hinf("compare " + cfg + " --filters ekf,ukf --runs 3 --quiet --out " + out);
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+    }
+    h5::Handle a = h5::open_file(d / "a/compare.h5", false), b = h5::open_file(d / "b/compare.h5", false);
+    for (const std::string set : {"ekf/xhat", "ukf/xhat", "ekf/mse_per_run", "ukf/mse_per_run"}) {
+        INFO(set);
+        const std::vector<double> xa = h5::read_doubles(a.get(), set), xb = h5::read_doubles(b.get(), set);
+        REQUIRE(xa.size() == xb.size());
+        CHECK(xa == xb);
+    }
+    // a record past the table's last row is refused before any filtering, naming both spans
+    std::ostringstream rec;
+    for (int k = 1; k <= 300; ++k) rec << double(k) * 0.01 << "," << 0.1 << "\n";
+    const std::string record = write_file(d, "rec.csv", rec.str());
+    hinf::test::expect_one_line_error("filter " + table + " --measurements " + record + " --filters ekf --out " + (d / "f"),
+                                      "beyond its table of known inputs");
+}
+
+TEST_CASE("the recorded-voltage motor example loads its table from beside it", "[model][expr][inputs]") {
+    const RunConfig c =
+        load_run_config(ConfigDoc::from_file(hinf::test::source_path("examples/systems/dc_motor_recorded.toml")));
+    const auto* sys = dynamic_cast<const ExprSystem*>(c.system.get());
+    REQUIRE(sys);
+    CHECK(sys->inputs() == std::vector<std::string>{"V"});
+    CHECK(sys->time_span() == std::make_pair(0.0, 20.0));
+    CHECK(u_at(*sys, 1.5) == -6.3);  // examples/systems/dc_motor_voltage.csv: the row at t = 1 s, held
+    // the current's drift (V - Rw cur - Kt omega) / L at rest is V / L
+    const double x[3] = {0.0, 0.0, 0.0};
+    double f[3];
+    sys->drift(f, x, 1.5, 1);
+    CHECK(f[2] == Approx(-6.3 / 0.5).epsilon(1e-15));
+}
