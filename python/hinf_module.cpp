@@ -146,6 +146,10 @@ PYBIND11_MODULE(_hinf, m) {
         .def_property_readonly("system", &hinf::Config::system)
         .def_property_readonly("state_names", &hinf::Config::state_names)
         .def_property_readonly("state_units", &hinf::Config::state_units)
+        .def_property_readonly("input_names", &hinf::Config::input_names)
+        .def(
+            "inputs_at", [](const hinf::Config& c, double t) { return to_array(c.inputs_at(t)); }, py::arg("t"),
+            "u(t): the known inputs' values at t ([system] inputs), held or interpolated as f, g, h read them")
         .def_property_readonly("initial_state", [](const hinf::Config& c) { return to_array(c.initial_state()); })
         .def_property_readonly("initial_estimate",
                                [](const hinf::Config& c) { return to_array(c.initial_estimate()); })

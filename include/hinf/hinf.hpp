@@ -64,6 +64,10 @@ public:
     std::string system() const;                    ///< "missile", "maneuvering_missile" or "expr"
     std::vector<std::string> state_names() const;  ///< n names
     std::vector<std::string> state_units() const;  ///< n units
+    /// The known inputs' names ([system] inputs, docs/byos.md "Known inputs"), in the table's order; empty without.
+    std::vector<std::string> input_names() const;
+    /// u(t) [inputs]: the table's values at time t, held or interpolated as f, g and h read them.
+    std::vector<double> inputs_at(double t) const;
     std::vector<double> initial_state() const;     ///< [filter] x0 [n]
     std::vector<double> initial_estimate() const;  ///< [filter] xhat0 [n]
     std::string text() const;                      ///< the effective TOML (overrides applied)

@@ -347,3 +347,16 @@ def test_export_c_writes_what_hinf_export_writes(trained, tmp_path):
         subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-c",
                         str(tmp_path / "ens" / "vdp_ens.c"), "-o", str(tmp_path / "ens" / "vdp_ens.o")], check=True)
     one_line_error(lambda: hinf.export_c([ckpt, ckpt], str(tmp_path / "bad")), "ensemble=True")
+
+
+def test_known_inputs_are_read_as_f_reads_them(tmp_path):
+    """[system] inputs (docs/byos.md "Known inputs"): the names, u(t) held between rows, the Euler step driven by it,
+    and the effective config carrying the table (it loads again without the file)."""
+    motor = hinf.Config(os.path.join(ROOT, "examples", "systems", "dc_motor_recorded.toml"))
+    assert motor.input_names == ["V"]
+    assert motor.inputs_at(1.5).tolist() == [-6.3]  # the row at t = 1 s, held
+    step = motor.advance(np.zeros(3), t=1.5)
+    assert step[2] == pytest.approx(motor.dt * -6.3 / 0.5, rel=1e-15)  # the current: dt V / L from rest
+    again = hinf.Config.from_text(motor.text, name=str(tmp_path / "elsewhere.toml"))
+    assert again.inputs_at(1.5).tolist() == [-6.3]
+    assert hinf.Config(VANDERPOL).input_names == []

@@ -20,6 +20,7 @@
 #include "hinf/config.hpp"
 #include "io/checkpoint.hpp"
 #include "io/measurements.hpp"
+#include "models/expr_system.hpp"
 #include "models/system.hpp"
 #include "net/network.hpp"
 #include "sim/truth.hpp"
@@ -87,6 +88,16 @@ std::vector<double> Config::unseen_share() const {
 std::string Config::system() const { return run_config(*this).system->name(); }
 std::vector<std::string> Config::state_names() const { return run_config(*this).system->state_names(); }
 std::vector<std::string> Config::state_units() const { return run_config(*this).system->state_units(); }
+std::vector<std::string> Config::input_names() const {
+    const ExprSystem* e = expr_system_of(*run_config(*this).system);
+    return e ? e->inputs() : std::vector<std::string>{};
+}
+std::vector<double> Config::inputs_at(double t) const {
+    const ExprSystem* e = expr_system_of(*run_config(*this).system);
+    std::vector<double> u(e ? e->inputs().size() : 0);
+    if (!u.empty()) e->inputs_at(t, u.data());
+    return u;
+}
 std::vector<double> Config::initial_state() const { return run_config(*this).x0; }
 std::vector<double> Config::initial_estimate() const { return run_config(*this).xhat0; }
 std::string Config::text() const { return run_config(*this).doc.text(); }

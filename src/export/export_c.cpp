@@ -981,9 +981,7 @@ ExportResult write_export(const std::vector<std::string>& paths, const RunConfig
                                       : "")
       << ". */\n";
     std::vector<std::string> known_inputs;
-    const System* inner = cfg.system.get();
-    if (auto* w = dynamic_cast<const WeightedSystem*>(inner)) inner = &w->inner();
-    if (auto* e = dynamic_cast<const ExprSystem*>(inner)) known_inputs = e->inputs();
+    if (const ExprSystem* e = expr_system_of(*cfg.system)) known_inputs = e->inputs();
     if (!known_inputs.empty()) {
         std::string names;
         for (const auto& u : known_inputs) names += (names.empty() ? "" : ", ") + u;

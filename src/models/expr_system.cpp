@@ -14,6 +14,7 @@
 
 #include "hinf/config.hpp"
 #include "hinf/error.hpp"
+#include "models/weighted_system.hpp"
 
 namespace hinf {
 
@@ -743,6 +744,12 @@ std::vector<std::string> ExprSystem::compiled(const std::string& which) const {
     std::vector<std::string> out;
     for (const auto& c : *list) out.push_back(c.text);
     return out;
+}
+
+const ExprSystem* expr_system_of(const System& sys) {
+    const System* s = &sys;
+    if (const auto* w = dynamic_cast<const WeightedSystem*>(s)) s = &w->inner();
+    return dynamic_cast<const ExprSystem*>(s);
 }
 
 std::string expr_library_versions() {

@@ -112,6 +112,10 @@ class ExprSystem : public System {
     std::shared_ptr<const char> alive_ = std::make_shared<const char>('\0');
 };
 
+/// The expression system `sys` is, or the one inside its noise weighting (models/weighted_system.hpp); null for a
+/// built-in system.
+const ExprSystem* expr_system_of(const System& sys);
+
 /// "GiNaC 1.8.6 (parse, differentiate), muParser 2.3.3 (evaluate)": the libraries doing the work.
 std::string expr_library_versions();
 

@@ -221,6 +221,16 @@ TEST_CASE("library: unseen_share says what hinf rho says about the states the ou
     for (double r : hinf::Config::load(hinf::test::source_path("runs/vanderpol.toml")).unseen_share()) CHECK(r < 0.1);
 }
 
+TEST_CASE("library: a config's known inputs, by name and value, as f reads them", "[api][inputs]") {
+    const hinf::Config motor = hinf::Config::load(hinf::test::source_path("examples/systems/dc_motor_recorded.toml"));
+    CHECK(motor.input_names() == std::vector<std::string>{"V"});
+    CHECK(motor.inputs_at(1.5) == std::vector<double>{-6.3});  // examples/systems/dc_motor_voltage.csv, held
+    CHECK(motor.inputs_at(20.0) == std::vector<double>{-12.0});  // the last row
+    CHECK(motor.advance({0.0, 0.0, 0.0}, {}, 1.5, 0.01)[2] == Approx(0.01 * -6.3 / 0.5).epsilon(1e-15));
+    CHECK(hinf::Config::from_text(kTinyMissile, "tiny.toml").input_names().empty());
+    CHECK(hinf::Config::from_text(kTinyMissile, "tiny.toml").inputs_at(0.0).empty());
+}
+
 TEST_CASE("library: a Filter is told the P0 hinf filter tells it (options, then [baseline] initial_std, then the error)",
           "[api]") {
     const std::string text =
