@@ -165,20 +165,27 @@ TEST_CASE("a held table of sin(t_k) runs truth, EKF and UKF to the bits of the e
           "[cli][expr][inputs]") {
     TempDir d("inputs-bits");
     write_file(d, "u.csv", sine_table(201));
-    const std::string table = write_file(d, "table.toml", driven_config("u", "inputs = \"u.csv\"\n"));
-    const std::string expr = write_file(d, "expr.toml", driven_config("sin(t)"));
-    for (const auto& [cfg, out] : {std::make_pair(table, d / "a"), std::make_pair(expr, d / "b")}) {
-        auto r = hinf::test::run_hinf("compare " + cfg + " --filters ekf,ukf --runs 3 --quiet --out " + out);
-        INFO(r.output);
-        REQUIRE(r.status == 0);
+    // continuous time (forward Euler), and a discrete map whose u_k is the row at t_k = k dt
+    for (const std::string time : {"continuous", "discrete"}) {
+        INFO(time);
+        const std::string kind = "time = \"" + time + "\"\n";
+        const std::string table = write_file(d, time + "_table.toml", driven_config("u", kind + "inputs = \"u.csv\"\n"));
+        const std::string expr = write_file(d, time + "_expr.toml", driven_config("sin(t)", kind));
+        for (const auto& [cfg, out] : {std::make_pair(table, d / (time + "_a")), std::make_pair(expr, d / (time + "_b"))}) {
+            auto r = hinf::test::run_hinf("compare " + cfg + " --filters ekf,ukf --runs 3 --quiet --out " + out);
+            INFO(r.output);
+            REQUIRE(r.status == 0);
+        }
+        h5::Handle a = h5::open_file(d / (time + "_a/compare.h5"), false);
+        h5::Handle b = h5::open_file(d / (time + "_b/compare.h5"), false);
+        for (const std::string set : {"ekf/xhat", "ukf/xhat", "ekf/mse_per_run", "ukf/mse_per_run"}) {
+            INFO(set);
+            const std::vector<double> xa = h5::read_doubles(a.get(), set), xb = h5::read_doubles(b.get(), set);
+            REQUIRE(xa.size() == xb.size());
+            CHECK(xa == xb);
+        }
     }
-    h5::Handle a = h5::open_file(d / "a/compare.h5", false), b = h5::open_file(d / "b/compare.h5", false);
-    for (const std::string set : {"ekf/xhat", "ukf/xhat", "ekf/mse_per_run", "ukf/mse_per_run"}) {
-        INFO(set);
-        const std::vector<double> xa = h5::read_doubles(a.get(), set), xb = h5::read_doubles(b.get(), set);
-        REQUIRE(xa.size() == xb.size());
-        CHECK(xa == xb);
-    }
+    const std::string table = d / "continuous_table.toml";
     // a record past the table's last row is refused before any filtering, naming both spans
     std::ostringstream rec;
     for (int k = 1; k <= 300; ++k) rec << double(k) * 0.01 << "," << 0.1 << "\n";
