@@ -377,11 +377,14 @@ void embed_input_file(ConfigDoc& doc) {
     ConfigSection s(doc, "system");
     std::string path = sys->get("inputs")->value<std::string>().value_or("");
     if (path.empty()) s.reject("inputs", "is empty: name a CSV file of the known inputs (a time column, then one column per input)");
+    // a relative path: beside the config file first (the key as written in it), then in the working directory (the
+    // key given as --set system.inputs=FILE on a command line)
     const std::string& source = doc.source();
     const auto slash = source.rfind('/');
-    if (path.front() != '/' && slash != std::string::npos) {
-        struct stat st {};
-        if (::stat(source.c_str(), &st) == 0 && S_ISREG(st.st_mode)) path = source.substr(0, slash + 1) + path;
+    struct stat st {};
+    if (path.front() != '/' && slash != std::string::npos && ::stat(source.c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
+        const std::string beside = source.substr(0, slash + 1) + path;
+        if (::stat(beside.c_str(), &st) == 0 || ::stat(path.c_str(), &st) != 0) path = beside;
     }
     const std::string what = s.where("inputs") + " file";
     // the table is stored in every checkpoint and result file: a bound, thin the table to the filter's rate

@@ -115,6 +115,15 @@ TEST_CASE("known inputs from a file: read from the config's directory, carried i
         REQUIRE(fa == -x + std::sin(t));
     }
     CHECK(b.doc.text() == text);
+    // --set system.inputs=FILE on a command line: a file in the working directory, when none is beside the config
+    write_file(d, "w.csv", sine_table(201));
+    const std::string in_d = "cd " + d.path.string() + " && " + std::string(HINF_CLI_PATH) + " rho sub/c.toml ";
+    auto r = hinf::test::run_command(in_d + "--set system.inputs=w.csv");
+    INFO(r.output);
+    CHECK(r.status == 0);
+    r = hinf::test::run_command(in_d + "--set system.inputs=none.csv");
+    CHECK(r.status == 2);
+    CHECK(r.output.find("sub/none.csv") != std::string::npos);
 }
 
 TEST_CASE("known inputs: a bad table is one line naming the file, the line and the fix", "[model][expr][inputs]") {
