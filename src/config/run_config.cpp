@@ -368,7 +368,8 @@ namespace {
 // [system] inputs = "file.csv" (kind = "expr"): the table of known inputs is read here, checked row by row, and put
 // in the file's place in the effective config (inputs = { t = [...], name = [...] }, numbers as read), so that
 // checkpoints and result files carry the inputs they were made with: a resumed run, a checkpoint loaded elsewhere
-// or a compare of its network needs no file. A relative path is taken from the config file's directory.
+// or a compare of its network needs no file. A relative path is looked up beside the config file, then in the working
+// directory.
 constexpr std::int64_t kMaxInputRows = 100000;
 void embed_input_file(ConfigDoc& doc) {
     toml::table* sys = doc.root()["system"].as_table();
