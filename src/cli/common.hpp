@@ -31,16 +31,26 @@ inline void apply_threads(int threads) {
     if (threads > 0) omp_set_num_threads(threads);
 }
 
-/// The classical filters' options of compare, filter and worst, one help text each, into args' particles, roughening
-/// and glf_vertices (checked by check_baseline_options)
-inline void add_baseline_options(CLI::App* c, FilterSetArgs& args) {
-    c->add_option("--particles", args.particles, "Particle filter: particle count (default 2000)");
-    c->add_option("--pf-roughening", args.roughening,
+/// The filter set's options of compare, worst and filter, one help text each, into `set` (checked by
+/// check_filter_set_options): --network, --filters (its default as `filters_default` says), --mode where the command
+/// runs both DNN modes (compare, worst: `with_modes`; `hinf filter` has measurements alone), --ensemble, and the
+/// classical filters' --particles, --pf-roughening and --glf-vertices
+inline void add_filter_set_options(CLI::App* c, FilterSetArgs& set, const std::string& filters_default, bool with_modes) {
+    c->add_option("--network", set.networks,
+                  std::string("Trained network DIR/best.h5 or DIR/checkpoint.h5 for the dnn filter (repeatable: one "
+                              "dnn filter per network") + (with_modes ? " and mode)" : ")"));
+    c->add_option("--filters", set.filters, "Comma list of: " + filter_names() + " (default " + filters_default + ")");
+    if (with_modes) c->add_option("--mode", set.modes, "DNN modes, comma list of oracle, measured (default both)");
+    c->add_flag("--ensemble", set.ensemble,
+                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
+                "model, e.g. with different training.seed)");
+    c->add_option("--particles", set.particles, "Particle filter: particle count (default 2000)");
+    c->add_option("--pf-roughening", set.roughening,
                   "Particle filter: roughening constant K after resampling (0 = plain bootstrap PF; Gordon et al. use 0.2)");
-    c->add_option("--glf-vertices", args.glf_vertices, "Global-linearization filter: vertex count N (default 8)");
+    c->add_option("--glf-vertices", set.glf_vertices, "Global-linearization filter: vertex count N (default 8)");
 }
 
-inline void check_baseline_options(const FilterSetArgs& args) {
+inline void check_filter_set_options(const FilterSetArgs& args) {
     HINF_CHECK(args.particles >= 1, "--particles must be >= 1");
     HINF_CHECK(std::isfinite(args.roughening) && args.roughening >= 0,
                "--pf-roughening must be a finite number >= 0 (0: the plain bootstrap PF)");

@@ -21,13 +21,12 @@ std::string join_names(const std::vector<std::string>& names) {
 }
 
 struct CompareArgs {
-    std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", scenario = "nominal";
-    std::vector<std::string> networks, sets;
+    std::string config, out, scenario = "nominal";
+    std::vector<std::string> sets;
     std::int64_t runs = 50;
-    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
+    FilterSetArgs set{"dnn,ekf,ukf,pf,open_loop", {}, "oracle,measured"};  // --filters, --network, --mode, ...
     double until = -1;
     int threads = 0;
-    bool ensemble = false;
     bool quiet = false, plot = false;
 };
 
@@ -37,13 +36,9 @@ void add_compare_command(CLI::App& app) {
     auto a = std::make_shared<CompareArgs>();
     CLI::App* c = app.add_subcommand("compare", "Compare filters (DNN, EKF, UKF, PF, open loop) on the same truth and noise");
     c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, x^0, Q")->required();
-    c->add_option("--network", a->networks,
-                  "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable: one dnn filter per network and mode)");
-    c->add_option("--filters", a->filters, "Comma list of: " + filter_names() + " (default dnn,ekf,ukf,pf,open_loop)");
-    c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
+    add_filter_set_options(c, a->set, "dnn,ekf,ukf,pf,open_loop", true);
     c->add_option("--runs", a->runs, "Monte Carlo runs (default 50)");
     c->add_option("--until", a->until, "Simulate up to this time [s] (default t_final)");
-    add_baseline_options(c, a->baseline);
     c->add_option("--scenario", a->scenario,
                   "One of: " + join_names(scenario_names()) +
                       " (cov_small / cov_large: EKF/UKF/PF told 10x too small / large covariances; v_cov_*, n_cov_*: "
@@ -52,15 +47,12 @@ void add_compare_command(CLI::App& app) {
     c->add_option("--threads", a->threads, "OpenMP threads (runs are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
-    c->add_flag("--ensemble", a->ensemble,
-                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
-                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a]() {
         apply_threads(a->threads);
         HINF_CHECK(a->runs >= 1, "--runs must be >= 1");
-        check_baseline_options(a->baseline);
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
+        check_filter_set_options(a->set);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters));
         CompareOptions opt;
         opt.scenario = scenario_named(a->scenario);
         opt.runs = a->runs;
@@ -70,8 +62,7 @@ void add_compare_command(CLI::App& app) {
         // the Bayesian filters are told the true statistics (seed 000 Section IV), or wrong ones by scenario
         const FilterModel told = scenario_told_model(cfg, opt.scenario), exact = filter_model(cfg);
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->baseline.particles, a->baseline.roughening,
-                          a->baseline.glf_vertices, a->ensemble}, told, exact);
+            cfg, a->set, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());

@@ -15,13 +15,12 @@ namespace hinf::cli {
 
 namespace {
 struct FilterArgs {
-    std::string config, measurements, out, filters, dataset = "y", time_dataset = "t", resample;
+    std::string config, measurements, out, dataset = "y", time_dataset = "t", resample;
     double time_tolerance = kUniformTolerance;
-    std::vector<std::string> networks, sets;
+    std::vector<std::string> sets;
     std::vector<double> xhat0, initial_std;
-    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
+    FilterSetArgs set{"", {}, "measured"};  // --filters (default: dnn with --network, else ekf), --network, ...
     int threads = 0;
-    bool ensemble = false;
     bool quiet = false;
 };
 }  // namespace
@@ -34,9 +33,7 @@ void add_filter_command(CLI::App& app) {
                   "Recorded measurements: CSV (time column + one column per output, optional header) or HDF5 "
                   "(datasets t [K] and y [K x m]); docs/formats.md")
         ->required();
-    c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
-    c->add_option("--filters", a->filters,
-                  "Comma list of: " + filter_names() + " (default: dnn with --network, else ekf)");
+    add_filter_set_options(c, a->set, "dnn with --network, else ekf", false);
     c->add_option("--dataset", a->dataset, "HDF5: dataset of the measurements [K x m] (default y)");
     c->add_option("--time-dataset", a->time_dataset, "HDF5: dataset of the times [K] in s (default t)");
     c->add_option("--time-tolerance", a->time_tolerance,
@@ -51,18 +48,14 @@ void add_filter_command(CLI::App& app) {
                   "EKF/UKF/PF: standard deviation of x^(t_0)'s error per state, 0 for a known state (default: the "
                   "config's [baseline] initial_std, else |x0 - xhat0| of the config)")
         ->delimiter(',');
-    add_baseline_options(c, a->baseline);
     c->add_option("--out", a->out, "Output directory (default runs/out/<config name>/filter)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_option("--threads", a->threads, "OpenMP threads");
-    c->add_flag("--ensemble", a->ensemble,
-                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
-                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a]() {
         apply_threads(a->threads);
-        check_baseline_options(a->baseline);
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
+        check_filter_set_options(a->set);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters));
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
                                                               a->time_tolerance, a->resample});
@@ -95,16 +88,15 @@ void add_filter_command(CLI::App& app) {
         // (default: [system] and [online])
         FilterModel told = scenario_told_model(cfg, scenario_named("nominal")), model = filter_model(cfg);
         told.dt = model.dt = ms.dt;
-        std::string names = a->filters.empty() ? (a->networks.empty() ? "ekf" : "dnn") : a->filters;
+        FilterSetArgs chosen = a->set;
+        if (chosen.filters.empty()) chosen.filters = chosen.networks.empty() ? "ekf" : "dnn";
         bool bayes = false;  // a filter that starts from P0
-        for (const std::string& f : split_list(names)) bayes = bayes || f == "ekf" || f == "ukf" || f == "pf";
+        for (const std::string& f : split_list(chosen.filters)) bayes = bayes || f == "ekf" || f == "ukf" || f == "pf";
         if (bayes && a->initial_std.empty() && cfg.initial_std.empty() && !opt.quiet) {  // the default P0: say if certain
             const std::string note = baseline_certain_note(cfg, opt.P0);
             if (!note.empty()) std::printf("%s\n", note.c_str());
         }
-        FilterSet set = build_filter_set(cfg, FilterSetArgs{names, a->networks, "measured", a->baseline.particles,
-                                                            a->baseline.roughening, a->baseline.glf_vertices, a->ensemble},
-                                         told, model);
+        FilterSet set = build_filter_set(cfg, chosen, told, model);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<OnlineFilter*> filters;
         for (auto& f : set.filters) filters.push_back(f.get());

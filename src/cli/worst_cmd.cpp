@@ -19,16 +19,15 @@ namespace hinf::cli {
 namespace {
 
 struct WorstArgs {
-    std::string config, out, filters = "dnn,ekf,ukf,pf,open_loop", modes = "oracle,measured", replay;
+    std::string config, out, replay;
     std::string scenario_starts = "nominal,energy_pulse,bias", algorithm = "LN_SBPLX";
-    std::vector<std::string> networks, sets;
-    FilterSetArgs baseline;  // --particles, --pf-roughening, --glf-vertices
+    std::vector<std::string> sets;
+    FilterSetArgs set{"dnn,ekf,ukf,pf,open_loop", {}, "oracle,measured"};  // --filters, --network, --mode, ...
     int pieces = 4, sines = 2, random_starts = 4, evals = 200, threads = 0;
     int linear_pieces = 20;
     double linear_steps = 1e7;
     double energy = std::numeric_limits<double>::quiet_NaN(), until = -1;
     bool keep_initial_error = false, no_game_start = false, no_cross_starts = false, quiet = false, plot = false;
-    bool ensemble = false;
 };
 
 void print_cross(const WorstReplay& r) {
@@ -76,10 +75,7 @@ void add_worst_command(CLI::App& app) {
     CLI::App* c = app.add_subcommand(
         "worst", "Search each filter's worst-case disturbance and noise under one energy budget (or --replay saved ones)");
     c->add_option("config", a->config, "Scenario config (TOML): system, noise levels, x0, Q")->required();
-    c->add_option("--network", a->networks, "Trained network DIR/checkpoint.h5 for the dnn filter (repeatable)");
-    c->add_option("--filters", a->filters, "Comma list of: " + filter_names() + " (default dnn,ekf,ukf,pf,open_loop)");
-    c->add_option("--mode", a->modes, "DNN modes, comma list of oracle, measured (default both)");
-    add_baseline_options(c, a->baseline);
+    add_filter_set_options(c, a->set, "dnn,ekf,ukf,pf,open_loop", true);
     CLI::Option* energy_opt = c->add_option("--energy", a->energy,
                   "Energy budget int (v'v + n'n) dt of every candidate (default: the nominal draws' expected energy "
                   "(disturbance_std^2 nv + noise_std^2 m) T)");
@@ -108,14 +104,11 @@ void add_worst_command(CLI::App& app) {
     c->add_option("--threads", a->threads, "OpenMP threads (restarts are split over them)");
     c->add_option("--set", a->sets, "Override a config key, e.g. --set online.noise_std=10 (repeatable)");
     c->add_flag("--plot", a->plot, "Draw PNGs with scripts/plot (needs /usr/bin/python3 with h5py and matplotlib)");
-    c->add_flag("--ensemble", a->ensemble,
-                "One DNN filter, dnn_gain_ensemble, with the mean gain of every --network (variant gain, trained on one "
-                "model, e.g. with different training.seed)");
     c->add_flag("--quiet", a->quiet, "No progress lines");
     c->callback([a, energy_opt]() {
         apply_threads(a->threads);
-        check_baseline_options(a->baseline);
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->filters));
+        check_filter_set_options(a->set);
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters));
         WorstOptions opt;
         if (energy_opt->count() > 0) {
             HINF_CHECK(std::isfinite(a->energy) && a->energy > 0,
@@ -143,8 +136,7 @@ void add_worst_command(CLI::App& app) {
         // the worst signals were found for a budget, not a scenario: the Bayesian filters are told the nominal statistics
         const FilterModel exact = filter_model(cfg), told = scenario_told_model(cfg, scenario_named("nominal"));
         FilterSet set = build_filter_set(
-            cfg, FilterSetArgs{a->filters, a->networks, a->modes, a->baseline.particles, a->baseline.roughening,
-                          a->baseline.glf_vertices, a->ensemble}, told, exact);
+            cfg, a->set, told, exact);
         for (const std::string& note : set.notes) std::printf("%s\n", note.c_str());
         std::vector<const OnlineFilter*> filters;
         for (const auto& o : set.filters) filters.push_back(o.get());
@@ -172,7 +164,7 @@ void add_worst_command(CLI::App& app) {
         std::vector<std::unique_ptr<FrozenNetwork>> nets;
         std::vector<std::string> prefixes;
         std::vector<double> rhos;
-        for (const std::string& path : a->networks) {
+        for (const std::string& path : a->set.networks) {
             RunConfig ncfg;
             nets.push_back(ckpt_frozen_network(path, &ncfg));
             prefixes.push_back("dnn_" + ncfg.variant + "_");
