@@ -18,12 +18,13 @@
 
 namespace hinf::cli {
 
-/// need_level = false: the command designs nothing at a level, so a config naming no rho skips rho* (load_run_config).
+/// need_level = false: the command designs nothing at a level, so a config naming no rho skips rho* (load_run_config);
+/// need_run_span = false: a table of known inputs need not cover [0, t_final] (hinf filter checks its record's times).
 inline RunConfig load_config_with_overrides(const std::string& path, const std::vector<std::string>& sets,
-                                            bool need_level = true) {
+                                            bool need_level = true, bool need_run_span = true) {
     ConfigDoc doc = ConfigDoc::from_file(path);
     for (const auto& s : sets) doc.set(s);
-    return load_run_config(std::move(doc), need_level);
+    return load_run_config(std::move(doc), need_level, need_run_span);
 }
 
 inline void apply_threads(int threads) {

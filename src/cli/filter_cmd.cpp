@@ -55,7 +55,8 @@ void add_filter_command(CLI::App& app) {
     c->callback([a]() {
         apply_threads(a->threads);
         check_filter_set_options(a->set);
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters));
+        // the record's times, not [0, t_final], are what a table of known inputs must cover (recorded_check_sampling)
+        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters), false);
         const int n = cfg.n;
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
                                                               a->time_tolerance, a->resample});

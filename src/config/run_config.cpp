@@ -431,7 +431,7 @@ void embed_input_file(ConfigDoc& doc) {
 
 }  // namespace
 
-RunConfig load_run_config(ConfigDoc doc, bool need_level) {
+RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     {  // seed 002's delay systems have their own commands: say so before their sections read as unknown
         ConfigSection sys(doc, "system");
         if (sys.has("kind") && sys.get_string("kind", "") == "ito_delay")
@@ -519,7 +519,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level) {
     if (std::llround(c.t_final / c.dt) < 1)
         f.reject("t_final", "= " + format_g(c.t_final) + " s is less than one time step dt = " +
                                 format_g(c.dt) + " s: nothing would run (raise t_final or lower dt)");
-    {  // a table of known inputs ([system] inputs) must cover the run, [0, t_final]
+    if (need_run_span) {  // a table of known inputs ([system] inputs) must cover the run, [0, t_final]
         const std::pair<double, double> span = c.system->time_span();
         const double slack = 1e-9 * c.dt;
         if (span.first > slack || span.second < c.t_final - slack)

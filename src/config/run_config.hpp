@@ -153,8 +153,9 @@ ConfigDoc game_in_noise_units(const RunConfig& c);
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
 /// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for
 /// a large system: docs/method.md section 16.12), for commands that design nothing at a level (compare and filter
-/// without glf).
-RunConfig load_run_config(ConfigDoc doc, bool need_level = true);
+/// without glf). need_run_span = false: a table of known inputs ([system] inputs) need not cover [0, t_final], for
+/// `hinf filter`, which runs over a record's times and checks those (recorded_check_sampling).
+RunConfig load_run_config(ConfigDoc doc, bool need_level = true, bool need_run_span = true);
 
 /// v as printf's %g, for messages ("0.9", "1e+12").
 std::string format_g(double v);

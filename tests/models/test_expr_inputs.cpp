@@ -201,6 +201,15 @@ TEST_CASE("a held table of sin(t_k) runs truth, EKF and UKF to the bits of the e
     const std::string record = write_file(d, "rec.csv", rec.str());
     hinf::test::expect_one_line_error("filter " + table + " --measurements " + record + " --filters ekf --out " + (d / "f"),
                                       "beyond its table of known inputs");
+    // a table of a record shorter than the config's t_final: hinf filter checks the record's times alone
+    write_file(d, "short.csv", sine_table(101));
+    const std::string short_record = write_file(d, "short_rec.csv", rec.str().substr(0, rec.str().find("\n1.01")));
+    auto f = hinf::test::run_hinf("filter " + table + " --set system.inputs=short.csv --measurements " + short_record +
+                                  " --filters ekf --quiet --out " + (d / "g"));
+    INFO(f.output);
+    CHECK(f.status == 0);
+    hinf::test::expect_one_line_error("compare " + table + " --set system.inputs=short.csv --filters ekf --out " + (d / "h"),
+                                      "covers [0, 1] s, the run needs [0, 2] s");
 }
 
 TEST_CASE("the recorded-voltage motor example loads its table from beside it", "[model][expr][inputs]") {
