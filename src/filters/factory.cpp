@@ -5,10 +5,13 @@
 #include <cstdio>
 #include <sstream>
 
+#include <toml++/toml.h>
+
 #include "filters/dnn.hpp"
 #include "filters/glf.hpp"
 #include "hinf/error.hpp"
 #include "io/checkpoint.hpp"
+#include "models/expr_system.hpp"
 #include "models/weighted_system.hpp"
 #include "filters/ehf.hpp"
 #include "filters/ekf.hpp"
@@ -111,6 +114,33 @@ std::string system_signature(const System& sys) {
            " disturbance(s), " + std::to_string(sys.output_dim()) + " output(s))";
 }
 
+// Known inputs ([system] inputs) are the run's, not the training's: the model a network was trained on reads this
+// config's table (the voltage applied during this record), with the names it was trained with.
+void take_run_inputs(const std::string& path, const RunConfig& cfg, RunConfig* ncfg) {
+    const ExprSystem* here = expr_system_of(*cfg.system);
+    const ExprSystem* trained = expr_system_of(*ncfg->system);
+    const std::vector<std::string> none, &ours = here ? here->inputs() : none, &theirs = trained ? trained->inputs() : none;
+    auto names = [](const std::vector<std::string>& list) {
+        std::string out;
+        for (const auto& u : list) out += (out.empty() ? "" : ", ") + u;
+        return list.empty() ? std::string("none") : out;
+    };
+    HINF_CHECK(ours == theirs, "network '" + path + "' was trained with the known inputs (" + names(theirs) +
+                                   "), the config's system has (" + names(ours) +
+                                   ") in [system] inputs (use a network trained on this config's system)");
+    if (ours.empty()) return;
+    ConfigDoc doc = ncfg->doc;
+    toml::table& sys = *doc.root()["system"].as_table();
+    const toml::table& run = *cfg.doc.root()["system"].as_table();
+    sys.insert_or_assign("inputs", *run.get("inputs"));
+    if (const toml::node* hold = run.get("input_interpolation")) sys.insert_or_assign("input_interpolation", *hold);
+    else sys.erase("input_interpolation");
+    // the record's times, checked by the caller, are what the table covers
+    RunConfig with_ours = load_run_config(std::move(doc), true, false);
+    ncfg->system = with_ours.system;
+    ncfg->doc = with_ours.doc;
+}
+
 // A trained network for this config's system: the same state count is not the same system, so the kind, the outputs
 // and the state names must agree (one line naming the network otherwise).
 std::unique_ptr<FrozenNetwork> network_for(const std::string& path, const RunConfig& cfg, RunConfig* ncfg) {
@@ -121,6 +151,7 @@ std::unique_ptr<FrozenNetwork> network_for(const std::string& path, const RunCon
                    " (use a network trained on this config's system)");
     HINF_CHECK(ncfg->n == cfg.n, "network '" + path + "' was trained for " + std::to_string(ncfg->n) +
                                      " states, the config's system has " + std::to_string(cfg.n));
+    take_run_inputs(path, cfg, ncfg);
     return net;
 }
 

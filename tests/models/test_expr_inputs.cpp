@@ -226,3 +226,42 @@ TEST_CASE("the recorded-voltage motor example loads its table from beside it", "
     sys->drift(f, x, 1.5, 1);
     CHECK(f[2] == Approx(-6.3 / 0.5).epsilon(1e-15));
 }
+
+TEST_CASE("a trained gain network filters with the run's known inputs, not its training table", "[cli][expr][inputs]") {
+    TempDir d("inputs-network");
+    write_file(d, "u.csv", sine_table(201));
+    const std::string cfg = write_file(
+        d, "c.toml",
+        driven_config("u", "inputs = \"u.csv\"\n") +
+            "[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\nbatch = 32\nadam_steps = 3\n");
+    auto t = hinf::test::run_hinf("train " + cfg + " --until 0.3 --quiet --out " + (d / "run"));
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    std::ostringstream rec;
+    rec.precision(17);
+    for (int k = 1; k <= 150; ++k) rec << double(k) * 0.01 << "," << 0.5 * std::sin(double(k) * 0.01) << "\n";
+    const std::string record = write_file(d, "rec.csv", rec.str());
+    // the training's table under another file name: the same values, the same bits; another table: other estimates
+    write_file(d, "same.csv", sine_table(201));
+    std::ostringstream other;
+    other << "t,u\n0,3\n2,3\n";
+    write_file(d, "other.csv", other.str());
+    std::vector<std::vector<double>> xhat;
+    for (const std::string table : {"u.csv", "same.csv", "other.csv"}) {
+        const std::string out = d / ("f_" + table);
+        auto f = hinf::test::run_hinf("filter " + cfg + " --set system.inputs=" + table + " --network " + (d / "run") +
+                                      "/checkpoint.h5 --measurements " + record + " --quiet --out " + out);
+        INFO(f.output);
+        REQUIRE(f.status == 0);
+        h5::Handle h = h5::open_file(out + "/estimates.h5", false);
+        xhat.push_back(h5::read_doubles(h.get(), "dnn_gain_measured/xhat"));
+    }
+    CHECK(xhat[0] == xhat[1]);
+    REQUIRE(xhat[0].size() == xhat[2].size());
+    CHECK(xhat[0] != xhat[2]);
+    // a network trained with known inputs and a config without them (or the other way round): one line
+    const std::string plain = write_file(d, "plain.toml", driven_config("sin(t)"));
+    hinf::test::expect_one_line_error("filter " + plain + " --network " + (d / "run") + "/checkpoint.h5 --measurements " +
+                                          record + " --out " + (d / "p"),
+                                      "was trained with the known inputs (u), the config's system has (none)");
+}
