@@ -9,6 +9,7 @@
 #include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
 #include "io/measurements.hpp"
+#include "models/expr_system.hpp"
 #include "sim/truth.hpp"
 
 namespace hinf::cli {
@@ -58,8 +59,10 @@ void add_filter_command(CLI::App& app) {
         // the record's times, not [0, t_final], are what a table of known inputs must cover (recorded_check_sampling)
         RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters), false);
         const int n = cfg.n;
+        const ExprSystem* expr = expr_system_of(*cfg.system);
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
-                                                              a->time_tolerance, a->resample});
+                                                              a->time_tolerance, a->resample,
+                                                              expr ? expr->inputs() : std::vector<std::string>{}});
         if (ms.dt > 10 * cfg.dt || ms.dt < 0.1 * cfg.dt)  // e.g. a time column in milliseconds
             std::fprintf(stderr,
                          "warning: the record's time step %g s is far from the config's dt %g s (is the time column in "

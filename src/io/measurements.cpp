@@ -97,10 +97,19 @@ Measurements read_csv(const MeasurementSource& src) {
     Measurements ms;
     ms.m = src.outputs;
     if (table.header_line > 0) {
+        std::string inputs;  // header cells that name known inputs: a log with y and u side by side
+        int named = 0;
+        for (const std::string& cell : table.header)
+            if (std::find(src.known_inputs.begin(), src.known_inputs.end(), cell) != src.known_inputs.end())
+                inputs += (named++ ? ", " : "") + cell;
         HINF_CHECK(int(table.header.size()) == 1 + ms.m,
                    "measurements '" + src.path + "' line " + std::to_string(table.header_line) + ": the header has " +
                        std::to_string(table.header.size()) + " columns, expected " + std::to_string(1 + ms.m) +
-                       " (time + " + std::to_string(ms.m) + " output(s) of the config's system)");
+                       " (time + " + std::to_string(ms.m) + " output(s) of the config's system)" +
+                       (inputs.empty() ? std::string()
+                                       : "; " + inputs + (named > 1 ? " are known inputs" : " is a known input") +
+                                             ": give the inputs as their own table (time, then the inputs) with --set "
+                                             "system.inputs=FILE, and the record without them"));
         ms.columns.assign(table.header.begin() + 1, table.header.end());
     }
     for (std::size_t r = 0; r < table.rows.size(); ++r) {

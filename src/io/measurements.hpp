@@ -15,6 +15,7 @@ struct MeasurementSource {
     std::string values_dataset = "y";  // HDF5 only: [K x m] (or [K] when m = 1)
     double time_tolerance = 0.05;      // |t[k] - t[k-1] - dt| <= time_tolerance * dt (relative to the step)
     std::string resample;              // "" (the record must be uniform), "linear" or "zoh": onto t_0 + k dt
+    std::vector<std::string> known_inputs;  // the system's known inputs ([system] inputs): named in a CSV header, hinted at
 };
 
 struct Measurements {

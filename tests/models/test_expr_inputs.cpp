@@ -210,6 +210,11 @@ TEST_CASE("a held table of sin(t_k) runs truth, EKF and UKF to the bits of the e
     CHECK(f.status == 0);
     hinf::test::expect_one_line_error("compare " + table + " --set system.inputs=short.csv --filters ekf --out " + (d / "h"),
                                       "covers [0, 1] s, the run needs [0, 2] s");
+    // a log with the output and the input side by side: the input's column is named, and where it belongs
+    const std::string log = write_file(d, "log.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,0.5\n");
+    hinf::test::expect_one_line_error("filter " + table + " --measurements " + log + " --filters ekf --out " + (d / "l"),
+                                      "expected 2 (time + 1 output(s) of the config's system); u is a known input: "
+                                      "give the inputs as their own table");
 }
 
 TEST_CASE("the recorded-voltage motor example loads its table from beside it", "[model][expr][inputs]") {
