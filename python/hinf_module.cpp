@@ -150,6 +150,22 @@ PYBIND11_MODULE(_hinf, m) {
         .def(
             "inputs_at", [](const hinf::Config& c, double t) { return to_array(c.inputs_at(t)); }, py::arg("t"),
             "u(t): the known inputs' values at t ([system] inputs), held or interpolated as f, g, h read them")
+        .def(
+            "with_inputs",
+            [](const hinf::Config& c, const Array& t, const Array& u) {
+                const py::ssize_t q = py::ssize_t(c.input_names().size());
+                HINF_CHECK(t.ndim() == 1, "with_inputs: t has shape " + shape_text(t) + "; expected (R,), one time per row");
+                const py::ssize_t R = t.shape(0);
+                const bool ok = (u.ndim() == 2 && u.shape(0) == R && u.shape(1) == q) ||
+                                (q == 1 && u.ndim() == 1 && u.shape(0) == R);
+                HINF_CHECK(q == 0 || ok, "with_inputs: u has shape " + shape_text(u) + "; expected (" + std::to_string(R) +
+                                             ", " + std::to_string(q) + "): one row per time, one column per input (" +
+                                             "input_names' order)");
+                return c.with_inputs(std::vector<double>(t.data(), t.data() + R),
+                                     std::vector<double>(u.data(), u.data() + u.size()));
+            },
+            py::arg("t"), py::arg("u"),
+            "This config with another run's known inputs (a record's) in place of its table: t (R,), u (R, inputs)")
         .def_property_readonly("initial_state", [](const hinf::Config& c) { return to_array(c.initial_state()); })
         .def_property_readonly("initial_estimate",
                                [](const hinf::Config& c) { return to_array(c.initial_estimate()); })

@@ -360,3 +360,9 @@ def test_known_inputs_are_read_as_f_reads_them(tmp_path):
     again = hinf.Config.from_text(motor.text, name=str(tmp_path / "elsewhere.toml"))
     assert again.inputs_at(1.5).tolist() == [-6.3]
     assert hinf.Config(VANDERPOL).input_names == []
+    # another run's inputs in place of the table (a record's): u(t) follows them, the config itself is unchanged
+    rec = motor.with_inputs(np.array([0.5, 1.0, 1.5]), np.array([[3.0], [4.0], [5.0]]))
+    assert rec.inputs_at(1.2).tolist() == [4.0]
+    assert motor.with_inputs(np.array([0.5, 1.0]), np.array([7.0, 8.0])).inputs_at(2.0).tolist() == [8.0]
+    assert motor.inputs_at(1.5).tolist() == [-6.3]
+    one_line_error(lambda: motor.with_inputs(np.array([0.5, 1.0]), np.zeros((2, 2))), "expected (2, 1)")

@@ -98,6 +98,15 @@ std::vector<double> Config::inputs_at(double t) const {
     if (!u.empty()) e->inputs_at(t, u.data());
     return u;
 }
+Config Config::with_inputs(const std::vector<double>& t, const std::vector<double>& values) const {
+    const RunConfig& cfg = run_config(*this);
+    const std::vector<std::string> names = input_names();
+    HINF_CHECK(!names.empty(), "with_inputs: " + cfg.doc.source() + " [system] has no known inputs ([system] inputs)");
+    check_size(values.size(), t.size() * names.size(), "with_inputs: the values (one per time and input)");
+    ConfigDoc doc = cfg.doc;
+    set_known_inputs(doc, names, t, values, "with_inputs");
+    return config_of(load_run_config(std::move(doc), true, false));
+}
 std::vector<double> Config::initial_state() const { return run_config(*this).x0; }
 std::vector<double> Config::initial_estimate() const { return run_config(*this).xhat0; }
 std::string Config::text() const { return run_config(*this).doc.text(); }

@@ -57,12 +57,28 @@ void add_filter_command(CLI::App& app) {
         apply_threads(a->threads);
         check_filter_set_options(a->set);
         // the record's times, not [0, t_final], are what a table of known inputs must cover (recorded_check_sampling)
-        RunConfig cfg = load_config_with_overrides(a->config, a->sets, filters_need_level(a->set.filters), false);
-        const int n = cfg.n;
+        ConfigDoc doc = ConfigDoc::from_file(a->config);
+        for (const auto& s : a->sets) doc.set(s);
+        const bool need_level = filters_need_level(a->set.filters);
+        RunConfig cfg = load_run_config(doc, need_level, false);
         const ExprSystem* expr = expr_system_of(*cfg.system);
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
                                                               a->time_tolerance, a->resample,
                                                               expr ? expr->inputs() : std::vector<std::string>{}});
+        if (!ms.input_names.empty()) {  // a log with its inputs beside the outputs: those are the inputs of this run
+            for (const auto& s : a->sets)
+                HINF_CHECK(s.rfind("system.inputs=", 0) != 0,
+                           "--measurements " + a->measurements + " has its own known-input columns and --set " + s +
+                               " names another table: drop one of the two");
+            set_known_inputs(doc, ms.input_names, ms.input_t, ms.input_values, "measurements '" + a->measurements + "'");
+            cfg = load_run_config(std::move(doc), need_level, false);
+            std::string names;
+            for (const std::string& name : ms.input_names) names += (names.empty() ? "" : ", ") + name;
+            if (!a->quiet)
+                std::printf("known inputs %s: the record's own, on its times (in place of the config's table)\n",
+                            names.c_str());
+        }
+        const int n = cfg.n;
         if (ms.dt > 10 * cfg.dt || ms.dt < 0.1 * cfg.dt)  // e.g. a time column in milliseconds
             std::fprintf(stderr,
                          "warning: the record's time step %g s is far from the config's dt %g s (is the time column in "

@@ -371,6 +371,23 @@ namespace {
 // or a compare of its network needs no file. A relative path is looked up beside the config file, then in the working
 // directory.
 constexpr std::int64_t kMaxInputRows = 100000;
+
+// [system] inputs = { t = [...], name = [...] }: times [rows], values [rows x names] row-major, numbers as given
+void put_input_table(toml::table* sys, const std::vector<std::string>& names, const std::vector<double>& t,
+                     const std::vector<double>& values) {
+    const std::size_t q = names.size(), rows = t.size();
+    toml::table inline_table;
+    toml::array times;
+    for (double v : t) times.push_back(v);
+    inline_table.insert("t", std::move(times));
+    for (std::size_t i = 0; i < q; ++i) {
+        toml::array column;
+        for (std::size_t r = 0; r < rows; ++r) column.push_back(values[r * q + i]);
+        inline_table.insert(names[i], std::move(column));
+    }
+    sys->insert_or_assign("inputs", std::move(inline_table));
+}
+
 void embed_input_file(ConfigDoc& doc) {
     toml::table* sys = doc.root()["system"].as_table();
     if (!sys || !sys->get("inputs") || !sys->get("inputs")->is_string()) return;
@@ -405,7 +422,7 @@ void embed_input_file(ConfigDoc& doc) {
     }
     HINF_CHECK(table.rows.size() >= 2, file + ": " + std::to_string(table.rows.size()) +
                                            " row(s) of values; a table of inputs needs at least 2");
-    std::vector<toml::array> columns(q + 1);
+    std::vector<double> times, values;
     double before = -std::numeric_limits<double>::infinity();
     for (std::size_t r = 0; r < table.rows.size(); ++r) {
         const std::string line = file + " line " + std::to_string(table.line_of[r]);
@@ -416,20 +433,43 @@ void embed_input_file(ConfigDoc& doc) {
             HINF_CHECK(csv_number(table.rows[r][c], &v) && std::isfinite(v),
                        line + ", column " + std::to_string(c + 1) + ": '" + table.rows[r][c] +
                            "' is not a finite number (a table of known inputs has no gaps: fill them)");
-            columns[c].push_back(v);
+            (c == 0 ? times : values).push_back(v);
         }
-        const double t = *columns[0].back().value<double>();
-        HINF_CHECK(t > before, line + ": time " + table.rows[r][0] + " is not after the row before it (the times "
-                                                                          "must increase strictly)");
-        before = t;
+        HINF_CHECK(times.back() > before, line + ": time " + table.rows[r][0] + " is not after the row before it (the "
+                                                                               "times must increase strictly)");
+        before = times.back();
     }
-    toml::table inline_table;
-    inline_table.insert("t", std::move(columns[0]));
-    for (std::size_t i = 1; i <= q; ++i) inline_table.insert(table.header[i], std::move(columns[i]));
-    sys->insert_or_assign("inputs", std::move(inline_table));
+    put_input_table(sys, std::vector<std::string>(table.header.begin() + 1, table.header.end()), times, values);
 }
 
 }  // namespace
+
+void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, const std::vector<double>& t,
+                      const std::vector<double>& values, const std::string& source) {
+    toml::table* sys = doc.root()["system"].as_table();
+    const toml::node* kind = sys ? sys->get("kind") : nullptr;
+    HINF_CHECK(kind && kind->value<std::string>().value_or("") == "expr" && sys->get("inputs"),
+               source + ": known inputs are given, but " + doc.source() + " [system] has no inputs (a system of kind "
+               "\"expr\" names its known inputs with a table, [system] inputs)");
+    const std::size_t q = names.size(), rows = t.size();
+    HINF_CHECK(q >= 1 && values.size() == rows * q, source + ": the known inputs' values are not one per input and row");
+    HINF_CHECK(rows >= 2, source + ": " + std::to_string(rows) + " row(s) of known inputs; a table of inputs needs "
+                                                                 "at least 2");
+    HINF_CHECK(std::int64_t(rows) <= kMaxInputRows,
+               source + ": " + std::to_string(rows) + " rows of known inputs; a table of them holds at most " +
+                   std::to_string(kMaxInputRows) + " (it is stored in every result file): filter the record in parts");
+    for (std::size_t r = 0; r < rows; ++r) {
+        HINF_CHECK(std::isfinite(t[r]) && (r == 0 || t[r] > t[r - 1]),
+                   source + ": known inputs' time " + format_g(t[r]) + " (row " + std::to_string(r + 1) +
+                       ") is not finite or not after the row before it");
+        for (std::size_t i = 0; i < q; ++i)
+            HINF_CHECK(std::isfinite(values[r * q + i]),
+                       source + ": known input " + names[i] + " at t = " + format_g(t[r]) + " (row " +
+                           std::to_string(r + 1) + ") is not a finite number (a table of known inputs has no gaps: "
+                           "fill them)");
+    }
+    put_input_table(sys, names, t, values);
+}
 
 RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     {  // seed 002's delay systems have their own commands: say so before their sections read as unknown

@@ -157,6 +157,13 @@ ConfigDoc game_in_noise_units(const RunConfig& c);
 /// `hinf filter`, which runs over a record's times and checks those (recorded_check_sampling).
 RunConfig load_run_config(ConfigDoc doc, bool need_level = true, bool need_run_span = true);
 
+/// [system] inputs := the table of known inputs given here (names [q], times t [rows], values [rows x q] row-major), in
+/// the place of the config's own, as a file's is put there when the config is read: `hinf filter` on a record that has
+/// the inputs beside the outputs. For kind = "expr"; the names must be the config's inputs (any order); the times must
+/// increase strictly and every value be finite. Throws naming `source` (the record) and the fix.
+void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, const std::vector<double>& t,
+                      const std::vector<double>& values, const std::string& source);
+
 /// v as printf's %g, for messages ("0.9", "1e+12").
 std::string format_g(double v);
 /// [filter] variant when the config names none: "gain" for an H-infinity filter of at most kern::kGainMaxDim states,

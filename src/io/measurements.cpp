@@ -92,45 +92,75 @@ void resample_rows(Measurements& ms, const std::string& path, double tolerance, 
     ms.y = std::move(y);
 }
 
+// Every known input or none: a record that has some is refused, naming the others (`has` lists those it has).
+void check_all_inputs(const MeasurementSource& src, const std::vector<std::string>& has, const std::string& where) {
+    if (has.empty()) return;
+    std::string lacking;
+    for (const std::string& name : src.known_inputs)
+        if (std::find(has.begin(), has.end(), name) == has.end()) lacking += (lacking.empty() ? "" : ", ") + name;
+    HINF_CHECK(lacking.empty(), "measurements '" + src.path + "'" + where + ": has known input(s) of the system but not " +
+                                    lacking + ": give every known input its column, or none (then the config's table, "
+                                    "[system] inputs, is used)");
+}
+
 Measurements read_csv(const MeasurementSource& src) {
     const CsvTable table = read_csv_table(src.path, "measurements");
     Measurements ms;
     ms.m = src.outputs;
+    std::vector<int> input_of;  // per column: the index into ms.input_names, -1 for the time and the outputs
     if (table.header_line > 0) {
-        std::string inputs;  // header cells that name known inputs: a log with y and u side by side
-        int named = 0;
-        for (const std::string& cell : table.header)
-            if (std::find(src.known_inputs.begin(), src.known_inputs.end(), cell) != src.known_inputs.end())
-                inputs += (named++ ? ", " : "") + cell;
-        HINF_CHECK(int(table.header.size()) == 1 + ms.m,
+        input_of.assign(table.header.size(), -1);
+        for (std::size_t c = 1; c < table.header.size(); ++c) {
+            const std::string& cell = table.header[c];
+            if (std::find(src.known_inputs.begin(), src.known_inputs.end(), cell) == src.known_inputs.end()) {
+                ms.columns.push_back(cell);
+                continue;
+            }
+            HINF_CHECK(std::find(ms.input_names.begin(), ms.input_names.end(), cell) == ms.input_names.end(),
+                       "measurements '" + src.path + "' line " + std::to_string(table.header_line) +
+                           ": two columns are named '" + cell + "' (a known input): keep one");
+            input_of[c] = int(ms.input_names.size());
+            ms.input_names.push_back(cell);
+        }
+        check_all_inputs(src, ms.input_names, " line " + std::to_string(table.header_line));
+        const std::string inputs = ms.input_names.empty() ? "" : " + " + std::to_string(ms.input_names.size()) +
+                                                                     " known input(s)";
+        HINF_CHECK(int(ms.columns.size()) == ms.m,
                    "measurements '" + src.path + "' line " + std::to_string(table.header_line) + ": the header has " +
-                       std::to_string(table.header.size()) + " columns, expected " + std::to_string(1 + ms.m) +
-                       " (time + " + std::to_string(ms.m) + " output(s) of the config's system)" +
-                       (inputs.empty() ? std::string()
-                                       : "; " + inputs + (named > 1 ? " are known inputs" : " is a known input") +
-                                             ": give the inputs as their own table (time, then the inputs) with --set "
-                                             "system.inputs=FILE, and the record without them"));
-        ms.columns.assign(table.header.begin() + 1, table.header.end());
+                       std::to_string(table.header.size()) + " columns, expected " +
+                       std::to_string(1 + ms.m + ms.input_names.size()) + " (time + " + std::to_string(ms.m) +
+                       " output(s) of the config's system" + inputs + ")");
     }
+    const std::size_t q = ms.input_names.size(), width = 1 + ms.m + q;
     for (std::size_t r = 0; r < table.rows.size(); ++r) {
         const std::vector<std::string>& cells = table.rows[r];
         const std::string lineno = std::to_string(table.line_of[r]);
-        HINF_CHECK(int(cells.size()) == 1 + ms.m,
-                   "measurements '" + src.path + "' line " + lineno + ": " + std::to_string(cells.size()) +
-                       " columns, expected " + std::to_string(1 + ms.m) + " (time + " + std::to_string(ms.m) +
-                       " output(s) of the config's system)");
+        HINF_CHECK(cells.size() == width, "measurements '" + src.path + "' line " + lineno + ": " +
+                                              std::to_string(cells.size()) + " columns, expected " +
+                                              std::to_string(width) + " (time + " + std::to_string(ms.m) +
+                                              " output(s) of the config's system" +
+                                              (q ? " + " + std::to_string(q) + " known input(s)" : "") + ")");
+        const std::size_t at = ms.input_values.size();
+        ms.input_values.resize(at + q);
         for (std::size_t c = 0; c < cells.size(); ++c) {
+            const int input = input_of.empty() ? -1 : input_of[c];
             double v = NAN;  // an empty output cell: a missing measurement
-            if (c > 0 && cells[c].empty()) {
+            if (c > 0 && input < 0 && cells[c].empty()) {
                 ms.y.push_back(v);
                 continue;
             }
             HINF_CHECK(csv_number(cells[c], &v), "measurements '" + src.path + "' line " + lineno + ", column " +
-                                                     std::to_string(c + 1) + ": '" + cells[c] + "' is not a number");
-            (c == 0 ? ms.t : ms.y).push_back(v);
+                                                     std::to_string(c + 1) + ": '" + cells[c] + "' is not a number" +
+                                                     (input >= 0 ? " (known input " + ms.input_names[input] +
+                                                                       " has no gaps: fill them)"
+                                                                 : ""));
+            if (c == 0) ms.t.push_back(v);
+            else if (input >= 0) ms.input_values[at + input] = v;
+            else ms.y.push_back(v);
         }
     }
     ms.rows = std::int64_t(ms.t.size());
+    if (q > 0) ms.input_t = ms.t;  // the inputs stay on the record's own clock (a resampled record moves its outputs)
     check_rows(ms, src.path, src.time_tolerance, src.resample,
                [&](std::int64_t k) { return "line " + std::to_string(table.line_of[k]); });
     return ms;
@@ -156,6 +186,23 @@ Measurements read_hdf5_here(const MeasurementSource& src) {
                              "], expected [" + std::to_string(td[0]) + " x " + std::to_string(ms.m) +
                              "] (one row per time in '" + src.time_dataset + "', one column per output)");
     ms.rows = std::int64_t(td[0]);
+    std::vector<std::vector<double>> columns;  // the known inputs' datasets, [K] each
+    for (const std::string& name : src.known_inputs) {
+        if (name == src.time_dataset || name == src.values_dataset || !h5::exists(f.get(), name)) continue;
+        std::vector<hsize_t> ud;
+        columns.push_back(h5::read_doubles(f.get(), name, &ud));
+        HINF_CHECK(ud.size() == 1 && ud[0] == td[0], "measurements '" + src.path + "': dataset '" + name +
+                                                         "' (a known input) is not [" + std::to_string(td[0]) +
+                                                         "], one value per time in '" + src.time_dataset + "'");
+        ms.input_names.push_back(name);
+    }
+    check_all_inputs(src, ms.input_names, "");
+    if (!columns.empty()) {
+        ms.input_t = ms.t;
+        ms.input_values.resize(std::size_t(ms.rows) * columns.size());
+        for (std::int64_t k = 0; k < ms.rows; ++k)
+            for (std::size_t i = 0; i < columns.size(); ++i) ms.input_values[k * columns.size() + i] = columns[i][k];
+    }
     check_rows(ms, src.path, src.time_tolerance, src.resample, [](std::int64_t k) { return "row " + std::to_string(k) + " (0-based)"; });
     return ms;
 }

@@ -15,7 +15,7 @@ struct MeasurementSource {
     std::string values_dataset = "y";  // HDF5 only: [K x m] (or [K] when m = 1)
     double time_tolerance = 0.05;      // |t[k] - t[k-1] - dt| <= time_tolerance * dt (relative to the step)
     std::string resample;              // "" (the record must be uniform), "linear" or "zoh": onto t_0 + k dt
-    std::vector<std::string> known_inputs;  // the system's known inputs ([system] inputs): named in a CSV header, hinted at
+    std::vector<std::string> known_inputs;  // the system's known inputs ([system] inputs): read where the record has them
 };
 
 struct Measurements {
@@ -26,7 +26,11 @@ struct Measurements {
     int m = 0;
     std::int64_t rows = 0;
     double dt = 0;                      // the sampling interval (t[K-1] - t[0]) / (K - 1)
-    std::vector<std::string> columns;   // CSV header names after the time column (empty if none)
+    std::vector<std::string> columns;   // CSV header names of the outputs (empty if none)
+    // the known inputs the record carries beside its outputs (CSV columns or HDF5 datasets named as src.known_inputs),
+    // on the record's own times (before any resampling): names [q] in the record's order, input_t [R], values [R x q]
+    std::vector<std::string> input_names;
+    std::vector<double> input_t, input_values;
 };
 
 /// Default relative tolerance on the spacing: |t[k] - t[k-1] - dt| <= tolerance * dt for every row, dt the mean
@@ -41,6 +45,9 @@ constexpr double kUniformTolerance = 0.05;
 /// mean step) by linear interpolation or zero-order hold (the last sample at or before each grid time).
 /// An empty or NaN output cell marks the row's measurement as missing (a dropout: the filters predict only
 /// at that time); a grid time interpolated from or held at a missing row is missing too.
+/// Known inputs: a CSV header cell or an HDF5 dataset ([K]) named as one of src.known_inputs is read as that input's
+/// values (input_names, input_t, input_values), the other columns as the outputs; a record with some of the inputs
+/// but not all is refused, and an input has no missing cells.
 Measurements read_measurements(const MeasurementSource& src);
 
 /// The same checks on arrays in memory (the library and the Python module): t [rows], y [rows x outputs];

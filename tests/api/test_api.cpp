@@ -229,6 +229,32 @@ TEST_CASE("library: a config's known inputs, by name and value, as f reads them"
     CHECK(motor.advance({0.0, 0.0, 0.0}, {}, 1.5, 0.01)[2] == Approx(0.01 * -6.3 / 0.5).epsilon(1e-15));
     CHECK(hinf::Config::from_text(kTinyMissile, "tiny.toml").input_names().empty());
     CHECK(hinf::Config::from_text(kTinyMissile, "tiny.toml").inputs_at(0.0).empty());
+    // another run's inputs (a record's, on its own times) in place of the table: u(t) and the filters follow them
+    const std::vector<double> t = {0.5, 1.0, 1.5, 2.0}, v = {3.0, 4.0, 5.0, 6.0};
+    const hinf::Config rec = motor.with_inputs(t, v);
+    CHECK(rec.inputs_at(1.2) == std::vector<double>{4.0});
+    CHECK(rec.inputs_at(0.0) == std::vector<double>{3.0});  // before the first row: the first row holds
+    CHECK(rec.input_names() == motor.input_names());
+    CHECK(motor.inputs_at(1.5) == std::vector<double>{-6.3});  // the config it came from is unchanged
+    std::vector<double> tk, y;
+    for (int k = 0; k < 100; ++k) {
+        tk.push_back(0.5 + 0.01 * k);
+        y.push_back(0.1 * k * 0.01);
+    }
+    hinf::FilterOptions o;
+    const hinf::FilterTrace a = hinf::Filter::create(motor, "ekf", o).run(tk, y);
+    const hinf::FilterTrace b = hinf::Filter::create(rec, "ekf", o).run(tk, y);
+    REQUIRE(a.xhat.size() == b.xhat.size());
+    CHECK(a.xhat != b.xhat);
+    for (int k = 100; k < 201; ++k) {  // a record beyond the table (to 2.5 s) is refused by run
+        tk.push_back(0.5 + 0.01 * k);
+        y.push_back(0.0);
+    }
+    CHECK_THROWS_WITH(hinf::Filter::create(rec, "ekf", o).run(tk, y), Catch::Contains("beyond its table of known inputs"));
+    CHECK_THROWS_WITH(motor.with_inputs({0.0, 1.0}, {1.0}), Catch::Contains("with_inputs: the values"));
+    CHECK_THROWS_WITH(motor.with_inputs({1.0, 0.5}, {1.0, 2.0}), Catch::Contains("not after the row before it"));
+    CHECK_THROWS_WITH(hinf::Config::from_text(kTinyMissile, "tiny.toml").with_inputs({0.0, 1.0}, {1.0, 2.0}),
+                      Catch::Contains("has no known inputs"));
 }
 
 TEST_CASE("library: a Filter is told the P0 hinf filter tells it (options, then [baseline] initial_std, then the error)",

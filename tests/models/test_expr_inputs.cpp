@@ -210,11 +210,83 @@ TEST_CASE("a held table of sin(t_k) runs truth, EKF and UKF to the bits of the e
     CHECK(f.status == 0);
     hinf::test::expect_one_line_error("compare " + table + " --set system.inputs=short.csv --filters ekf --out " + (d / "h"),
                                       "covers [0, 1] s, the run needs [0, 2] s");
-    // a log with the output and the input side by side: the input's column is named, and where it belongs
-    const std::string log = write_file(d, "log.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,0.5\n");
-    hinf::test::expect_one_line_error("filter " + table + " --measurements " + log + " --filters ekf --out " + (d / "l"),
-                                      "expected 2 (time + 1 output(s) of the config's system); u is a known input: "
-                                      "give the inputs as their own table");
+}
+
+TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF5 datasets, the same bits as a table",
+          "[cli][expr][inputs]") {
+    TempDir d("inputs-record");
+    write_file(d, "u.csv", sine_table(201));
+    const std::string cfg = write_file(d, "c.toml", driven_config("u", "inputs = \"u.csv\"\n"));
+    // a record of 150 rows made under u = cos(t), not the config's sin(t): as a table beside it, as a column of a
+    // log (before the output: any order), and as a dataset of an HDF5 record
+    const int K = 150;
+    std::vector<double> t(K), y(K), u(K);
+    std::ostringstream table, log;
+    table.precision(17);
+    log.precision(17);
+    table << "t,u\n";
+    log << "time,u,y\n";
+    for (int k = 0; k < K; ++k) {
+        t[k] = double(k + 1) * 0.01;
+        u[k] = std::cos(t[k]);
+        y[k] = 0.5 + 0.3 * std::sin(3 * t[k]);
+        table << t[k] << "," << u[k] << "\n";
+        log << t[k] << "," << u[k] << "," << y[k] << "\n";
+    }
+    std::ostringstream rec;
+    rec.precision(17);
+    for (int k = 0; k < K; ++k) rec << t[k] << "," << y[k] << "\n";
+    write_file(d, "cos.csv", table.str());
+    const std::string plain = write_file(d, "rec.csv", rec.str()), with_u = write_file(d, "log.csv", log.str());
+    {
+        h5::Handle h = h5::create_file(d / "log.h5");
+        h5::write_doubles(h.get(), "t", t.data(), {hsize_t(K)});
+        h5::write_doubles(h.get(), "y", y.data(), {hsize_t(K)});
+        h5::write_doubles(h.get(), "u", u.data(), {hsize_t(K)});
+    }
+    std::vector<std::vector<double>> xhat;
+    for (const std::string args : {"--set system.inputs=cos.csv --measurements " + plain, "--measurements " + with_u,
+                                   "--measurements " + (d / "log.h5"), "--measurements " + plain}) {
+        const std::string out = d / ("f" + std::to_string(xhat.size()));
+        auto f = hinf::test::run_hinf("filter " + cfg + " " + args + " --filters ekf,ukf --out " + out);
+        INFO(args << "\n" << f.output);
+        REQUIRE(f.status == 0);
+        CHECK((f.output.find("known inputs u: the record's own") != std::string::npos) == (xhat.size() == 1 || xhat.size() == 2));
+        h5::Handle h = h5::open_file(out + "/estimates.h5", false);
+        std::vector<double> x = h5::read_doubles(h.get(), "ekf/xhat"), v = h5::read_doubles(h.get(), "ukf/xhat");
+        x.insert(x.end(), v.begin(), v.end());
+        xhat.push_back(x);
+    }
+    CHECK(xhat[1] == xhat[0]);
+    CHECK(xhat[2] == xhat[0]);
+    REQUIRE(xhat[3].size() == xhat[0].size());
+    CHECK(xhat[3] != xhat[0]);  // the config's own table, sin(t): other estimates
+    // the result file carries the inputs it was made with: filtering with its config needs no log
+    {
+        h5::Handle h = h5::open_file(d / "f1/estimates.h5", false);
+        const RunConfig c = load_run_config(ConfigDoc::from_text(h5::read_string(h.get(), "config"), "estimates.h5:/config"),
+                                            false, false);
+        const ExprSystem* sys = expr_system_of(*c.system);
+        REQUIRE(sys);
+        for (int k = 0; k < K; ++k) REQUIRE(u_at(*sys, t[k]) == u[k]);
+    }
+    // refused in one line: two sources of inputs, a gap in an input, a record with some of the inputs but not all
+    hinf::test::expect_one_line_error("filter " + cfg + " --set system.inputs=cos.csv --measurements " + with_u +
+                                          " --filters ekf --out " + (d / "e1"),
+                                      "has its own known-input columns and --set system.inputs=cos.csv names another "
+                                      "table: drop one of the two");
+    const std::string gap = write_file(d, "gap.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,\n0.03,0.1,0.5\n");
+    hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + gap + " --filters ekf --out " + (d / "e2"),
+                                      "line 3, column 3: '' is not a number (known input u has no gaps: fill them)");
+    write_file(d, "uw.csv", "t,u,w\n0,1,2\n2,1,2\n");
+    const std::string two = write_file(d, "two.toml", driven_config("u + w", "inputs = \"uw.csv\"\n"));
+    const std::string half = write_file(d, "half.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,0.5\n");
+    hinf::test::expect_one_line_error("filter " + two + " --measurements " + half + " --filters ekf --out " + (d / "e3"),
+                                      "line 1: has known input(s) of the system but not w: give every known input its "
+                                      "column, or none");
+    hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + half + " --set system.inputs=uw.csv "
+                                          "--filters ekf --out " + (d / "e4"),
+                                      "but not w");
 }
 
 TEST_CASE("the recorded-voltage motor example loads its table from beside it", "[model][expr][inputs]") {
