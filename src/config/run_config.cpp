@@ -455,9 +455,6 @@ void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, con
     HINF_CHECK(q >= 1 && values.size() == rows * q, source + ": the known inputs' values are not one per input and row");
     HINF_CHECK(rows >= 2, source + ": " + std::to_string(rows) + " row(s) of known inputs; a table of inputs needs "
                                                                  "at least 2");
-    HINF_CHECK(std::int64_t(rows) <= kMaxInputRows,
-               source + ": " + std::to_string(rows) + " rows of known inputs; a table of them holds at most " +
-                   std::to_string(kMaxInputRows) + " (it is stored in every result file): filter the record in parts");
     for (std::size_t r = 0; r < rows; ++r) {
         HINF_CHECK(std::isfinite(t[r]) && (r == 0 || t[r] > t[r - 1]),
                    source + ": known inputs' time " + format_g(t[r]) + " (row " + std::to_string(r + 1) +

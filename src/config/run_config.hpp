@@ -160,7 +160,9 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level = true, bool need_run_s
 /// [system] inputs := the table of known inputs given here (names [q], times t [rows], values [rows x q] row-major), in
 /// the place of the config's own, as a file's is put there when the config is read: `hinf filter` on a record that has
 /// the inputs beside the outputs. For kind = "expr"; the names must be the config's inputs (any order); the times must
-/// increase strictly and every value be finite. Throws naming `source` (the record) and the fix.
+/// increase strictly and every value be finite; any number of rows (a table file holds at most 100000: it is copied into
+/// every checkpoint a training writes, where a record's inputs go into its one result file, whose size the record's
+/// length sets anyway). Throws naming `source` (the record) and the fix.
 void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, const std::vector<double>& t,
                       const std::vector<double>& values, const std::string& source);
 

@@ -245,7 +245,7 @@ TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF
         h5::write_doubles(h.get(), "u", u.data(), {hsize_t(K)});
     }
     std::vector<std::vector<double>> xhat;
-    for (const std::string args : {"--set system.inputs=cos.csv --measurements " + plain, "--measurements " + with_u,
+    for (const std::string& args : {"--set system.inputs=cos.csv --measurements " + plain, "--measurements " + with_u,
                                    "--measurements " + (d / "log.h5"), "--measurements " + plain}) {
         const std::string out = d / ("f" + std::to_string(xhat.size()));
         auto f = hinf::test::run_hinf("filter " + cfg + " " + args + " --filters ekf,ukf --out " + out);
