@@ -135,11 +135,17 @@ Measurements read_csv(const MeasurementSource& src) {
     for (std::size_t r = 0; r < table.rows.size(); ++r) {
         const std::vector<std::string>& cells = table.rows[r];
         const std::string lineno = std::to_string(table.line_of[r]);
+        // a record without a header that has a column per known input too: its columns have no names to tell them
+        const bool unnamed = table.header_line == 0 && !src.known_inputs.empty() &&
+                             cells.size() == width + src.known_inputs.size();
         HINF_CHECK(cells.size() == width, "measurements '" + src.path + "' line " + lineno + ": " +
                                               std::to_string(cells.size()) + " columns, expected " +
                                               std::to_string(width) + " (time + " + std::to_string(ms.m) +
                                               " output(s) of the config's system" +
-                                              (q ? " + " + std::to_string(q) + " known input(s)" : "") + ")");
+                                              (q ? " + " + std::to_string(q) + " known input(s)" : "") + ")" +
+                                              (unnamed ? "; to carry the known inputs the record needs a header "
+                                                         "naming its columns (e.g. t,y,V)"
+                                                       : ""));
         const std::size_t at = ms.input_values.size();
         ms.input_values.resize(at + q);
         for (std::size_t c = 0; c < cells.size(); ++c) {

@@ -278,6 +278,9 @@ TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF
     const std::string gap = write_file(d, "gap.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,\n0.03,0.1,0.5\n");
     hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + gap + " --filters ekf --out " + (d / "e2"),
                                       "line 3, column 3: '' is not a number (known input u has no gaps: fill them)");
+    const std::string bare = write_file(d, "bare.csv", "0.01,0.1,0.5\n0.02,0.1,0.5\n");
+    hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + bare + " --filters ekf --out " + (d / "e5"),
+                                      "to carry the known inputs the record needs a header naming its columns");
     write_file(d, "uw.csv", "t,u,w\n0,1,2\n2,1,2\n");
     const std::string two = write_file(d, "two.toml", driven_config("u + w", "inputs = \"uw.csv\"\n"));
     const std::string half = write_file(d, "half.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,0.5\n");
