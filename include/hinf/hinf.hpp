@@ -70,7 +70,8 @@ public:
     std::vector<double> inputs_at(double t) const;
     /// This config with the known inputs of another run in the place of its table (a record's, as `hinf filter` takes a
     /// log's input columns): t [R] strictly increasing, values [R x inputs] in input_names()'s order, R >= 2, finite.
-    /// The table need not cover [0, t_final]: Filter::run checks that it covers the record it runs over.
+    /// The table need not cover [0, t_final]: Filter::run checks that it covers the record it runs over, and train
+    /// refuses it unless it covers [0, t_final].
     Config with_inputs(const std::vector<double>& t, const std::vector<double>& values) const;
     std::vector<double> initial_state() const;     ///< [filter] x0 [n]
     std::vector<double> initial_estimate() const;  ///< [filter] xhat0 [n]

@@ -446,6 +446,7 @@ AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::s
 
 TrainReport train(const Config& cfg, const TrainSettings& settings) {
     RunConfig c = run_config(cfg);
+    check_inputs_cover_run(c.doc, *c.system, c.dt, c.t_final);  // a config of with_inputs need not cover its run
     HINF_CHECK(!settings.out_dir.empty(), "train: out_dir is required (the directory for trajectory.h5 and checkpoint.h5)");
     HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
                settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +

@@ -468,6 +468,15 @@ void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, con
     put_input_table(sys, names, t, values);
 }
 
+void check_inputs_cover_run(const ConfigDoc& doc, const System& sys, double dt, double t_final) {
+    const std::pair<double, double> span = sys.time_span();
+    const double slack = 1e-9 * dt;
+    if (span.first > slack || span.second < t_final - slack)
+        HINF_FAIL(ConfigSection(doc, "system").where("inputs") + ": the table of known inputs covers [" +
+                  format_g(span.first) + ", " + format_g(span.second) + "] s, the run needs [0, " + format_g(t_final) +
+                  "] s (extend the table, or lower [filter] t_final)");
+}
+
 RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     {  // seed 002's delay systems have their own commands: say so before their sections read as unknown
         ConfigSection sys(doc, "system");
@@ -556,14 +565,7 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     if (std::llround(c.t_final / c.dt) < 1)
         f.reject("t_final", "= " + format_g(c.t_final) + " s is less than one time step dt = " +
                                 format_g(c.dt) + " s: nothing would run (raise t_final or lower dt)");
-    if (need_run_span) {  // a table of known inputs ([system] inputs) must cover the run, [0, t_final]
-        const std::pair<double, double> span = c.system->time_span();
-        const double slack = 1e-9 * c.dt;
-        if (span.first > slack || span.second < c.t_final - slack)
-            HINF_FAIL(ConfigSection(doc, "system").where("inputs") + ": the table of known inputs covers [" +
-                      format_g(span.first) + ", " + format_g(span.second) + "] s, the run needs [0, " +
-                      format_g(c.t_final) + "] s (extend the table, or lower [filter] t_final)");
-    }
+    if (need_run_span) check_inputs_cover_run(doc, *c.system, c.dt, c.t_final);
     f.finish();
     // a system of one's own that names no level: 1.25 times the linearised game's smallest (docs/method.md section
     // 16.12), never the missile's 0.03; written into the effective config, so checkpoints carry the value they trained

@@ -166,6 +166,10 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level = true, bool need_run_s
 void set_known_inputs(ConfigDoc& doc, const std::vector<std::string>& names, const std::vector<double>& t,
                       const std::vector<double>& values, const std::string& source);
 
+/// A table of known inputs ([system] inputs) must cover the run, [0, t_final], where the run is simulated (training,
+/// compare, operate): throws naming the table's span and the fix otherwise; a system without a table spans all time.
+void check_inputs_cover_run(const ConfigDoc& doc, const System& sys, double dt, double t_final);
+
 /// v as printf's %g, for messages ("0.9", "1e+12").
 std::string format_g(double v);
 /// [filter] variant when the config names none: "gain" for an H-infinity filter of at most kern::kGainMaxDim states,

@@ -251,6 +251,9 @@ TEST_CASE("library: a config's known inputs, by name and value, as f reads them"
         y.push_back(0.0);
     }
     CHECK_THROWS_WITH(hinf::Filter::create(rec, "ekf", o).run(tk, y), Catch::Contains("beyond its table of known inputs"));
+    hinf::TrainSettings settings;
+    settings.out_dir = "/nonexistent/never-written";
+    CHECK_THROWS_WITH(hinf::train(rec, settings), Catch::Contains("covers [0.5, 2] s, the run needs [0, 20] s"));
     CHECK_THROWS_WITH(motor.with_inputs({0.0, 1.0}, {1.0}), Catch::Contains("with_inputs: the values"));
     CHECK_THROWS_WITH(motor.with_inputs({1.0, 0.5}, {1.0, 2.0}), Catch::Contains("not after the row before it"));
     CHECK_THROWS_WITH(hinf::Config::from_text(kTinyMissile, "tiny.toml").with_inputs({0.0, 1.0}, {1.0, 2.0}),
