@@ -32,8 +32,8 @@ void add_filter_command(CLI::App& app) {
     c->add_option("config", a->config, "Config (TOML) of the system the measurements come from")->required();
     c->add_option("--measurements", a->measurements,
                   "Recorded measurements: CSV (time column + one column per output, optional header) or HDF5 "
-                  "(datasets t [K] and y [K x m]); a column or dataset named as a known input ([system] inputs) is "
-                  "that input, in place of the config's table; docs/formats.md")
+                  "(datasets t [K] and y [K x m]); a CSV column or HDF5 dataset inputs/NAME named as a known input "
+                  "([system] inputs) is that input, in place of the config's table; docs/formats.md")
         ->required();
     add_filter_set_options(c, a->set, "dnn with --network, else ekf", false);
     c->add_option("--dataset", a->dataset, "HDF5: dataset of the measurements [K x m] (default y)");

@@ -192,12 +192,15 @@ Measurements read_hdf5_here(const MeasurementSource& src) {
                              "], expected [" + std::to_string(td[0]) + " x " + std::to_string(ms.m) +
                              "] (one row per time in '" + src.time_dataset + "', one column per output)");
     ms.rows = std::int64_t(td[0]);
-    std::vector<std::vector<double>> columns;  // the known inputs' datasets, [K] each
+    // the known inputs' datasets, [K] each, in the group `inputs` (never a top-level name: hinf's own result files,
+    // operate.h5 a record among them, hold datasets v, n, x, ... that an input may be named as)
+    std::vector<std::vector<double>> columns;
     for (const std::string& name : src.known_inputs) {
-        if (name == src.time_dataset || name == src.values_dataset || !h5::exists(f.get(), name)) continue;
+        const std::string path = "inputs/" + name;
+        if (!h5::exists(f.get(), path)) continue;
         std::vector<hsize_t> ud;
-        columns.push_back(h5::read_doubles(f.get(), name, &ud));
-        HINF_CHECK(ud.size() == 1 && ud[0] == td[0], "measurements '" + src.path + "': dataset '" + name +
+        columns.push_back(h5::read_doubles(f.get(), path, &ud));
+        HINF_CHECK(ud.size() == 1 && ud[0] == td[0], "measurements '" + src.path + "': dataset '" + path +
                                                          "' (a known input) is not [" + std::to_string(td[0]) +
                                                          "], one value per time in '" + src.time_dataset + "'");
         ms.input_names.push_back(name);

@@ -27,7 +27,7 @@ struct Measurements {
     std::int64_t rows = 0;
     double dt = 0;                      // the sampling interval (t[K-1] - t[0]) / (K - 1)
     std::vector<std::string> columns;   // CSV header names of the outputs (empty if none)
-    // the known inputs the record carries beside its outputs (CSV columns or HDF5 datasets named as src.known_inputs),
+    // the known inputs the record carries beside its outputs (CSV columns, HDF5 datasets inputs/NAME; src.known_inputs),
     // on the record's own times (before any resampling): names [q] in the record's order, input_t [R], values [R x q]
     std::vector<std::string> input_names;
     std::vector<double> input_t, input_values;
@@ -45,7 +45,7 @@ constexpr double kUniformTolerance = 0.05;
 /// mean step) by linear interpolation or zero-order hold (the last sample at or before each grid time).
 /// An empty or NaN output cell marks the row's measurement as missing (a dropout: the filters predict only
 /// at that time); a grid time interpolated from or held at a missing row is missing too.
-/// Known inputs: a CSV header cell or an HDF5 dataset ([K]) named as one of src.known_inputs is read as that input's
+/// Known inputs: a CSV header cell or an HDF5 dataset inputs/NAME ([K]) named as one of src.known_inputs is that input's
 /// values (input_names, input_t, input_values), the other columns as the outputs; a record with some of the inputs
 /// but not all is refused, and an input has no missing cells.
 Measurements read_measurements(const MeasurementSource& src);

@@ -242,7 +242,9 @@ TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF
         h5::Handle h = h5::create_file(d / "log.h5");
         h5::write_doubles(h.get(), "t", t.data(), {hsize_t(K)});
         h5::write_doubles(h.get(), "y", y.data(), {hsize_t(K)});
-        h5::write_doubles(h.get(), "u", u.data(), {hsize_t(K)});
+        h5::write_doubles(h.get(), "u", y.data(), {hsize_t(K)});  // a top-level dataset named u is not the input
+        h5::Handle g = h5::create_group(h.get(), "inputs");
+        h5::write_doubles(g.get(), "u", u.data(), {hsize_t(K)});
     }
     std::vector<std::vector<double>> xhat;
     for (const std::string& args : {"--set system.inputs=cos.csv --measurements " + plain, "--measurements " + with_u,
