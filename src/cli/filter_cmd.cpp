@@ -66,18 +66,23 @@ void add_filter_command(CLI::App& app) {
         Measurements ms = read_measurements(MeasurementSource{a->measurements, cfg.m, a->time_dataset, a->dataset,
                                                               a->time_tolerance, a->resample,
                                                               expr ? expr->inputs() : std::vector<std::string>{}});
-        if (!ms.input_names.empty()) {  // a log with its inputs beside the outputs: those are the inputs of this run
-            for (const auto& s : a->sets)
-                HINF_CHECK(s.rfind("system.inputs=", 0) != 0,
-                           "--measurements " + a->measurements + " has its own known-input columns and --set " + s +
-                               " names another table: drop one of the two");
-            set_known_inputs(doc, ms.input_names, ms.input_t, ms.input_values, "measurements '" + a->measurements + "'");
-            cfg = load_run_config(std::move(doc), need_level, false);
+        // a record with its inputs beside the outputs: those are the inputs of this run, unless the command line names
+        // a table (the what-if of other inputs on the same record)
+        std::string named_table;
+        for (const auto& s : a->sets)
+            if (s.rfind("system.inputs=", 0) == 0) named_table = s;
+        if (!ms.input_names.empty()) {
             std::string names;
             for (const std::string& name : ms.input_names) names += (names.empty() ? "" : ", ") + name;
+            if (named_table.empty()) {
+                set_known_inputs(doc, ms.input_names, ms.input_t, ms.input_values,
+                                 "measurements '" + a->measurements + "'");
+                cfg = load_run_config(std::move(doc), need_level, false);
+            }
             if (!a->quiet)
-                std::printf("known inputs %s: the record's own, on its times (in place of the config's table)\n",
-                            names.c_str());
+                std::printf("known inputs %s: %s\n", names.c_str(),
+                            named_table.empty() ? "the record's own, on its times (in place of the config's table)"
+                                                : ("--set " + named_table + ", not the record's own").c_str());
         }
         const int n = cfg.n;
         if (ms.dt > 10 * cfg.dt || ms.dt < 0.1 * cfg.dt)  // e.g. a time column in milliseconds

@@ -13,6 +13,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/measurements.hpp"
 #include "io/run_lock.hpp"
 #include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
@@ -375,6 +376,7 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     std::vector<double> y_user = truth0.y;
     outputs_to_user(cfg, y_user.data(), steps);
     h5::write_doubles(root, "y", y_user.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units", "measurements, run 0");
+    write_record_inputs(root, *cfg.system, tt.data(), steps);
     file.commit();
 
     // CSV beside it: one row per filter

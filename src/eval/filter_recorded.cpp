@@ -130,6 +130,7 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         h5::set_attr(root, "state_units", units);
         h5::write_doubles(root, "t", ms.t.data(), {hsize_t(K)}, "s", "time of each measurement (from the record)");
         h5::write_doubles(root, "y", ms.y.data(), {hsize_t(K), hsize_t(m)}, "output units", "the recorded measurements");
+        write_record_inputs(root, *cfg.system, ms.t.data(), K);
         h5::write_string(root, "config", cfg.doc.text(), "the effective TOML config");
         for (std::size_t i = 0; i < results.size(); ++i) {
             const RecordedResult& r = results[i];

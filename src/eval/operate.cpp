@@ -12,6 +12,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/atomic.hpp"
+#include "io/measurements.hpp"
 #include "io/run_lock.hpp"
 #include "par/par.hpp"
 #include "eval/engine.hpp"
@@ -433,6 +434,7 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     outputs_to_user(cfg, y_user.data(), steps);
     h5::write_doubles(root, "y", y_user.data(), {hsize_t(steps), hsize_t(cfg.m)}, "output units",
                       "measurements y(t_k) = C(x(t_k)) + n_k fed to the filter, run 0 (input for `hinf filter`)");
+    write_record_inputs(root, *cfg.system, er.t.data(), steps);
     h5::write_doubles(root, "xhat_open_loop", O[0].xhat.data(), {hsize_t(steps), hsize_t(n)}, "state units",
                       "open-loop predictor, run 0");
     f.commit();

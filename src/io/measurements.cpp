@@ -9,6 +9,7 @@
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
 #include "io/isolate.hpp"
+#include "models/expr_system.hpp"
 
 namespace hinf {
 
@@ -234,6 +235,23 @@ Measurements read_measurements(const MeasurementSource& src) {
     }
     HINF_FAIL("measurements '" + p + "': unknown file type (use .csv or .txt with a time column, or .h5/.hdf5 "
               "with datasets t and y)");
+}
+
+void write_record_inputs(hid_t loc, const System& sys, const double* t, std::int64_t K) {
+    const ExprSystem* expr = expr_system_of(sys);
+    if (expr == nullptr || expr->inputs().empty() || K <= 0) return;
+    const std::vector<std::string>& names = expr->inputs();
+    const std::size_t q = names.size();
+    std::vector<double> u(q), column(std::size_t(K) * q);
+    for (std::int64_t k = 0; k < K; ++k) {
+        expr->inputs_at(t[k], u.data());
+        for (std::size_t i = 0; i < q; ++i) column[i * std::size_t(K) + std::size_t(k)] = u[i];
+    }
+    h5::Handle g = h5::create_group(loc, "inputs");
+    for (std::size_t i = 0; i < q; ++i)
+        h5::write_doubles(g.get(), names[i], column.data() + i * std::size_t(K), {hsize_t(K)}, "input units",
+                          "the known input " + names[i] + " at each time t, as the run's f, g, h read it (hinf filter "
+                          "on this record reads it in place of its config's table)");
 }
 
 Measurements measurements_from_arrays(const double* t, const double* y, std::int64_t rows, int outputs,

@@ -6,7 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "hinf/h5.hpp"
+
 namespace hinf {
+
+class System;
 
 struct MeasurementSource {
     std::string path;
@@ -49,6 +53,11 @@ constexpr double kUniformTolerance = 0.05;
 /// values (input_names, input_t, input_values), the other columns as the outputs; a record with some of the inputs
 /// but not all is refused, and an input has no missing cells.
 Measurements read_measurements(const MeasurementSource& src);
+
+/// Writes the known inputs of the run a record comes from where read_measurements reads them: the group `inputs`, one
+/// dataset [K] per input of sys ([system] inputs), u(t_k) as f reads it at each record time t [K] (so `hinf filter` on
+/// the record sees the inputs the run saw, whatever table its config names). Nothing where sys has no known inputs.
+void write_record_inputs(hid_t loc, const System& sys, const double* t, std::int64_t K);
 
 /// The same checks on arrays in memory (the library and the Python module): t [rows], y [rows x outputs];
 /// `name` stands for the file in the messages.

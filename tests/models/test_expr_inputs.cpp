@@ -272,11 +272,50 @@ TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF
         REQUIRE(sys);
         for (int k = 0; k < K; ++k) REQUIRE(u_at(*sys, t[k]) == u[k]);
     }
-    // refused in one line: two sources of inputs, a gap in an input, a record with some of the inputs but not all
-    hinf::test::expect_one_line_error("filter " + cfg + " --set system.inputs=cos.csv --measurements " + with_u +
-                                          " --filters ekf --out " + (d / "e1"),
-                                      "has its own known-input columns and --set system.inputs=cos.csv names another "
-                                      "table: drop one of the two");
+    // a table named on the command line wins over the record's own (what other inputs would have given), said
+    {
+        auto f = hinf::test::run_hinf("filter " + cfg + " --set system.inputs=u.csv --measurements " + with_u +
+                                      " --filters ekf,ukf --out " + (d / "f4"));
+        INFO(f.output);
+        REQUIRE(f.status == 0);
+        CHECK(f.output.find("known inputs u: --set system.inputs=u.csv, not the record's own") != std::string::npos);
+        h5::Handle h = h5::open_file(d / "f4/estimates.h5", false);
+        std::vector<double> x = h5::read_doubles(h.get(), "ekf/xhat"), v = h5::read_doubles(h.get(), "ukf/xhat");
+        x.insert(x.end(), v.begin(), v.end());
+        CHECK(x == xhat[3]);
+    }
+    // hinf's own records carry their run's inputs (group inputs): compare.h5's run 0, made under cos(t), filtered under
+    // a config whose table is sin(t) reads cos(t), the same bits as naming that table
+    {
+        std::ostringstream cos_table;
+        cos_table.precision(17);
+        cos_table << "t,u\n";
+        for (int k = 0; k <= 200; ++k) cos_table << double(k) * 0.01 << "," << std::cos(double(k) * 0.01) << "\n";
+        write_file(d, "cos2.csv", cos_table.str());
+        auto c = hinf::test::run_hinf("compare " + cfg + " --set system.inputs=cos2.csv --filters ekf --runs 1 --quiet "
+                                      "--out " + (d / "c"));
+        INFO(c.output);
+        REQUIRE(c.status == 0);
+        const std::string record = d / "c/compare.h5";
+        {
+            h5::Handle h = h5::open_file(record, false);
+            const std::vector<double> tc = h5::read_doubles(h.get(), "t"), uc = h5::read_doubles(h.get(), "inputs/u");
+            REQUIRE(uc.size() == tc.size());
+            for (std::size_t k = 0; k < tc.size(); ++k) REQUIRE(uc[k] == std::cos(tc[k]));
+        }
+        std::vector<std::vector<double>> x;
+        for (const std::string set : {"", " --set system.inputs=cos2.csv"}) {
+            const std::string out = d / ("fc" + std::to_string(x.size()));
+            auto f = hinf::test::run_hinf("filter " + cfg + set + " --measurements " + record + " --filters ekf --quiet "
+                                          "--out " + out);
+            INFO(f.output);
+            REQUIRE(f.status == 0);
+            h5::Handle h = h5::open_file(out + "/estimates.h5", false);
+            x.push_back(h5::read_doubles(h.get(), "ekf/xhat"));
+            CHECK(h5::exists(h.get(), "inputs/u"));  // estimates.h5 is a record too
+        }
+        CHECK(x[0] == x[1]);
+    }
     const std::string gap = write_file(d, "gap.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,\n0.03,0.1,0.5\n");
     hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + gap + " --filters ekf --out " + (d / "e2"),
                                       "line 3, column 3: '' is not a number (known input u has no gaps: fill them)");
