@@ -315,6 +315,13 @@ TEST_CASE("hinf filter takes the known inputs a record carries: CSV columns, HDF
             CHECK(h5::exists(h.get(), "inputs/u"));  // estimates.h5 is a record too
         }
         CHECK(x[0] == x[1]);
+        // scripts/plot draws both records, their inputs group no filter
+        for (const std::string& file : {record, std::string(d / "fc0/estimates.h5")}) {
+            auto p = hinf::test::run_command("/usr/bin/python3 " + hinf::test::source_path("scripts/plot") + " " + file +
+                                             " --out " + (d / "plots"));
+            INFO(p.output);
+            CHECK(p.status == 0);
+        }
     }
     const std::string gap = write_file(d, "gap.csv", "t,y,u\n0.01,0.1,0.5\n0.02,0.1,\n0.03,0.1,0.5\n");
     hinf::test::expect_one_line_error("filter " + cfg + " --measurements " + gap + " --filters ekf --out " + (d / "e2"),
