@@ -2,6 +2,7 @@
 #include "io/checkpoint.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -9,8 +10,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <thread>
 #include <type_traits>
+#include <vector>
 
 #include <toml++/toml.h>
 
@@ -53,9 +56,77 @@ void read_any(const std::string& path) {
     else ckpt_read<double>(path);
 }
 
-// Reads path in a child process (io/isolate.hpp): "" when it read cleanly, else the problem.
+// What identifies a file's contents: its device, inode and size, and a digest of its bytes (read through, not
+// parsed: HDF5 never sees them).
+struct FileId {
+    dev_t dev = 0;
+    ino_t ino = 0;
+    off_t size = 0;
+    std::uint64_t digest = 0;
+    bool operator==(const FileId& o) const {
+        return dev == o.dev && ino == o.ino && size == o.size && digest == o.digest;
+    }
+};
+
+// Files above this size are always read in a child: hashing them would cost what the child costs.
+constexpr off_t kHashedFileMax = off_t(256) << 20;
+
+std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t bytes);
+
+// The identity of a regular file of at most kHashedFileMax bytes; false for anything else (a FIFO would block).
+bool file_id(const std::string& path, FileId* id) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size > kHashedFileMax) return false;
+    id->dev = st.st_dev;
+    id->ino = st.st_ino;
+    id->size = st.st_size;
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (f == nullptr) return false;
+    std::uint64_t h = 14695981039346656037ull;
+    std::vector<char> buf(std::size_t(1) << 16);
+    off_t total = 0;
+    for (std::size_t n; (n = std::fread(buf.data(), 1, buf.size(), f)) > 0;) {
+        h = fnv1a(h, buf.data(), n);
+        total += off_t(n);
+    }
+    const bool ok = !std::ferror(f) && total == st.st_size;
+    std::fclose(f);
+    id->digest = h;
+    return ok;
+}
+
+// The checkpoint files this process has seen read cleanly (committed by ckpt_write after reading them back as
+// written, or read in a child by read_in_child), by their identity then. A file that still has one of these
+// identities holds bytes that were read cleanly, so read_in_child does not read it again in a forked child: a
+// training that validates each new checkpoint and keeps the last two forked the whole process two or three times a
+// checkpoint, and the acceptance check once more for each of its parts (docs/reliability.md section 5). A file
+// changed in any byte since, and every file of a new process, are read in a child as before.
+std::mutex g_clean_mutex;
+std::vector<FileId> g_clean;
+
+void remember_clean(const FileId& id) {
+    std::lock_guard<std::mutex> lock(g_clean_mutex);
+    g_clean.push_back(id);
+    if (g_clean.size() > 64) g_clean.erase(g_clean.begin());  // the files in use are the last few
+}
+
+bool seen_clean(const FileId& id) {
+    std::lock_guard<std::mutex> lock(g_clean_mutex);
+    for (const FileId& c : g_clean)
+        if (c == id) return true;
+    return false;
+}
+
+// Reads path in a child process (io/isolate.hpp): "" when it read cleanly, else the problem. A file this process
+// has seen read cleanly and that has not changed since is not read again. (The digest is taken before the child
+// reads: a file changed meanwhile is remembered by bytes it no longer has, and read in a child next time.)
 std::string read_in_child(const std::string& path) {
-    return run_isolated([&path] { read_any(path); });
+    FileId id;
+    const bool hashed = file_id(path, &id);
+    if (hashed && seen_clean(id)) return "";
+    std::string problem = run_isolated([&path] { read_any(path); });
+    if (hashed && problem.empty()) remember_clean(id);
+    return problem;
 }
 
 // FNV-1a over bytes, continued from h.
@@ -232,6 +303,8 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
         HINF_CHECK(!ec, "cannot keep '" + path + "' as '" + prev + "': " + ec.message());
     }
     commit_rename(tmp, path);
+    FileId id;
+    if (file_id(path, &id)) remember_clean(id);
 }
 
 std::string ckpt_precision(const std::string& path) {

@@ -1,6 +1,8 @@
 // `hinf resume` on damaged checkpoints: truncated, emptied, a flipped bit in the weights, another
 // format version, an edited config, missing parts; each gives one line naming the file and the
 // problem, exit 2, and points at the previous checkpoint when that one is good.
+#include <sys/stat.h>
+
 #include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
@@ -161,6 +163,28 @@ TEST_CASE("resume from each kind of damaged checkpoint gives its message", "[err
         ckpt_verify(ck);  // the resumed run rewrote a good checkpoint.h5
     }
     restore();
+}
+
+// A process does not read again in a child a checkpoint it has seen read cleanly (io/checkpoint.cpp), but only while
+// every byte is the same: the same file damaged in place, its size kept, is read in a child again and refused.
+TEST_CASE("a checkpoint this process wrote is checked again once a byte of it changed", "[io][damaged]") {
+    test::TempDir d("damaged-in-place");
+    make_run(d / "run");  // in this process: checkpoint.h5 was written and read back here
+    const std::string ck = d / "run/checkpoint.h5";
+    ckpt_verify(ck);
+    const std::string good = read_bytes(ck);
+    std::string bad = good;
+    for (std::size_t i = bad.size() / 3; i < 2 * bad.size() / 3; ++i) bad[i] = 0;
+    REQUIRE(bad.size() == good.size());
+    struct stat before {}, after {};
+    REQUIRE(::stat(ck.c_str(), &before) == 0);
+    write_bytes(ck, bad);  // in place: the same inode and size
+    REQUIRE(::stat(ck.c_str(), &after) == 0);
+    CHECK(after.st_ino == before.st_ino);
+    CHECK(after.st_size == before.st_size);
+    CHECK_THROWS_AS(ckpt_verify(ck), hinf::Error);
+    write_bytes(ck, good);
+    ckpt_verify(ck);
 }
 
 // Edited, not damaged: every checksum is valid (HDF5 recomputes fletcher32 on write), but the file no longer is
