@@ -714,28 +714,31 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
     return best;
 }
 
-namespace {
+// What a training leaves in its directory: the checkpoints and their backup (io/checkpoint.cpp), the trajectory and
+// its snapshot (io/trajectory.cpp, train/trainer.cpp), the selection's best checkpoint, record and validation runs
+// (above), the Riccati start's check (train/trainer.cpp). A run's whole, and all that swap_runs moves.
+constexpr const char* kRunEntries[] = {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5",
+                                       "best.h5",       "select.csv",         "select",        "start"};
 
-// The runs in dir and alt change places: checkpoints, trajectory, selection and their backups, entry by entry; DIR's
-// acceptance/ (an earlier run's, before --force) stays, for the check of the kept run to replace.
 void swap_runs(const std::string& dir, const std::string& alt) {
     namespace fs = std::filesystem;
-    const std::string swap = dir + "/alternative.swap";
+    const fs::path swap = dir + "/alternative.swap";
     fs::remove_all(swap);
     fs::create_directories(swap);
-    const auto move_all = [](const fs::path& from, const fs::path& to, bool skip_ours) {
-        std::vector<fs::path> entries;  // listed first: a directory is not changed while it is iterated
-        for (const auto& e : fs::directory_iterator(from))
-            if (!skip_ours || (e.path().filename() != "alternative" && e.path().filename() != "alternative.swap" &&
-                               e.path().filename() != "acceptance"))
-                entries.push_back(e.path());
-        for (const fs::path& e : entries) fs::rename(e, to / e.filename());
+    const auto move_runs = [](const fs::path& from, const fs::path& to) {
+        for (const char* name : kRunEntries) {
+            std::error_code ec;
+            if (fs::symlink_status(from / name, ec).type() != fs::file_type::not_found && !ec)
+                fs::rename(from / name, to / name);
+        }
     };
-    move_all(dir, swap, true);
-    move_all(alt, dir, false);
-    move_all(swap, alt, false);
+    move_runs(dir, swap);
+    move_runs(alt, dir);
+    move_runs(swap, alt);
     fs::remove(swap);
 }
+
+namespace {
 
 // The second run of a choice between two trainings of one job: `other` trained afresh in alt (an earlier run's
 // removed first) with a selection of its own. error: why it could not be loaded or started (the first run stays).

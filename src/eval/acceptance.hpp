@@ -48,6 +48,12 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
 /// The one summary line of a selection ("select: best validated checkpoint at step ...").
 std::string selection_line(const RunConfig& cfg, const Selection& best, const std::string& dir);
 
+/// The runs in dir and alt change places (a second run kept, below): the entries a training writes into its directory
+/// (checkpoints, trajectory, the selection and the start check: kRunEntries in acceptance.cpp) move, each one that
+/// exists, and nothing else does -- not the user's own files there (a log redirected into DIR), not DIR's lock, which
+/// this process holds, and not DIR/acceptance, which the kept run's check replaces.
+void swap_runs(const std::string& dir, const std::string& alt);
+
 /// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's
 /// Riccati equation falls to the storage's floor before its first knot, the knots start flat, and on some systems a
 /// constant storage does far better (on others far worse). So after a run of such a config that trained (fresh, or

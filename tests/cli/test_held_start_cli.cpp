@@ -224,8 +224,12 @@ TEST_CASE("a knots run far behind the EKF trains other storages and keeps the lo
                      "Riccati start");
     }
     SECTION("not held: the constant storage validates lower, kept and checked") {
+        std::filesystem::create_directories(out);  // a file of the user's in DIR stays there when the runs swap
+        std::ofstream(out + "/notes.txt") << "the user's notes";
         check_choice(train_short_vdp(out, "--set training.adam_steps=2 --set training.seed=2 --set filter.rho=3"), out,
                      false, "constant storage");
+        CHECK(std::filesystem::exists(out + "/notes.txt"));
+        CHECK_FALSE(std::filesystem::exists(out + "/alternative/notes.txt"));
     }
     SECTION("near the line: more runs decide, and below it the run is kept alone") {
         // the check's 5 runs read 1.73 times the EKF's error, in (kFarBehindRecheck, kFarBehindEkf]: 25 runs decide
