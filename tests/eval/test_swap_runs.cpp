@@ -1,7 +1,7 @@
 // swap_runs (src/eval/acceptance.cpp), the step that keeps a second training in DIR and puts the first in
-// DIR/alternative: only a run's own entries change places. Until 2026-12-05 every entry of DIR moved but its lock and
-// acceptance/, so a log redirected into DIR (`hinf train ... --out D > D/train.log`) ended in D/alternative, and D's
-// lock file -- the one this process holds -- went there too, leaving D unlocked for the acceptance check that follows.
+// DIR/alternative: only a run's own entries change places. Until 2026-12-05 every entry of DIR but acceptance/
+// moved, so a log redirected into DIR (`hinf train ... --out D > D/train.log`) ended in D/alternative, and D's lock
+// file -- the one this process holds -- went there too, leaving D unlocked for the acceptance check that follows.
 #include <catch2/catch.hpp>
 #include <sys/stat.h>
 
@@ -14,6 +14,10 @@
 #include "helpers.hpp"
 
 namespace {
+
+// the entries both runs have (the first run alone has start/, its Riccati start's check)
+const char* const kBoth[] = {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5",
+                             "best.h5",       "select.csv",         "select/run.h5"};
 
 void write(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 
@@ -39,12 +43,11 @@ TEST_CASE("swap_runs moves a run's own files and leaves the user's files, the lo
     fs::create_directories(dir + "/start");
     fs::create_directories(dir + "/acceptance");
     fs::create_directories(alt + "/select");
-    for (const char* f : {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5", "best.h5",
-                          "select.csv", "select/run.h5", "start/riccati.h5"})
+    for (const char* f : kBoth) {
         write(dir + "/" + f, std::string("first ") + f);
-    for (const char* f :
-         {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5", "best.h5", "select.csv", "select/run.h5"})
         write(alt + "/" + f, std::string("second ") + f);
+    }
+    write(dir + "/start/riccati.h5", "first start/riccati.h5");
     write(dir + "/.hinf.lock", "pid 1: hinf train (DIR)\n");
     write(alt + "/.hinf.lock", "pid 1: hinf train (alternative)\n");
     write(dir + "/train.log", "the user's log");
@@ -53,8 +56,7 @@ TEST_CASE("swap_runs moves a run's own files and leaves the user's files, the lo
 
     hinf::swap_runs(dir, alt);
 
-    for (const char* f :
-         {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5", "best.h5", "select.csv", "select/run.h5"}) {
+    for (const char* f : kBoth) {
         INFO(f);
         CHECK(read(dir + "/" + f) == std::string("second ") + f);
         CHECK(read(alt + "/" + f) == std::string("first ") + f);
