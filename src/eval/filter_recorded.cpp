@@ -53,6 +53,37 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
     });
 }
 
+// Whether `path` begins with the header write_csv gives: "t", then only columns named <state>_hat, sd_<state>,
+// innovation_<j> and nis, with at least one estimate and one innovation. A rerun removes an earlier run's CSV of a
+// filter not in it only where this holds, so a user's own file named estimates_*.csv in DIR stays.
+bool is_estimates_csv(const std::filesystem::path& path) {
+    std::ifstream in(path);
+    std::string head;
+    if (!in || !std::getline(in, head)) return false;
+    if (!head.empty() && head.back() == '\r') head.pop_back();
+    if (head.rfind("t,", 0) != 0) return false;
+    bool estimate = false, innovation = false;
+    std::size_t at = 2;
+    while (at <= head.size()) {
+        const std::size_t end = std::min(head.find(',', at), head.size());
+        const std::string col = head.substr(at, end - at);
+        at = end + 1;
+        const auto ends_with = [&](const char* tail) {
+            const std::size_t k = std::char_traits<char>::length(tail);
+            return col.size() > k && col.compare(col.size() - k, k, tail) == 0;
+        };
+        if (ends_with("_hat")) {
+            estimate = true;
+        } else if (col.rfind("innovation_", 0) == 0 && col.size() > 11 &&
+                   col.find_first_not_of("0123456789", 11) == std::string::npos) {
+            innovation = true;
+        } else if (!(col.rfind("sd_", 0) == 0 && col.size() > 3) && col != "nis") {
+            return false;
+        }
+    }
+    return estimate && innovation;
+}
+
 }  // namespace
 
 void recorded_check_sampling(const RunConfig& cfg, const Measurements& ms, const std::string& source) {
@@ -166,12 +197,15 @@ std::vector<RecordedResult> filter_recorded(const RunConfig& cfg, const std::vec
         for (const std::string& csv : csv_names) commit_rename(opt.out_dir + "/" + csv + ".new", opt.out_dir + "/" + csv);
         file.commit();
     }
-    std::vector<std::filesystem::path> stale;  // an earlier run's CSVs of other filters, and leftovers of a kill
+    // An earlier run's CSVs of other filters, and leftovers of a kill: named estimates_*.csv(.new) and headed as
+    // write_csv heads them. A file of that name with another header is not hinf's and stays.
+    std::vector<std::filesystem::path> stale;
     for (const auto& e : std::filesystem::directory_iterator(opt.out_dir)) {
         const std::string name = e.path().filename().string();
         const bool ours = std::find(csv_names.begin(), csv_names.end(), name) != csv_names.end();
         if (name.rfind("estimates_", 0) == 0 && !ours &&
-            (e.path().extension() == ".csv" || (name.size() > 8 && name.compare(name.size() - 8, 8, ".csv.new") == 0)))
+            (e.path().extension() == ".csv" || (name.size() > 8 && name.compare(name.size() - 8, 8, ".csv.new") == 0)) &&
+            e.is_regular_file() && is_estimates_csv(e.path()))
             stale.push_back(e.path());
     }
     for (const auto& f : stale) std::filesystem::remove(f);

@@ -246,7 +246,7 @@ TEST_CASE("hinf filter predicts only where a measurement is missing", "[cli][fil
                           "line 2: output 1 is infinite");
 }
 
-TEST_CASE("hinf filter over an earlier run's outputs leaves no old file beside the new ones", "[cli][filter][records]") {
+TEST_CASE("hinf filter over an earlier run's outputs leaves no old file beside the new ones and a user's own files in place", "[cli][filter][records]") {
     TempDir d("cli-filter-rerun");
     const std::string cfg = write_file(d, "tiny.toml", hinf::test::tiny_missile_config());
     const std::string rec = write_file(d, "r.csv", "t,a,b,c,d,e,f\n0,1,2,3,4,5,6\n0.01,1,2,3,4,5,6\n0.02,1,2,3,4,5,6\n");
@@ -254,12 +254,17 @@ TEST_CASE("hinf filter over an earlier run's outputs leaves no old file beside t
     INFO(first.output);
     REQUIRE(first.status == 0);
     REQUIRE(std::ifstream(d / "o/estimates_ukf.csv").good());
+    // a user's own files of that name beside them, not written by hinf: they stay
+    write_file(d, "o/estimates_notes.csv", "run,comment\n1,EKF looked fine\n");
+    write_file(d, "o/estimates_x.csv", "t,x_hat,extra\n0,1,2\n");
     auto second = run_hinf("filter " + cfg + " --filters ekf --quiet --out " + (d / "o") + " --measurements " + rec);
     INFO(second.output);
     REQUIRE(second.status == 0);
     // the earlier run's ukf CSV is gone: estimates.h5 (written last) lists exactly the CSVs of its run
     CHECK_FALSE(std::ifstream(d / "o/estimates_ukf.csv").good());
     CHECK(std::ifstream(d / "o/estimates_ekf.csv").good());
+    CHECK(std::ifstream(d / "o/estimates_notes.csv").good());
+    CHECK(std::ifstream(d / "o/estimates_x.csv").good());
     hinf::h5::Handle f = hinf::h5::open_file(d / "o/estimates.h5", false);
     CHECK(hinf::h5::get_attr_string(f.get(), "csv_files") == "estimates_ekf.csv");
 }
