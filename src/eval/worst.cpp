@@ -112,17 +112,24 @@ struct Parametrisation {
 
 // The filter (an already-cloned one, reset here) run under s: visit(k, e_k, energy_k) with e_k = x_k - x^_k [n] (an
 // angle state's wrapped) and the step's v'v + n'n; false (nothing visited) where the truth runs away (escape:
-// truth_escape_bound; docs/compare.md "A truth that escapes").
+// truth_escape_bound; docs/compare.md "A truth that escapes"). freeze: a filter that diverges is frozen as the engine
+// freezes it (plausible_bound of this truth, docs/compare.md "Divergence"), so that a ratio is the one its replay
+// gives: without it an EKF that ran away scored 3.0e26 in the search and 3.9e9 in the replay of the same signals (a
+// compressor model, 2026-12-05). Not for the linear start's differences: their signals are a millionth of the budget,
+// and a truth that barely moves (noise only, x0 = 0) puts that bound below any estimate.
 template <class Visit>
 bool run_errors(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
-                const std::vector<double>& escape, Visit&& visit) {
+                const std::vector<double>& escape, bool freeze, Visit&& visit) {
     std::int64_t escaped_at = -1;
     TruthRun tr = truth_simulate_checked(cfg, Scenario{}, 0, K, escape.data(), &escaped_at, &s);
     const int n = cfg.n;
     if (escaped_at >= 0) return false;
     std::vector<double> e(n);
-    f.reset(engine_filter_start(cfg, 0));
-    filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, nullptr, nullptr, [&](std::int64_t k, const double* xh, bool) {
+    const FilterStart start = engine_filter_start(cfg, 0);
+    f.reset(start);
+    const std::vector<double> bound = freeze ? plausible_bound(cfg, start, tr.x.data(), nullptr, K) : std::vector<double>{};
+    filter_stream(f, tr.y.data(), cfg.m, t.data(), K, tr.x.data(), n, freeze ? bound.data() : nullptr, nullptr,
+                  [&](std::int64_t k, const double* xh, bool) {
         cfg.system->state_difference(e.data(), tr.x.data() + k * n, xh);
         visit(k, e.data(), tr.energy[k]);
     });
@@ -134,7 +141,7 @@ bool run_errors(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::in
 double ratio_of(const RunConfig& cfg, OnlineFilter& f, const Signals& s, std::int64_t K, const std::vector<double>& t,
                 const std::vector<double>& escape) {
     double error_energy = 0, energy = 0;
-    const bool stayed = run_errors(cfg, f, s, K, t, escape, [&](std::int64_t, const double* e, double ek) {
+    const bool stayed = run_errors(cfg, f, s, K, t, escape, true, [&](std::int64_t, const double* e, double ek) {
         error_energy += cfg.dt * quadratic_form(cfg.Q.data(), e, cfg.n);
         energy += cfg.dt * ek;
     });
@@ -233,7 +240,7 @@ LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::i
         for (int sign = 1; good && sign >= -1; sign -= 2) {
             Signals s{std::vector<double>(std::size_t(K) * nv, 0.0), std::vector<double>(std::size_t(K) * m, 0.0)};
             for (std::int64_t k = k0; k < k1; ++k) (c < nv ? s.v[k * nv + c] : s.n[k * m + (c - nv)]) = sign * a;
-            good = run_errors(cfg, *f, s, K, t, escape, [&](std::int64_t k, const double* e, double) {
+            good = run_errors(cfg, *f, s, K, t, escape, false, [&](std::int64_t k, const double* e, double) {
                 for (int i = 0; i < n; ++i) col[k * n + i] += sign * e[i] / (2 * a);
             });
         }
@@ -282,7 +289,7 @@ LinearWorst linear_worst(const RunConfig& cfg, const OnlineFilter& proto, std::i
             for (double& v : half.v) v = -v;
             for (double& v : half.n) v = -v;
         }
-        if (!run_errors(cfg, *f, half, K, t, escape, [&](std::int64_t k, const double* e, double) {
+        if (!run_errors(cfg, *f, half, K, t, escape, false, [&](std::int64_t k, const double* e, double) {
                 for (int i = 0; i < n; ++i) diff[k * n + i] += sign * e[i] / 2;
             }))
             return out;
