@@ -353,6 +353,19 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
             a += " each value judged by the larger of its two worst figures (docs/method.md section 16.7b);";
         }
     }
+    // the level not kept, but far below the EKF's worst on the same search at a mean error near the EKF's: a FAIL
+    // alone would read as "do not use it", where by measurement it is the more robust filter (docs/gain.md, a compressor)
+    if (!lost && search.ran && !search.diverged && search.ratio > cfg.rho && search.ratio > 0 &&
+        search.ekf >= kRobustAgainstEkf * search.ratio && std::isfinite(search.behind_ekf) &&
+        search.behind_ekf <= kFarBehindEkf) {
+        std::snprintf(buf, sizeof buf,
+                      " beside the EKF on the same search its worst case is %.3g times lower (%.4g against %.4g, each "
+                      "the larger of the budget's and the small-signal figure) at %.3g times the EKF's settled error: "
+                      "by this measurement the more robust of the two, though it keeps no level; the check's search is "
+                      "short, so confirm with the full one before you pick it for that: hinf worst ",
+                      search.ekf / search.ratio, search.ratio, search.ekf, search.behind_ekf);
+        a += buf + advice_config(cfg) + " --network " + path + " --filters dnn,ekf,ukf --mode measured;";
+    }
     if (!lost && search.ran && !search.outside.empty() && (search.diverged || search.ratio > cfg.rho)) {
         std::snprintf(buf, sizeof buf,
                       " under those signals the true state left the region training covered (%s, more than the "
@@ -521,6 +534,7 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
         found.nominal_diverged = s.diverged_runs;
         found.nominal_runs = s.runs;
         found.behind_ekf = vs.behind();
+        found.ekf = std::isnan(w.ekf_small) ? w.ekf_ratio : std::max(w.ekf_ratio, w.ekf_small);  // NaN ratio stays NaN
         o.advice = acceptance_advice(cfg, path, found);
     }
     return o;

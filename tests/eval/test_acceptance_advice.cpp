@@ -87,6 +87,30 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     INFO(b);
     CHECK(has(b, "(4 rho*, hinf rho)"));
 
+    // the level broken, but far below the EKF's worst at a mean error near the EKF's: said, with the full search
+    CHECK_FALSE(has(a, "more robust"));  // no EKF figure: nothing said
+    s.ekf = 4 * 7.5;
+    s.behind_ekf = 1.01;
+    const std::string r = acceptance_advice(c, "run/best.h5", s);
+    INFO(r);
+    CHECK(has(r, "its worst case is 4 times lower (7.5 against 30,"));
+    CHECK(has(r, "at 1.01 times the EKF's settled error: by this measurement the more robust of the two"));
+    CHECK(has(r, "hinf worst CONFIG --network run/best.h5 --filters dnn,ekf,ukf --mode measured;"));
+    CHECK(has(r, "higher level"));  // beside the level's advice, not in place of it
+    s.ekf = 3.9 * 7.5;  // not far enough below
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "more robust"));
+    s.ekf = 100;
+    s.behind_ekf = 2.5;  // far behind in the mean: the EKF is the filter, said instead
+    const std::string fb = acceptance_advice(c, "run/best.h5", s);
+    CHECK_FALSE(has(fb, "more robust"));
+    CHECK(has(fb, "the EKF or UKF is the filter for this system"));
+    s.behind_ekf = 1.0;
+    s.diverged = true;  // a filter that diverged under its worst signals is robust against nothing
+    CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "more robust"));
+    s.diverged = false;
+    s.ekf = NAN;
+    s.behind_ekf = NAN;
+
     // the search found nothing above rho (the Monte Carlo failed): no level advice
     s.ratio = 1.0;
     CHECK_FALSE(has(acceptance_advice(c, "run/best.h5", s), "higher level"));
