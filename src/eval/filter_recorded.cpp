@@ -55,7 +55,8 @@ void write_csv(const std::string& path, const RunConfig& cfg, const Measurements
 
 // Whether `path` begins with the header write_csv gives: "t", then only columns named <state>_hat, sd_<state>,
 // innovation_<j> and nis, with at least one estimate and one innovation. A rerun removes an earlier run's CSV of a
-// filter not in it only where this holds, so a user's own file named estimates_*.csv in DIR stays.
+// filter not in it only where this holds, so a user's own file named estimates_*.csv in DIR stays. Only the first
+// line is read (core/csv.hpp's read_csv_table reads the whole table, up to 300 000 rows of an earlier run).
 bool is_estimates_csv(const std::filesystem::path& path) {
     std::ifstream in(path);
     std::string head;
