@@ -163,6 +163,9 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     eo.scenario = opt.scenario;
     eo.label = "compare";
     eo.quiet = opt.quiet;
+    // before the runs, not only before anything there is opened for writing: a second `hinf compare` into the same
+    // directory is told at once, not after the first one's runs
+    const RunDirLock lock(opt.out_dir, "hinf compare");
     EngineResult er = engine_run(cfg, filters, eo);
     const TruthRun& truth0 = er.truth0;
     CompareSummary sum;
@@ -181,7 +184,6 @@ CompareSummary compare_run(const RunConfig& cfg, const std::vector<const OnlineF
     }
     HINF_CHECK(sum.truth_escaped_runs < R, "compare: " + truth_escape_refusal(cfg, R, "run(s)", sum.first_truth_escape));
 
-    const RunDirLock lock(opt.out_dir, "hinf compare");  // before anything there is opened for writing
     const std::string path = opt.out_dir + "/compare.h5";
     AtomicH5 file(path);
     hid_t root = file.get();

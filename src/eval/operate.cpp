@@ -211,6 +211,9 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     eo.label = "operate";
     eo.quiet = opt.quiet;
     HjiCheck hji(cfg, networks, !cfg.retrain);
+    // before the runs, not only before anything there is opened for writing: a second `hinf operate` into the same
+    // directory is told at once, not after the first one's runs
+    const RunDirLock lock(opt.out_dir, "hinf operate");
     EngineResult er = engine_run(cfg, {dnn.get(), open_loop.get()}, eo, &hji);
     const std::vector<FilterRunStats>& D = er.runs[0];
     const std::vector<FilterRunStats>& O = er.runs[1];
@@ -339,7 +342,6 @@ OperateSummary operate_run(const RunConfig& cfg, const std::vector<FrozenNetwork
     if (cfg.retrain && par_root()) run0 = online_retrain_run0(cfg, *dnn, er, D[0]);
     sum.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    const RunDirLock lock(opt.out_dir, "hinf operate");  // before anything there is opened for writing
     if (run0 != nullptr && D[0].diverged_at < 0) {
         sum.online_checkpoint = opt.out_dir + "/online_checkpoint.h5";
         online_retrain_write(*run0, sum.online_checkpoint);

@@ -7,6 +7,9 @@
 #include <sstream>
 #include <fstream>
 #include <omp.h>
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include "eval/compare.hpp"
 #include "eval/engine.hpp"
@@ -401,4 +404,29 @@ TEST_CASE("the recorded-data NIS note: beyond 3 or 1/3 and only over enough degr
     CHECK(innovation_consistency_note(r).empty());
     r.nis_dof = 30;
     CHECK_FALSE(innovation_consistency_note(r).empty());
+}
+
+TEST_CASE("compare and operate refuse a run directory in use before their runs, not after them", "[eval][compare][lock]") {
+    TempDir d("lock-early");
+    const std::string dir = d / "held";
+    std::filesystem::create_directories(dir);
+    // this process holds the directory as a running hinf would (io/run_lock.cpp: an flock on DIR/.hinf.lock)
+    const int fd = ::open((dir + "/.hinf.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    REQUIRE(fd >= 0);
+    REQUIRE(::flock(fd, LOCK_EX | LOCK_NB) == 0);
+    // not --quiet: a refusal after the runs comes after their progress line ("compare 2/2 ... runs")
+    const auto c = hinf::test::run_hinf("compare " + hinf::test::source_path("runs/missile_hinf.toml") +
+                                        " --filters ekf --runs 2 --out " + dir);
+    const std::string legacy = hinf::test::source_path("tests/corpus/legacy/gain_tv_mean");
+    const auto o = hinf::test::run_hinf("operate " + legacy + ".toml --network " + legacy +
+                                        "_full.h5 --runs 2 --mode measured --out " + dir);
+    ::close(fd);
+    for (const auto* r : {&c, &o}) {
+        INFO(r->output);
+        CHECK(r->status == 2);
+        CHECK(r->output.find("is in use by another hinf process") != std::string::npos);
+        CHECK(r->output.find(" runs |") == std::string::npos);  // no run was made
+    }
+    CHECK_FALSE(std::filesystem::exists(dir + "/compare.h5"));
+    CHECK_FALSE(std::filesystem::exists(dir + "/operate.h5"));
 }

@@ -164,13 +164,16 @@ TEST_CASE("a process that dies takes the job down, with one line from rank 0 and
         return;
     }
     TempDir d("par-die");
-    // rank 1 kills itself (kill -9, as the kernel's OOM killer would) a second into a run that takes far longer;
-    // `timeout` turns a hang into status 124
+    // rank 1 kills itself (kill -9, as the kernel's OOM killer would) once rank 0 has taken the run directory's lock,
+    // which it does after par_init has set its SIGTERM handler, in a run that takes far longer (14 s on 2 processes,
+    // Release). A fixed second's wait raced rank 0's start under the sanitizers on a loaded CI machine: rank 0 was
+    // ended before par_init, and so without its line. `timeout` turns a hang into status 124.
+    const std::string out = d / "o";
     const std::string job = std::string(HINF_CLI_PATH) + " compare " + hinf::test::source_path("runs/missile_hinf.toml") +
-                            " --filters pf --particles 4000 --runs 4 --threads 1 --quiet --out " + d / "o";
+                            " --filters pf --particles 4000 --runs 4 --threads 1 --quiet --out " + out;
     CommandResult r = hinf::test::run_command(
-        "timeout 60 " + mpirun(2) + "bash -c 'if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then (sleep 1; kill -9 $$) & fi; exec " +
-        job + "'");
+        "timeout 60 " + mpirun(2) + "bash -c 'if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then (for i in $(seq 400); do [ -e " +
+        out + "/.hinf.lock ] && break; sleep 0.1; done; sleep 0.2; kill -9 $$) & fi; exec " + job + "'");
     INFO(r.output);
     CHECK(r.status != 0);
     CHECK(r.status != 124);
