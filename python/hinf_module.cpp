@@ -107,6 +107,9 @@ py::dict report_dict(const hinf::TrainReport& r) {
     d["acceptance_line"] = r.acceptance_line;
     d["acceptance_advice"] = r.acceptance_advice.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_advice));
     d["acceptance_note"] = r.acceptance_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_note));
+    d["acceptance_selection_note"] = r.acceptance_selection_note.empty()
+                                         ? py::object(py::none())
+                                         : py::object(py::str(r.acceptance_selection_note));
     d["acceptance_settle_note"] =
         r.acceptance_settle_note.empty() ? py::object(py::none()) : py::object(py::str(r.acceptance_settle_note));
     d["acceptance_rmse_settled"] = r.acceptance_rmse_settled;

@@ -229,6 +229,10 @@ struct TrainReport {
     /// where the config names no [online] settle_time and the EKF's error on the check's runs is still falling after
     /// the default one, so the settled figures hold its transient: the time to name ("acceptance: note: ..."; "" else)
     std::string acceptance_settle_note;
+    /// where best.h5 was an earlier checkpoint than the last and failed its check: what the same check found on the
+    /// last checkpoint, which becomes best.h5 (and best_step) where it passed, the earlier one kept as
+    /// DIR/best_average.h5 (docs/method.md 16.9; "acceptance: note: ..."; "" otherwise)
+    std::string acceptance_selection_note;
     /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
     /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
     /// filter's, where a run diverged)

@@ -422,18 +422,19 @@ TrainReport report_of(const TrainSummary& s, const std::string& dir) {
 
 // the selection's and the acceptance check's results, as `hinf train`/`resume` print them
 AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, const TrainSummary& s,
-                                const Selection* best, bool resumed, bool quiet) {
-    if (best != nullptr && best->step >= 0) {
+                                Selection* best, bool resumed, bool quiet) {
+    const AcceptanceOutcome a = acceptance_after(c, dir, s, best, resumed, quiet);
+    if (best != nullptr && best->step >= 0) {  // after the check: it may keep the last checkpoint instead
         r.best_checkpoint = dir + "/best.h5";
         r.best_step = best->step;
     }
-    const AcceptanceOutcome a = acceptance_after(c, dir, s, best, resumed, quiet);
     if (a.ran) {
         r.acceptance = a.pass ? "pass" : "fail";
         r.acceptance_checkpoint = a.file;
         r.acceptance_line = a.line;
         r.acceptance_advice = a.advice;
         r.acceptance_note = a.note;
+        r.acceptance_selection_note = a.selection_note;
         r.acceptance_settle_note = a.settle_note;
         r.acceptance_rmse_settled = a.rmse_position_settled;
         r.acceptance_rmse_settled_ekf = a.rmse_position_settled_ekf;

@@ -64,6 +64,7 @@ void print_summary(const TrainSummary& s, const std::string& dir) {
 void print_acceptance(const AcceptanceOutcome& a) {
     if (a.ran) std::printf("%s\n", a.line.c_str());
     if (!a.advice.empty()) std::printf("%s\n", a.advice.c_str());
+    if (!a.selection_note.empty()) std::printf("%s\n", a.selection_note.c_str());
     if (!a.settle_note.empty()) std::printf("%s\n", a.settle_note.c_str());
     if (!a.note.empty()) std::printf("%s\n", a.note.c_str());
     if (!a.search_note.empty()) std::printf("%s\n", a.search_note.c_str());
@@ -206,11 +207,11 @@ void add_train_commands(CLI::App& app) {
             v.rho = cfg.rho;
             const std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/!resumed, o);
             s = train(o);
-            if (best && best->step >= 0) {
+            const AcceptanceOutcome a = acceptance_after(cfg, dir, s, best.get(), resumed, /*quiet=*/true);
+            if (best && best->step >= 0) {  // after the check: it may keep the last checkpoint instead
                 v.best_step = best->step;
                 v.select_score = best->score;
             }
-            const AcceptanceOutcome a = acceptance_after(cfg, dir, s, best.get(), resumed, /*quiet=*/true);
             if (a.ran) {
                 v.acceptance = a.pass ? "pass" : "fail";
                 v.rmse_position = a.rmse_position;

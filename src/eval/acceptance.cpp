@@ -424,11 +424,11 @@ namespace {
 // The acceptance check (issue 14): a short validation Monte Carlo of the trained filter in `measured` mode on the
 // [online] noise (operate's engine), and the short worst-case search above (training.acceptance_worst_evals > 0);
 // verdict = no run diverged, attenuation ratio <= rho, and the worst ratio found <= rho without divergence.
-// Printed, written into the checkpoint's root attributes, DIR/acceptance/operate.h5 and DIR/acceptance/worst.h5.
-// Returns true when it passes.
-AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, const std::string& file) {
+// Printed, written into the checkpoint's root attributes, OUT/operate.h5 and OUT/worst.h5 (OUT: DIR/acceptance, or
+// DIR/acceptance/last for the last checkpoint judged after best.h5, acceptance_after).
+AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir, bool quiet, const std::string& file,
+                                   const std::string& out) {
     const std::string path = dir + "/" + file;
-    const std::string out = dir + "/acceptance";
     const OperateSummary s = measured_validation(cfg, path, out, cfg.acceptance_runs, cfg.online_seed, quiet);
     RunConfig plain = cfg;
     plain.retrain = false;
@@ -504,12 +504,14 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.file = path;
     o.line = line;
     o.rmse_position = s.rmse_position;
+    o.attenuation_ratio = ratio;
     o.rmse_position_settled = vs.dnn;
     o.rmse_position_settled_ekf = vs.ekf;
     o.rms_q_settled = vs.dnn_q;
     o.rms_q_settled_ekf = vs.ekf_q;
     o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
     o.worst_small_signal = search && w.skipped.empty() ? w.small : NAN;
+    o.worst_diverged = search && w.skipped.empty() && w.diverged;
     o.settle_note = vs.settle_note;
     if (pass && search && w.skipped.empty()) {  // the short search's PASS is a lower bound's, method.md 16.12
         char buf[900];
@@ -559,6 +561,27 @@ std::uint64_t select_seed(std::uint64_t training_seed) {  // splitmix64 of the t
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return (z ^ (z >> 31)) >> 1;
+}
+
+// DIR/checkpoint.h5 becomes DIR/best.h5 (atomically: a copy renamed over it) with the selection's record as root
+// attributes; `kept_by` "acceptance" where the acceptance check, not the validation, kept it (acceptance_after)
+void write_best(const RunConfig& cfg, const std::string& dir, const Selection& best, double t, const std::string& kept_by) {
+    const std::string tmp = dir + "/best.h5.tmp";
+    std::filesystem::copy_file(dir + "/checkpoint.h5", tmp, std::filesystem::copy_options::overwrite_existing);
+    {
+        h5::Handle f = h5::open_file(tmp, true);
+        h5::set_attr(f.get(), "select_score", best.score);
+        h5::set_attr(f.get(), "select_step", best.step);
+        h5::set_attr(f.get(), "select_time", t);
+        h5::set_attr(f.get(), "select_runs", cfg.select_runs);
+        h5::set_attr(f.get(), "select_rule", cfg.select_rule);
+        h5::set_attr(f.get(), "select_run_scores", best.run_scores);
+        h5::set_attr(f.get(), "select_lowest_score", best.lowest_score);
+        h5::set_attr(f.get(), "select_lowest_step", best.lowest_step);
+        h5::set_attr(f.get(), "select_lowest_run_scores", best.lowest_run_scores);
+        if (!kept_by.empty()) h5::set_attr(f.get(), "select_kept_by", kept_by);
+    }
+    std::filesystem::rename(tmp, dir + "/best.h5");
 }
 
 struct SelectScore {
@@ -617,21 +640,7 @@ std::function<void(const TrainStepInfo&)> select_on_step(const RunConfig& cfg, c
         best->score = v.score;
         best->step = info.step;
         best->run_scores = v.runs;
-        const std::string tmp = dir + "/best.h5.tmp";
-        std::filesystem::copy_file(ck, tmp, std::filesystem::copy_options::overwrite_existing);
-        {
-            h5::Handle f = h5::open_file(tmp, true);
-            h5::set_attr(f.get(), "select_score", best->score);
-            h5::set_attr(f.get(), "select_step", best->step);
-            h5::set_attr(f.get(), "select_time", info.t);
-            h5::set_attr(f.get(), "select_runs", cfg.select_runs);
-            h5::set_attr(f.get(), "select_rule", cfg.select_rule);
-            h5::set_attr(f.get(), "select_run_scores", best->run_scores);
-            h5::set_attr(f.get(), "select_lowest_score", best->lowest_score);
-            h5::set_attr(f.get(), "select_lowest_step", best->lowest_step);
-            h5::set_attr(f.get(), "select_lowest_run_scores", best->lowest_run_scores);
-        }
-        std::filesystem::rename(tmp, dir + "/best.h5");
+        write_best(cfg, dir, *best, info.t, "");
     };
 }
 
@@ -703,6 +712,7 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::string& dir, bool fresh, TrainOptions& opt) {
     if (fresh) {  // a fresh run: an old selection and an old run's second storage (choose_held_start) must go
         std::filesystem::remove(dir + "/best.h5");
+        std::filesystem::remove(dir + "/best_average.h5");
         std::filesystem::remove(dir + "/select.csv");
         std::filesystem::remove_all(dir + "/alternative");
     }
@@ -732,7 +742,8 @@ std::shared_ptr<Selection> selection_begin(const RunConfig& cfg, const std::stri
 // its snapshot (io/trajectory.cpp, train/trainer.cpp), the selection's best checkpoint, record and validation runs
 // (above), the Riccati start's check (train/trainer.cpp). A run's whole, and all that swap_runs moves.
 constexpr const char* kRunEntries[] = {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5",
-                                       "best.h5",       "select.csv",         "select",        "start"};
+                                       "best.h5",       "best_average.h5",    "select.csv",    "select",
+                                       "start"};
 
 void swap_runs(const std::string& dir, const std::string& alt) {
     namespace fs = std::filesystem;
@@ -953,12 +964,73 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
     return keep_other && keep_alternative(cfg, s, best, dir, alt, std::move(other), std::move(a));
 }
 
+namespace {
+std::string g4(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.4g", v);
+    return b;
+}
+// the search's figure, the larger of the ratio at the budget and for small signals ("9.74"; "9.74, diverged"), ""
+// where no search ran
+std::string worst_figure(const AcceptanceOutcome& a) {
+    if (std::isnan(a.worst_ratio)) return "";
+    const double w = std::isnan(a.worst_small_signal) ? a.worst_ratio : std::max(a.worst_ratio, a.worst_small_signal);
+    return g4(w) + (a.worst_diverged ? ", diverged" : "");
+}
+// "worst figure found 7.52 against best.h5's 9.74, settled position RMSE 0.0072 against 0.0048 (the EKF's 0.0047)"
+std::string last_against_best(const AcceptanceOutcome& l, const AcceptanceOutcome& b) {
+    const std::string wl = worst_figure(l), wb = worst_figure(b);
+    return (wl.empty() ? "" : "worst figure found " + wl + " against best.h5's " + wb + ", ") +
+           "settled position RMSE " + g4(l.rmse_position_settled) + " against " + g4(b.rmse_position_settled) +
+           " (the EKF's " + g4(b.rmse_position_settled_ekf) + "), attenuation ratio " + g4(l.attenuation_ratio) +
+           " against " + g4(b.attenuation_ratio);
+}
+}  // namespace
+
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
-                                   const Selection* best, bool resumed, bool quiet) {
+                                   Selection* best, bool resumed, bool quiet) {
     if (!(cfg.acceptance_runs > 0 && s.status == 0 && s.last_step == cfg.steps_until() &&
           (!resumed || s.last_step > s.first_step) && par_size() == 1))
         return {};
-    return acceptance_check(cfg, dir, quiet, best != nullptr && best->step >= 0 ? "best.h5" : "checkpoint.h5");
+    std::filesystem::remove_all(dir + "/acceptance/last");  // an earlier run's second check must not outlive it
+    std::filesystem::remove(dir + "/best_average.h5");
+    const bool selected = best != nullptr && best->step >= 0;
+    AcceptanceOutcome a = acceptance_check(cfg, dir, quiet, selected ? "best.h5" : "checkpoint.h5", dir + "/acceptance");
+    if (!selected || best->step >= s.last_step) return a;  // no selection, or best.h5 is the last checkpoint
+    const std::string early = "best.h5 (step " + std::to_string(best->step) + ", the validation's pick)";
+    const std::string last = "the last checkpoint (step " + std::to_string(s.last_step) + ")";
+    if (a.pass) {
+        // the short search's PASS of an early checkpoint: on five systems the full search found the early
+        // checkpoint's worst case above the last's (docs/method.md section 16.9)
+        if (!a.search_note.empty())
+            a.search_note += "; best.h5 is step " + std::to_string(best->step) + " of " + std::to_string(s.last_step) +
+                             ", and on five systems an early checkpoint's worst case was above the last one's "
+                             "(docs/method.md section 16.9): search " + dir + "/checkpoint.h5 the same way";
+        return a;
+    }
+    // best.h5 FAILed: the last checkpoint, trained on the whole horizon, under the same check (the same runs, the
+    // same search); where it keeps the level it becomes best.h5, and the validation's pick stays as best_average.h5
+    AcceptanceOutcome l = acceptance_check(cfg, dir, quiet, "checkpoint.h5", dir + "/acceptance/last");
+    const std::string against = last_against_best(l, a);
+    if (!l.pass) {
+        a.selection_note = "acceptance: note: " + last + " FAILed the same check too (" + against +
+                           "; files: " + dir + "/acceptance/last/); " + dir + "/best.h5 stays the validation's pick";
+        return a;
+    }
+    const SelectScore v = select_score(cfg, dir + "/checkpoint.h5", dir);  // the validation's own figure, as its row
+    std::filesystem::rename(dir + "/best.h5", dir + "/best_average.h5");
+    best->step = s.last_step;
+    best->score = v.score;
+    best->run_scores = v.runs;
+    write_best(cfg, dir, *best, cfg.time_of(s.last_step), "acceptance");
+    l.file = dir + "/best.h5";
+    l.selection_note = "acceptance: note: " + early + " FAILed and " + last + " PASSed the same check (" + against +
+                       "): " + dir + "/best.h5 is now the last checkpoint, and the validation's pick is " + dir +
+                       "/best_average.h5 (docs/method.md section 16.9)";
+    const std::string judged = dir + "/checkpoint.h5";  // the full search's command names the file to use
+    const std::size_t at = l.search_note.find(judged);
+    if (at != std::string::npos) l.search_note.replace(at, judged.size(), dir + "/best.h5");
+    return l;
 }
 
 }  // namespace hinf

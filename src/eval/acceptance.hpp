@@ -94,6 +94,8 @@ struct AcceptanceOutcome {
     // proof; the full search's command, one line ("acceptance: note: ..."); empty otherwise
     std::string search_note;
     double rmse_position = std::numeric_limits<double>::quiet_NaN();  // the Monte Carlo's position RMSE
+    // the Monte Carlo's attenuation ratio the verdict judges (less V(x~(0)) where V is defined)
+    double attenuation_ratio = std::numeric_limits<double>::quiet_NaN();
     // the DNN filter's and the EKF's on the same runs after settle_time (the whole run where that is empty; the DNN
     // filter's is NaN when a run diverged): the mean error the verdict, which judges rho, does not
     double rmse_position_settled = std::numeric_limits<double>::quiet_NaN();
@@ -105,6 +107,10 @@ struct AcceptanceOutcome {
     double worst_ratio = std::numeric_limits<double>::quiet_NaN();    // the search's largest ratio (NaN: none ran)
     // the small-signal worst ratio (docs/compare.md "The linear start"; NaN: no search ran, or not had)
     double worst_small_signal = std::numeric_limits<double>::quiet_NaN();
+    bool worst_diverged = false;  // the filter diverged under the search's worst signals
+    // where best.h5 was an earlier checkpoint than the last and FAILed: what the same check found on the last one,
+    // kept as best.h5 where it PASSed (acceptance_after), one line ("acceptance: note: ..."); empty otherwise
+    std::string selection_note;
 };
 /// The settled error, over the EKF's on the acceptance runs (the larger of the position and the all-state Q-weighted
 /// ratio), above which a PASS gets AcceptanceOutcome::note
@@ -172,8 +178,12 @@ LevelSearch level_search(const RunConfig& cfg, const std::string& network, const
 /// The acceptance check of a run in `dir` that stopped with `s`, when it reached t_final (a resumed run: and
 /// trained at least one step), on one process (or a sweep's group of one), with cfg.acceptance_runs > 0; its
 /// verdict and figures are written into the judged checkpoint's root attributes, its runs into DIR/acceptance/.
+/// Where a selection kept an earlier checkpoint than the last as best.h5 and it FAILs, the last checkpoint gets the
+/// same check (DIR/acceptance/last/); where that PASSes it becomes best.h5 (root attribute select_kept_by =
+/// "acceptance"; `best` updated), the validation's pick moves to DIR/best_average.h5, and the last's outcome is
+/// returned; either way selection_note says what the second check found (docs/method.md section 16.9).
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
-                                   const Selection* best, bool resumed, bool quiet);
+                                   Selection* best, bool resumed, bool quiet);
 
 /// Far behind the EKF (docs/method.md section 16.7, "Far behind the EKF: a constant storage tried"): where the
 /// acceptance check `a` of a `gain` run with a time-varying storage (network.storage_knots > 0) found it settled above
