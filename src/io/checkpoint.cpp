@@ -307,15 +307,23 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
     if (file_id(path, &id)) remember_clean(id);
 }
 
-std::string ckpt_precision(const std::string& path) {
-    h5::Handle f = h5::open_file(path, false);
-    HINF_CHECK(h5::has_attr(f.get(), "format") && h5::get_attr_string(f.get(), "format") == "hinf-checkpoint",
+namespace {
+// The checks and readers below take the file open once: each H5Fopen allocates and clears libhdf5's metadata cache
+// (half a megabyte, fresh pages under the sanitizers' allocator), and a network's load opened its file seven times.
+std::string precision_of(hid_t f, const std::string& path) {
+    HINF_CHECK(h5::has_attr(f, "format") && h5::get_attr_string(f, "format") == "hinf-checkpoint",
                "'" + path + "' is not a hinf checkpoint (pass DIR/checkpoint.h5 written by `hinf train`)");
-    std::int64_t version = h5::get_attr_int(f.get(), "format_version");
+    std::int64_t version = h5::get_attr_int(f, "format_version");
     HINF_CHECK(version == kCheckpointFormatVersion,
                "checkpoint '" + path + "' has format version " + std::to_string(version) + ", this hinf reads " +
                    std::to_string(kCheckpointFormatVersion) + " (use the hinf that wrote it)");
-    return h5::get_attr_string(f.get(), "precision");
+    return h5::get_attr_string(f, "precision");
+}
+}  // namespace
+
+std::string ckpt_precision(const std::string& path) {
+    h5::Handle f = h5::open_file(path, false);
+    return precision_of(f.get(), path);
 }
 
 namespace {
@@ -412,29 +420,43 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path, std:
     if (sets_out) *sets_out = sets;
     return sets.empty() ? text : doc.text();
 }
+
+RunConfig config_of(hid_t f, const std::string& path) {
+    precision_of(f, path);
+    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f, path, nullptr), path + ":/config"));
+}
+
+// ckpt_read on an open file; its config, loaded once, goes to *cfg_out when given
+template <typename T>
+Checkpoint<T> read_of(const h5::Handle& f, const std::string& path, RunConfig* cfg_out);
 }  // namespace
 
 std::vector<std::string> ckpt_as_trained(const std::string& path) {
-    ckpt_precision(path);
     h5::Handle f = h5::open_file(path, false);
+    precision_of(f.get(), path);
     std::vector<std::string> sets;
     ckpt_effective_config_text(f.get(), path, &sets);
     return sets;
 }
 
 RunConfig ckpt_config(const std::string& path) {
-    ckpt_precision(path);
     h5::Handle f = h5::open_file(path, false);
-    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f.get(), path, nullptr), path + ":/config"));
+    return config_of(f.get(), path);
 }
 
 template <typename T>
 Checkpoint<T> ckpt_read(const std::string& path) {
-    std::string precision = ckpt_precision(path);
+    h5::Handle f = h5::open_file(path, false);
+    return read_of<T>(f, path, nullptr);
+}
+
+namespace {
+template <typename T>
+Checkpoint<T> read_of(const h5::Handle& f, const std::string& path, RunConfig* cfg_out) {
+    std::string precision = precision_of(f.get(), path);
     const char* want = std::is_same_v<T, float> ? "float" : "double";
     HINF_CHECK(precision == want, "checkpoint '" + path + "' holds a " + precision + " network, expected " + want);
-    RunConfig cfg = ckpt_config(path);
-    h5::Handle f = h5::open_file(path, false);
+    RunConfig cfg = config_of(f.get(), path);
     Checkpoint<T> ck;
     ck.config_text = h5::read_string(f.get(), "config");  // as written (the digest covers it; ckpt_config: effective)
     ck.net = network_shell<T>(cfg);  // shapes and scales from the config; no random draws, no OpenMP
@@ -518,8 +540,10 @@ Checkpoint<T> ckpt_read(const std::string& path) {
         HINF_CHECK(h5::get_attr_string(f.get(), "content_digest") == content_digest(ck),
                    "checkpoint '" + path + "': its contents do not match its digest (a weight, moment, state or "
                    "step was changed after writing; resume from checkpoint.prev.h5 or train again)");
+    if (cfg_out) *cfg_out = std::move(cfg);
     return ck;
 }
+}  // namespace
 
 void ckpt_verify(const std::string& path) {
     const std::string what = read_in_child(path);
@@ -533,10 +557,9 @@ void ckpt_verify(const std::string& path) {
 
 std::unique_ptr<FrozenNetwork> ckpt_frozen_network(const std::string& path, RunConfig* cfg_out) {
     ckpt_verify(path);  // in a child process first: a file that crashes libhdf5 gives one line
-    std::string precision = ckpt_precision(path);
-    if (cfg_out) *cfg_out = ckpt_config(path);
-    if (precision == "float") return network_freeze(ckpt_read<float>(path).net);
-    return network_freeze(ckpt_read<double>(path).net);
+    h5::Handle f = h5::open_file(path, false);
+    if (precision_of(f.get(), path) == "float") return network_freeze(read_of<float>(f, path, cfg_out).net);
+    return network_freeze(read_of<double>(f, path, cfg_out).net);
 }
 
 template void ckpt_write<float>(const std::string&, const Checkpoint<float>&, const RunConfig&);
