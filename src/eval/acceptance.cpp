@@ -987,6 +987,13 @@ std::string last_against_best(const AcceptanceOutcome& l, const AcceptanceOutcom
 }
 }  // namespace
 
+void rename_in_notes(AcceptanceOutcome& a, const std::string& from, const std::string& to) {
+    if (from.empty()) return;
+    for (std::string* text : {&a.note, &a.settle_note, &a.search_note, &a.advice})
+        for (std::size_t at = text->find(from); at != std::string::npos; at = text->find(from, at + to.size()))
+            text->replace(at, from.size(), to);
+}
+
 AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir, const TrainSummary& s,
                                    Selection* best, bool resumed, bool quiet) {
     if (!(cfg.acceptance_runs > 0 && s.status == 0 && s.last_step == cfg.steps_until() &&
@@ -1027,9 +1034,7 @@ AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir,
     l.selection_note = "acceptance: note: " + early + " FAILed and " + last + " PASSed the same check (" + against +
                        "): " + dir + "/best.h5 is now the last checkpoint, and the validation's pick is " + dir +
                        "/best_average.h5 (docs/method.md section 16.9)";
-    const std::string judged = dir + "/checkpoint.h5";  // the full search's command names the file to use
-    const std::size_t at = l.search_note.find(judged);
-    if (at != std::string::npos) l.search_note.replace(at, judged.size(), dir + "/best.h5");
+    rename_in_notes(l, dir + "/checkpoint.h5", dir + "/best.h5");  // the notes' commands name the file to use
     return l;
 }
 

@@ -111,6 +111,12 @@ TEST_CASE("an early best.h5 that fails its acceptance check: the last checkpoint
                                     std::to_string(last) + ") PASSed the same check") == 0);
         CHECK(a.selection_note.find(dir + "/best_average.h5") != std::string::npos);
         CHECK(a.line.find(dir + "/acceptance/last/operate.h5") != std::string::npos);
+        // the notes' commands name best.h5, the file the user now has, not the checkpoint the check judged
+        CHECK(a.search_note.find("--network " + dir + "/best.h5") != std::string::npos);
+        for (const std::string& text : {a.note, a.settle_note, a.search_note, a.advice}) {
+            INFO(text);
+            CHECK(text.find(dir + "/checkpoint.h5") == std::string::npos);
+        }
         // the selection now says the last step, with the score its validation gave (select.csv's row, bit for bit)
         CHECK(best.step == last);
         CHECK(best.score == csv_score(dir + "/select.csv", last));
@@ -169,4 +175,21 @@ TEST_CASE("an early best.h5 that fails its acceptance check: the last checkpoint
         CHECK(a.search_note.find("search " + dir + "/checkpoint.h5 the same way") != std::string::npos);
         CHECK_FALSE(fs::exists(dir + "/acceptance/last"));
     }
+}
+
+TEST_CASE("after the last checkpoint is kept as best.h5, every note's command names best.h5", "[acceptance][select]") {
+    AcceptanceOutcome a;
+    a.note = "acceptance: note: ... compare both best.h5 (hinf compare c.toml --network D/checkpoint.h5 --filters dnn)";
+    a.search_note = "acceptance: note: ... run the full search: hinf worst c.toml --network D/checkpoint.h5 ...";
+    a.settle_note = "no file named";
+    a.selection_note = "D/checkpoint.h5 was judged";  // the selection note says which file was judged: kept
+    rename_in_notes(a, "D/checkpoint.h5", "D/best.h5");
+    CHECK(a.note == "acceptance: note: ... compare both best.h5 (hinf compare c.toml --network D/best.h5 --filters dnn)");
+    CHECK(a.search_note == "acceptance: note: ... run the full search: hinf worst c.toml --network D/best.h5 ...");
+    CHECK(a.settle_note == "no file named");
+    CHECK(a.selection_note == "D/checkpoint.h5 was judged");
+    // twice in one text, and a name that contains the new one
+    a.advice = "D/checkpoint.h5 and D/checkpoint.h5";
+    rename_in_notes(a, "D/checkpoint.h5", "D/checkpoint.h5.best");
+    CHECK(a.advice == "D/checkpoint.h5.best and D/checkpoint.h5.best");
 }
