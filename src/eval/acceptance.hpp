@@ -116,6 +116,7 @@ struct AcceptanceOutcome {
 /// Every `from` in a's notes and advice (the commands they name) replaced by `to`: after the last checkpoint was
 /// judged and kept as best.h5, the commands name best.h5 (acceptance_after).
 void rename_in_notes(AcceptanceOutcome& a, const std::string& from, const std::string& to);
+
 /// The settled error, over the EKF's on the acceptance runs (the larger of the position and the all-state Q-weighted
 /// ratio), above which a PASS gets AcceptanceOutcome::note
 inline constexpr double kBehindEkf = 1.25;
