@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <omp.h>
 
 #include "filters/gain_law.hpp"
@@ -73,7 +74,9 @@ std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& sta
         if (start.P0.size() == std::size_t(n) * n) s = std::max(s, std::sqrt(std::max(0.0, start.P0[i * n + i])));
         if (x_true != nullptr)
             for (std::int64_t k = 0; k < K; ++k) s = std::max(s, std::fabs(x_true[k * n + i]));
-        bound[i] = kPlausibleFactor * std::max(s, 1e-300);
+        // a state with no scale at all (a bias or a parameter that starts at 0 and stays there in the truth) has no
+        // range to leave: any estimate of it would count, the DNN gain's first nudge included (docs/compare.md)
+        bound[i] = s > 0 ? kPlausibleFactor * s : std::numeric_limits<double>::infinity();
     }
     return bound;
 }

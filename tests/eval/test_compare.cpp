@@ -231,6 +231,61 @@ TEST_CASE("an estimate that leaves the plausible range is reported as diverged",
     for (int i = 0; i < cfg.n; ++i) CHECK(by[i] == Approx(kPlausibleFactor * 1e9));
 }
 
+namespace {
+// A filter whose estimate sits a little off its start in every state, as a gain's first correction puts it.
+class NudgedFilter final : public OnlineFilter {
+public:
+    std::string name() const override { return "nudged"; }
+    void reset(const FilterStart& s) override {
+        xhat_ = s.xhat0;
+        for (double& v : xhat_) v += 1e-3;
+    }
+    FilterStatus step(const FilterInput&) override { return FILTER_OK; }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<NudgedFilter>(*this); }
+
+private:
+    std::vector<double> xhat_;
+};
+}  // namespace
+
+TEST_CASE("a state with no scale has no plausible range: an estimate of it off zero is no divergence",
+          "[eval][compare][divergence]") {
+    // b is a constant that is 0 in the truth and in the start (a bias the sensor does not have): before, its range was
+    // 1000 x 1e-300, and a DNN gain filter's first nudge of b counted as a divergence in every run
+    const RunConfig cfg = test::config_from_text(R"([system]
+kind = "expr"
+states = ["a", "b"]
+disturbances = 1
+measurements = 1
+f = ["-a + b", "0"]
+g = [["1"], ["0"]]
+h = ["a"]
+[filter]
+x0 = [1.0, 0.0]
+xhat0 = [1.0, 0.0]
+dt = 0.01
+t_final = 0.2
+[online]
+disturbance_std = 0.2
+noise_std = 0.1
+)");
+    const FilterStart start = engine_filter_start(cfg, 0);
+    REQUIRE(start.P0[3] == 0);  // the premise: no initial spread in b either
+    const std::vector<double> b = plausible_bound(cfg, start, nullptr, nullptr, 0);
+    CHECK(b[0] == Approx(kPlausibleFactor * 1.0));
+    CHECK(std::isinf(b[1]));
+    TempDir d("compare-noscale");
+    NudgedFilter nudged;
+    CompareOptions opt;
+    opt.out_dir = d / "c";
+    opt.runs = 2;
+    opt.quiet = true;
+    CompareSummary s = compare_run(cfg, {&nudged}, opt);
+    REQUIRE(s.filters.size() == 1);
+    CHECK(s.filters[0].diverged_runs == 0);
+}
+
 TEST_CASE("compare scenarios: Student-t and biased measurement noise have the stated law", "[eval][compare]") {
     // n = y - C(x) from compare.h5 (run 0, 2000 steps x 6 channels). Median |n| / sigma_n: Gaussian 0.6745;
     // t_3 scaled to unit variance 0.7649 / sqrt(3) = 0.4416. With 12000 draws the sample median's standard
