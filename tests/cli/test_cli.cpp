@@ -42,7 +42,8 @@ TEST_CASE("hinf train, resume and operate on a tiny config", "[cli]") {
         CHECK(hinf::h5::get_attr_int(c.get(), "acceptance_worst_evals") > 0);
         hinf::h5::Handle w = hinf::h5::open_file(d / "run/acceptance/worst.h5", false);
         hinf::h5::Handle g = hinf::h5::open_group(w.get(), "filters/dnn_dissipative_measured");
-        CHECK(hinf::h5::get_attr_string(g.get(), "starts") == "random:0,random:1,scenario:energy_pulse,game");
+        // ... and from the small-signal direction, as hinf worst's search (docs/method.md section 16.9)
+        CHECK(hinf::h5::get_attr_string(g.get(), "starts") == "random:0,random:1,scenario:energy_pulse,game,linear");
     }
     auto o = run_hinf("operate " + cfg + " --network " + (d / "run/checkpoint.h5") + " --out " + (d / "op") +
                       " --mode measured --runs 2 --quiet");

@@ -82,7 +82,6 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         // the acceptance check judges that one
         const Acceptance a = read_acceptance(d / "run/best.h5", 0.5);
         CHECK(a.worst_evals > 0);
-        CHECK(a.worst_evals <= 600);  // training.acceptance_worst_evals' default bounds the DNN filter's search
         CHECK(std::isfinite(a.worst_ratio));
         CHECK(a.worst_ratio > 0);
         CHECK(std::isfinite(a.worst_ratio_ekf));
@@ -93,6 +92,14 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         CHECK(hinf::h5::get_attr_string(w.get(), "format") == "hinf-worst");
         hinf::h5::Handle g = hinf::h5::open_group(w.get(), "filters/dnn_gain_measured");
         CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "ratio"), a.worst_ratio));
+        // the small-signal figure is the search's linear start, and the search goes on from its signals at the budget
+        // (the start that found the two tanks' worst case, docs/method.md section 16.9)
+        CHECK(same_bits(hinf::h5::get_attr_double(g.get(), "linear_gain"), a.small));
+        // training.acceptance_worst_evals' default, 600, dealt over the four starts; a cross start gets as many again
+        const std::string starts = hinf::h5::get_attr_string(g.get(), "starts");
+        CHECK(starts.rfind("random:0,random:1,scenario:energy_pulse,linear", 0) == 0);
+        CHECK(hinf::h5::get_attr_int(w.get(), "evals") == 150);
+        CHECK(a.worst_evals <= 150 * (1 + std::count(starts.begin(), starts.end(), ',')));
         CHECK(hinf::h5::exists(w.get(), "filters/ekf"));
     }
     {  // the Monte Carlo's runs against the EKF: the figures `hinf compare` gives on the same seed and run count, bit
@@ -303,9 +310,12 @@ TEST_CASE("training.require_acceptance: a filter that fails its validation Monte
     CHECK(advice.find("--set training.adam_steps=600") != std::string::npos);
     CHECK(advice.find("hinf compare " + cfg + " --network " + (d / "run/best.h5") + " --filters dnn,ekf,ukf") !=
           std::string::npos);
-    // a level this 0.5 s training meets (Monte Carlo ~0.5, worst case found ~1.9 when written): exit 0, no advice
+    // a level this 0.5 s training meets at a fifth of the noise: exit 0, no advice. The check's search found 3.6
+    // (hinf worst's full search 3.5); at the config's noise the search from the small-signal direction drives it out
+    // of its training's region and it diverges, which the check's search before 2026-12-06 (no such start) missed
     auto ok = run_hinf("train " + cfg + " --out " + (d / "run2") +
-                       " --quiet --set filter.rho=5 --set training.require_acceptance=true --set online.settle_time=0.25");
+                       " --quiet --set filter.rho=5 --set training.require_acceptance=true --set online.settle_time=0.25"
+                       " --set online.disturbance_std=0.2 --set online.noise_std=0.04");
     INFO(ok.output);
     CHECK(ok.status == 0);
     {  // with a settled window the line also gives the whole runs' figures, the transient from x^0 included (method.md
