@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 
 #include "config/game_level.hpp"
 #include "config/run_config.hpp"
@@ -20,6 +21,7 @@
 #include "hinf/config.hpp"
 #include "io/checkpoint.hpp"
 #include "io/measurements.hpp"
+#include "io/run_lock.hpp"
 #include "models/expr_system.hpp"
 #include "models/system.hpp"
 #include "net/network.hpp"
@@ -449,6 +451,8 @@ TrainReport train(const Config& cfg, const TrainSettings& settings) {
     RunConfig c = run_config(cfg);
     check_inputs_cover_run(c.doc, *c.system, c.dt, c.t_final);  // a config of with_inputs need not cover its run
     HINF_CHECK(!settings.out_dir.empty(), "train: out_dir is required (the directory for trajectory.h5 and checkpoint.h5)");
+    // the directory is this call's until it returns: the training, the selection, the check, a run swapped in
+    const RunDirLock lock(settings.out_dir, "hinf train (library)");
     HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
                settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +
                    settings.out_dir + "/checkpoint.h5\"), or start afresh with force or another out_dir");
@@ -484,6 +488,8 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
         best = selection_begin(c, dir, /*fresh=*/false, opt);
     } catch (const std::exception&) {
     }
+    std::optional<RunDirLock> lock;  // as train's (no lock file beside a file that is not a checkpoint)
+    if (readable) lock.emplace(dir, "hinf resume (library)");
     TrainSummary s = train_resume(checkpoint_path, opt);
     if (readable && s.status == 0) {  // resumed to t_final: it ends as the same run uninterrupted (as `hinf resume`)
         choose_held_start(&c, &s, &best, dir, settings.quiet);

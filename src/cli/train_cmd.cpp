@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "eval/observability.hpp"
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
+#include "io/run_lock.hpp"
 #include "par/par.hpp"
 #include "train/sweep.hpp"
 #include "train/trainer.hpp"
@@ -134,6 +136,9 @@ void add_train_commands(CLI::App& app) {
         RunConfig cfg = load_config_with_overrides(args->config, args->sets);
         TrainOptions opt;
         opt.out_dir = args->out.empty() ? default_out_dir(args->config, "") : args->out;
+        // the directory is this command's until it ends: the training, the selection, the acceptance check and a
+        // second run swapped in (a `train --force` started during the check removed best.h5 under it)
+        const RunDirLock lock(opt.out_dir, "hinf train");
         HINF_CHECK(args->force || !std::filesystem::exists(opt.out_dir + "/checkpoint.h5"),
                    opt.out_dir + " already holds a run (checkpoint.h5): continue it with `hinf resume " + opt.out_dir +
                        "/checkpoint.h5`, or start afresh with --force or another --out");
@@ -205,6 +210,7 @@ void add_train_commands(CLI::App& app) {
                                    const SweepTrain& train, TrainSummary& s) {
             SweepVerdict v;
             v.rho = cfg.rho;
+            const RunDirLock lock(dir, "hinf sweep");  // the value's directory to the end of its check, as train's
             const std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/!resumed, o);
             s = train(o);
             const AcceptanceOutcome a = acceptance_after(cfg, dir, s, best.get(), resumed, /*quiet=*/true);
@@ -293,6 +299,8 @@ void add_train_commands(CLI::App& app) {
         } catch (const std::exception&) {
             // a checkpoint that cannot be read: train_resume says so, with its hint about checkpoint.prev.h5
         }
+        std::optional<RunDirLock> lock;  // as train's: held to the end, the check and any swap included
+        if (readable) lock.emplace(dir, "hinf resume");  // (no lock file beside a file that is not a checkpoint)
         std::shared_ptr<Selection> best = readable ? selection_begin(before, dir, /*fresh=*/false, opt) : nullptr;
         install_stop_handlers();
         TrainSummary s = train_resume(args->checkpoint, opt);

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <sstream>
 
 #include "hinf/error.hpp"
@@ -17,6 +19,14 @@
 namespace hinf {
 
 namespace {
+// the directories this process holds the lock of, and how many RunDirLocks hold each (flock(2) locks belong to an
+// open file: a second open and flock of the same file in this process would be refused as another's)
+std::mutex held_mutex;
+std::map<std::string, int>& held() {
+    static std::map<std::string, int> table;
+    return table;
+}
+
 std::string own_command_line() {
     std::ifstream in("/proc/self/cmdline", std::ios::binary);
     std::string raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()), out;
@@ -32,6 +42,14 @@ RunDirLock::RunDirLock(const std::string& dir, const std::string& command) {
     std::filesystem::create_directories(dir, ec);
     HINF_CHECK(!ec, "cannot create the output directory '" + dir + "': " + ec.message() +
                         " (check the path and permissions, or pass another --out)");
+    const std::filesystem::path canonical = std::filesystem::weakly_canonical(dir, ec);
+    const std::string key = ec ? dir : canonical.string();
+    const std::lock_guard<std::mutex> guard(held_mutex);
+    if (auto it = held().find(key); it != held().end()) {  // nested in this process's own hold of DIR
+        ++it->second;
+        key_ = key;
+        return;
+    }
     const std::string path = dir + "/.hinf.lock";
     fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     HINF_CHECK(fd_ >= 0, "cannot create the lock file '" + path + "': " + std::strerror(errno) +
@@ -55,9 +73,14 @@ RunDirLock::RunDirLock(const std::string& dir, const std::string& command) {
         const ssize_t wrote = ::pwrite(fd_, text.data(), text.size(), 0);
         (void)wrote;  // the holder's description is for messages only; the flock is the lock
     }
+    held()[key] = 1;
+    key_ = key;
 }
 
 RunDirLock::~RunDirLock() {
+    if (key_.empty()) return;
+    const std::lock_guard<std::mutex> guard(held_mutex);
+    if (auto it = held().find(key_); it != held().end() && --it->second == 0) held().erase(it);
     if (fd_ >= 0) ::close(fd_);  // closing drops the flock
 }
 

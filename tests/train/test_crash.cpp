@@ -299,6 +299,41 @@ TEST_CASE("stress: a second train or resume against a run directory in use is re
     }
 }
 
+// Stress: the run directory stays the training's after its last step, through the selection's best.h5, the
+// acceptance check and a run swapped in. Until 2026-12-06 the lock was the training loop's alone: a `train --force`
+// started during the check was let in, removed best.h5 and the first run failed reading it. The first run is stopped
+// (SIGSTOP) inside its check, so the second and third always meet it there.
+TEST_CASE("stress: a second train or resume during the first run's acceptance check is refused, the first ends intact",
+          "[crash][stress]") {
+    test::TempDir d("stress-check-lock");
+    const std::string cfg = d / "vdp.toml";
+    // a search of 4000 evaluations: a second or more of the check left when its directory appears
+    std::ofstream(cfg) << test::tiny_vdp_gain_config("0.5", "acceptance_worst_evals = 4000\n");
+    const std::string dir = d / "run";
+    pid_t first = spawn_hinf({"train", cfg, "--out", dir, "--quiet"}, d / "first.log", 0);
+    wait_until_exists(dir + "/acceptance", 120);  // the check has begun (the training and its selection are done)
+    REQUIRE(kill(first, SIGSTOP) == 0);
+    int st = 0;
+    const bool running = waitpid(first, &st, WNOHANG) == 0;
+    auto second = test::run_command(std::string(HINF_CLI_PATH) + " train " + cfg + " --out " + dir + " --force --quiet");
+    auto third = test::run_command(std::string(HINF_CLI_PATH) + " resume " + dir + "/checkpoint.h5 --quiet");
+    kill(first, SIGCONT);
+    const int first_status = running ? wait_for(first, 120) : (WIFEXITED(st) ? WEXITSTATUS(st) : -1);
+    INFO(second.output << third.output << read_text(d / "first.log"));
+    REQUIRE(running);  // stopped inside its check
+    CHECK(second.status == 2);
+    CHECK(second.output.find("is in use by another hinf process (pid") != std::string::npos);
+    CHECK(third.status == 2);
+    CHECK(third.output.find("is in use by another hinf process (pid") != std::string::npos);
+    CHECK(first_status == 0);
+    const std::string out = read_text(d / "first.log");
+    CHECK(out.find("worst ratio found") != std::string::npos);  // its check ran to the end
+    CHECK(fs::exists(dir + "/best.h5"));
+    // and the directory is free again once it has ended
+    CHECK(test::run_command(std::string(HINF_CLI_PATH) + " train " + cfg + " --out " + dir + " --force --quiet "
+                            "--set training.acceptance_runs=0").status == 0);
+}
+
 // Stress: kill -9 at random moments while `compare` and `filter` write over an earlier run's outputs. Every
 // result file is written whole or not at all (temporary + rename), so what is there after a kill reads back
 // completely: the earlier run's files, or the new ones.
