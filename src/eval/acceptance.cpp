@@ -45,7 +45,8 @@ std::vector<WorstGame> dnn_game(const FrozenNetwork& net, double rho, std::size_
 // (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
 // budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
 // energy-pulse scenario, where the network gives dV/dx~ (not variant gain) the game's own worst case, and each
-// filter's small-signal worst signals scaled to the budget (the linear start, as hinf worst's); then the search's cross starts (the EKF's worst set, where it beats the DNN filter's own best, and the other way round).
+// filter's small-signal worst signals scaled to the budget (the linear start, as hinf worst's); then the search's
+// cross starts (the EKF's worst set, where it beats the DNN filter's own best, and the other way round).
 struct AcceptanceWorst {
     double ratio = NAN, ekf_ratio = NAN;  // the largest ratio found for the DNN filter and for the EKF
     double small = NAN, ekf_small = NAN;  // their small-signal worst ratios (the linear start's; NaN: not had)
@@ -87,9 +88,10 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     if (energy_pulse_span(cfg, K) > 0 || cfg.noise_std > 0) wo.scenario_starts = {"energy_pulse"};
     wo.pieces = int(std::min<std::int64_t>(wo.pieces, K));  // a short horizon has fewer steps than pieces
     wo.game_start = game;
-    // the small-signal figure, and the search starts from its signals at the budget ("linear"), as hinf worst's does:
-    // on the two tanks (rho = 8.14) that start found the worst case, 8.18, where the other starts found 7.78 (docs/method.md
-    // section 16.9). Its basis runs simulate at most half the steps of the search's evaluations, for each filter.
+    // the small-signal figure, and the search starts from its signals at the budget ("linear"), as hinf worst's
+    // does: on the two tanks (rho = 8.14) that start found the worst case, 8.18, where the other starts found 7.78
+    // (docs/method.md section 16.9). Its basis runs simulate at most half the steps of the search's evaluations, for
+    // each filter.
     const double channels = double(cfg.nv + cfg.m);
     wo.linear_steps = kAcceptanceLinearShare * double(cfg.acceptance_worst_evals) * double(K);
     wo.linear_pieces = int(std::max(1.0, std::min(double(WorstOptions{}.linear_pieces),
