@@ -22,6 +22,7 @@
 #include "io/checkpoint.hpp"
 #include "io/measurements.hpp"
 #include "io/run_lock.hpp"
+#include "io/run_swap.hpp"
 #include "models/expr_system.hpp"
 #include "models/system.hpp"
 #include "net/network.hpp"
@@ -481,6 +482,9 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     RunConfig c;
     bool readable = false;
     std::shared_ptr<Selection> best;
+    if (std::filesystem::exists(dir + "/" + kSwapFolder)) {  // a kill during two runs' exchange: finished first
+        const RunDirLock settle(dir, "hinf resume (library)");  // (its checkpoint may be in that folder)
+    }
     try {
         ckpt_verify(checkpoint_path);
         c = ckpt_config(checkpoint_path);

@@ -18,6 +18,7 @@
 #include "io/checkpoint.hpp"
 #include "io/progress.hpp"
 #include "io/run_lock.hpp"
+#include "io/run_swap.hpp"
 #include "par/par.hpp"
 #include "train/sweep.hpp"
 #include "train/trainer.hpp"
@@ -292,6 +293,9 @@ void add_train_commands(CLI::App& app) {
         if (dir.empty()) dir = ".";
         RunConfig before;
         bool readable = false;
+        if (std::filesystem::exists(dir + "/" + kSwapFolder)) {  // a kill during two runs' exchange: finished first
+            const RunDirLock settle(dir, "hinf resume");          // (its checkpoint may be in that folder)
+        }
         try {
             ckpt_verify(args->checkpoint);  // read in a child first: a damaged file may crash the HDF5 library
             before = ckpt_config(args->checkpoint);

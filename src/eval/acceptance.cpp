@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <utility>
@@ -19,6 +20,7 @@
 #include "filters/factory.hpp"
 #include "hinf/h5.hpp"
 #include "io/checkpoint.hpp"
+#include "io/run_swap.hpp"
 #include "net/network.hpp"
 #include "par/par.hpp"
 #include "sim/truth.hpp"
@@ -747,21 +749,7 @@ constexpr const char* kRunEntries[] = {"checkpoint.h5", "checkpoint.prev.h5", "t
                                        "start"};
 
 void swap_runs(const std::string& dir, const std::string& alt) {
-    namespace fs = std::filesystem;
-    const fs::path swap = dir + "/alternative.swap";
-    fs::remove_all(swap);
-    fs::create_directories(swap);
-    const auto move_runs = [](const fs::path& from, const fs::path& to) {
-        for (const char* name : kRunEntries) {
-            std::error_code ec;
-            if (fs::symlink_status(from / name, ec).type() != fs::file_type::not_found && !ec)
-                fs::rename(from / name, to / name);
-        }
-    };
-    move_runs(dir, swap);
-    move_runs(alt, dir);
-    move_runs(swap, alt);
-    fs::remove(swap);
+    swap_entries(dir, alt, std::vector<std::string>(std::begin(kRunEntries), std::end(kRunEntries)));
 }
 
 namespace {

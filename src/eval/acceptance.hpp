@@ -51,7 +51,8 @@ std::string selection_line(const RunConfig& cfg, const Selection& best, const st
 /// The runs in dir and alt change places (a second run kept, below): the entries a training writes into its directory
 /// (checkpoints, trajectory, the selection and the start check: kRunEntries in acceptance.cpp) move, each one that
 /// exists, and nothing else does -- not the user's own files there (a log redirected into DIR), not DIR's lock, which
-/// this process holds, and not DIR/acceptance, which the kept run's check replaces.
+/// this process holds, and not DIR/acceptance, which the kept run's check replaces. Journalled (io/run_swap.hpp): an
+/// exchange a kill interrupts is finished by the next lock of DIR.
 void swap_runs(const std::string& dir, const std::string& alt);
 
 /// A Riccati start held at once (docs/method.md section 16.7, "Held at once: both storages trained"): where the game's

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +15,7 @@
 #include <sstream>
 
 #include "hinf/error.hpp"
+#include "io/run_swap.hpp"
 #include "par/par.hpp"
 
 namespace hinf {
@@ -75,6 +77,12 @@ RunDirLock::RunDirLock(const std::string& dir, const std::string& command) {
     }
     held()[key] = 1;
     key_ = key;
+    // two runs' exchange a kill interrupted (eval/acceptance.cpp swap_runs): finished before anything else is done here
+    const std::string alt = finish_interrupted_swap(dir);
+    if (!alt.empty())
+        std::fprintf(stderr, "hinf: note: %s held two runs being exchanged with %s when a process was killed; the "
+                             "exchange is finished: %s holds the run that was kept, %s the other (docs/reliability.md)\n",
+                     dir.c_str(), alt.c_str(), dir.c_str(), alt.c_str());
 }
 
 RunDirLock::~RunDirLock() {
