@@ -75,10 +75,18 @@ RunDirLock::RunDirLock(const std::string& dir, const std::string& command) {
         const ssize_t wrote = ::pwrite(fd_, text.data(), text.size(), 0);
         (void)wrote;  // the holder's description is for messages only; the flock is the lock
     }
+    // two runs' exchange a kill interrupted (eval/acceptance.cpp swap_runs): finished before anything else is done
+    // here; where it cannot be (a damaged journal), the lock is dropped with the error (no destructor runs)
+    std::string alt;
+    try {
+        alt = finish_interrupted_swap(dir);
+    } catch (...) {
+        ::close(fd_);
+        fd_ = -1;
+        throw;
+    }
     held()[key] = 1;
     key_ = key;
-    // two runs' exchange a kill interrupted (eval/acceptance.cpp swap_runs): finished before anything else is done here
-    const std::string alt = finish_interrupted_swap(dir);
     if (!alt.empty())
         std::fprintf(stderr, "hinf: note: %s held two runs being exchanged with %s when a process was killed; the "
                              "exchange is finished: %s holds the run that was kept, %s the other (docs/reliability.md)\n",

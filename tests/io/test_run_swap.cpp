@@ -115,6 +115,13 @@ TEST_CASE("an exchange of two runs killed at any point is finished by the next l
         CHECK_THROWS_WITH(hinf::finish_interrupted_swap(dir.string()),
                           Catch::Contains("is damaged") && Catch::Contains("by hand"));
         CHECK(read(dir / "checkpoint.h5") == "first");
+        // the lock refuses with that line, and is not left held: once the journal is fixed, the next lock finishes
+        CHECK_THROWS_WITH(hinf::RunDirLock(dir.string(), "test"), Catch::Contains("is damaged"));
+        std::ofstream(dir / hinf::kSwapFolder / hinf::kSwapJournal) << "phase 1\n" << fs::absolute(alt).string() << "\n"
+                                                                    << "checkpoint.h5\n";
+        { const hinf::RunDirLock lock(dir.string(), "test"); }
+        CHECK(read(dir / "checkpoint.h5") == "second");
+        CHECK(read(alt / "checkpoint.h5") == "first");
     }
 }
 
