@@ -8,7 +8,6 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
-#include <optional>
 
 #include "config/game_level.hpp"
 #include "config/run_config.hpp"
@@ -16,13 +15,13 @@
 #include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
 #include "eval/observability.hpp"
+#include "eval/training_run.hpp"
 #include "export/export_c.hpp"
 #include "filters/factory.hpp"
 #include "hinf/config.hpp"
 #include "io/checkpoint.hpp"
 #include "io/measurements.hpp"
 #include "io/run_lock.hpp"
-#include "io/run_swap.hpp"
 #include "models/expr_system.hpp"
 #include "models/system.hpp"
 #include "net/network.hpp"
@@ -423,14 +422,15 @@ TrainReport report_of(const TrainSummary& s, const std::string& dir) {
     return r;
 }
 
-// the selection's and the acceptance check's results, as `hinf train`/`resume` print them
-AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::string& dir, const TrainSummary& s,
-                                Selection* best, bool resumed, bool quiet) {
-    const AcceptanceOutcome a = acceptance_after(c, dir, s, best, resumed, quiet);
-    if (best != nullptr && best->step >= 0) {  // after the check: it may keep the last checkpoint instead
+// the report of a run as it ended: the trainer's summary, the selection's and the acceptance check's results, as
+// `hinf train`/`resume` print them
+TrainReport report_of(const TrainingRun& run, const std::string& dir) {
+    TrainReport r = report_of(run.summary, dir);
+    if (run.best != nullptr && run.best->step >= 0) {  // after the check: it may keep the last checkpoint instead
         r.best_checkpoint = dir + "/best.h5";
-        r.best_step = best->step;
+        r.best_step = run.best->step;
     }
+    const AcceptanceOutcome& a = run.acceptance;
     if (a.ran) {
         r.acceptance = a.pass ? "pass" : "fail";
         r.acceptance_checkpoint = a.file;
@@ -444,7 +444,7 @@ AcceptanceOutcome finish_report(TrainReport& r, const RunConfig& c, const std::s
         r.acceptance_rms_q_settled = a.rms_q_settled;
         r.acceptance_rms_q_settled_ekf = a.rms_q_settled_ekf;
     }
-    return a;
+    return r;
 }
 }  // namespace
 
@@ -457,56 +457,13 @@ TrainReport train(const Config& cfg, const TrainSettings& settings) {
     HINF_CHECK(settings.force || !std::filesystem::exists(settings.out_dir + "/checkpoint.h5"),
                settings.out_dir + " already holds a run (checkpoint.h5): continue it with resume(\"" +
                    settings.out_dir + "/checkpoint.h5\"), or start afresh with force or another out_dir");
-    TrainOptions opt = train_options(settings);
-    std::shared_ptr<Selection> best = selection_begin(c, settings.out_dir, /*fresh=*/true, opt);
-    TrainSummary s = train_start(c, opt);
-    choose_held_start(&c, &s, &best, settings.out_dir, settings.quiet);  // a Riccati start held at once: both storages
-    choose_game_in_noise_units(&c, &s, &best, settings.out_dir, settings.quiet);  // none validated: the other game
-    TrainReport r = report_of(s, settings.out_dir);
-    const AcceptanceOutcome a = finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
-    if (choose_storage_far_behind(&c, &s, &best, settings.out_dir, settings.quiet, a)) {  // the constant storage kept
-        r = report_of(s, settings.out_dir);
-        finish_report(r, c, settings.out_dir, s, best.get(), /*resumed=*/false, settings.quiet);
-    }
-    if (s.status != 0) r.diverged = true;  // interrupted in the constant storage's run: the first run stays
-    return r;
+    return report_of(training_run_fresh(std::move(c), train_options(settings), {}), settings.out_dir);
 }
 
 TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings) {
     std::string dir = std::filesystem::path(checkpoint_path).parent_path().string();
     if (dir.empty()) dir = ".";
-    TrainOptions opt = train_options(settings);
-    // the selection reads the file's config; a file that cannot be read is train_resume's to report (with its hint
-    // about checkpoint.prev.h5), and it is read in a child first: a damaged file may crash the HDF5 library
-    // (the library's resume changes no keys, so the config read here is the one the run ends with)
-    RunConfig c;
-    bool readable = false;
-    std::shared_ptr<Selection> best;
-    if (std::filesystem::exists(dir + "/" + kSwapFolder)) {  // a kill during two runs' exchange: finished first
-        const RunDirLock settle(dir, "hinf resume (library)");  // (its checkpoint may be in that folder)
-    }
-    try {
-        ckpt_verify(checkpoint_path);
-        c = ckpt_config(checkpoint_path);
-        readable = true;
-        best = selection_begin(c, dir, /*fresh=*/false, opt);
-    } catch (const std::exception&) {
-    }
-    std::optional<RunDirLock> lock;  // as train's (no lock file beside a file that is not a checkpoint)
-    if (readable) lock.emplace(dir, "hinf resume (library)");
-    TrainSummary s = train_resume(checkpoint_path, opt);
-    if (readable && s.status == 0) {  // resumed to t_final: it ends as the same run uninterrupted (as `hinf resume`)
-        choose_held_start(&c, &s, &best, dir, settings.quiet);
-    }
-    TrainReport r = report_of(s, dir);
-    const AcceptanceOutcome a = finish_report(r, readable ? c : ckpt_config(checkpoint_path), dir, s, best.get(),
-                                              /*resumed=*/true, settings.quiet);
-    if (readable && choose_storage_far_behind(&c, &s, &best, dir, settings.quiet, a)) {  // the constant storage kept
-        r = report_of(s, dir);
-        finish_report(r, c, dir, s, best.get(), /*resumed=*/false, settings.quiet);
-    }
-    if (s.status != 0) r.diverged = true;  // interrupted in the second storage's run: the first run stays
-    return r;
+    return report_of(training_run_resume(checkpoint_path, train_options(settings), "hinf resume (library)", {}), dir);
 }
 
 // ---------------------------------------------------------------------------------------------- export

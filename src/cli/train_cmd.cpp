@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
-#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -15,10 +14,9 @@
 #include "cli/common.hpp"
 #include "eval/acceptance.hpp"
 #include "eval/observability.hpp"
-#include "io/checkpoint.hpp"
+#include "eval/training_run.hpp"
 #include "io/progress.hpp"
 #include "io/run_lock.hpp"
-#include "io/run_swap.hpp"
 #include "par/par.hpp"
 #include "train/sweep.hpp"
 #include "train/trainer.hpp"
@@ -74,20 +72,31 @@ void print_acceptance(const AcceptanceOutcome& a) {
     std::fflush(stdout);  // before what comes next on stderr
 }
 
-// The acceptance check of a run that stopped with s, printed; where it finds a run with knots far behind the EKF,
-// the constant storage's run too (choose_storage_far_behind) and, where that is kept, its summary and check. Returns
-// the kept run's outcome; s->status is non-zero where the second run was interrupted.
-AcceptanceOutcome check_run(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best, const std::string& dir,
-                            bool resumed, bool quiet) {
-    AcceptanceOutcome a = acceptance_after(*cfg, dir, *s, best->get(), resumed, quiet);
-    print_acceptance(a);
-    if (choose_storage_far_behind(cfg, s, best, dir, quiet, a)) {
-        print_summary(*s, dir);
-        std::printf("%s\n", selection_line(*cfg, **best, dir).c_str());
-        a = acceptance_after(*cfg, dir, *s, best->get(), /*resumed=*/false, quiet);
-        print_acceptance(a);
+// What `hinf train` and `hinf resume` print as the run goes: each run's summary and selection (the first, and another
+// storage's run where one is kept), `first_notes` after the first, and each acceptance check's line and notes
+TrainingRunHooks printing_hooks(const std::string& dir,
+                                std::function<void(const RunConfig&, const TrainSummary&)> first_notes) {
+    TrainingRunHooks h;
+    h.before_training = install_stop_handlers;
+    h.trained = [dir, first_notes](const RunConfig& cfg, const TrainSummary& s, const Selection* best, bool again) {
+        print_summary(s, dir);
+        if (best) std::printf("%s\n", selection_line(cfg, *best, dir).c_str());
+        if (!again && first_notes) first_notes(cfg, s);
+    };
+    h.checked = print_acceptance;
+    return h;
+}
+
+// The exit of a run: its status where it stopped; 5 where it failed its acceptance check and the config requires it
+void exit_as(const TrainingRun& run) {
+    if (run.summary.status != 0) throw CLI::RuntimeError(run.summary.status);
+    const AcceptanceOutcome& a = run.acceptance;
+    if (a.ran && !a.pass && run.cfg.require_acceptance) {
+        std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s: attenuation ratio or "
+                             "worst-case ratio above [filter] rho, or a diverged run); training.require_acceptance "
+                             "is set (train longer or with another seed, or unset it)\n", a.file.c_str());
+        throw CLI::RuntimeError(5);
     }
-    return a;
 }
 
 // `hinf sweep --worst`: each value's level against what hinf worst's full search found on its checkpoint, and the
@@ -149,28 +158,13 @@ void add_train_commands(CLI::App& app) {
             const std::string note = unseen_states_note(cfg, state_information(cfg));
             if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
         }
-        std::shared_ptr<Selection> best = selection_begin(cfg, opt.out_dir, /*fresh=*/true, opt);
-        install_stop_handlers();
-        TrainSummary s = train_start(cfg, opt);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);
-        choose_held_start(&cfg, &s, &best, opt.out_dir, args->quiet);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second storage's run
-        choose_game_in_noise_units(&cfg, &s, &best, opt.out_dir, args->quiet);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second game's run
-        print_summary(s, opt.out_dir);
-        if (best) std::printf("%s\n", selection_line(cfg, *best, opt.out_dir).c_str());
-        if (cfg.select_every > 0 && par_world_size() > 1 && par_root())
-            std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");
-        if (cfg.acceptance_runs > 0 && par_world_size() > 1 && par_root())
-            std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
-        const AcceptanceOutcome a = check_run(&cfg, &s, &best, opt.out_dir, /*resumed=*/false, args->quiet);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the constant storage's run
-        if (a.ran && !a.pass && cfg.require_acceptance) {
-            std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s: attenuation ratio or "
-                                 "worst-case ratio above [filter] rho, or a diverged run); training.require_acceptance "
-                                 "is set (train longer or with another seed, or unset it)\n", a.file.c_str());
-            throw CLI::RuntimeError(5);
-        }
+        const auto mpi_notes = [](const RunConfig& c, const TrainSummary&) {
+            if (c.select_every > 0 && par_world_size() > 1 && par_root())
+                std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");
+            if (c.acceptance_runs > 0 && par_world_size() > 1 && par_root())
+                std::printf("acceptance: skipped under mpirun (run hinf operate --mode measured on the checkpoint)\n");
+        };
+        exit_as(training_run_fresh(std::move(cfg), opt, printing_hooks(opt.out_dir, mpi_notes)));
     });
 
     auto sw = std::make_shared<TrainArgs>();
@@ -291,43 +285,14 @@ void add_train_commands(CLI::App& app) {
         opt.sets = args->sets;
         std::string dir = std::filesystem::path(args->checkpoint).parent_path().string();
         if (dir.empty()) dir = ".";
-        RunConfig before;
-        bool readable = false;
-        if (std::filesystem::exists(dir + "/" + kSwapFolder)) {  // a kill during two runs' exchange: finished first
-            const RunDirLock settle(dir, "hinf resume");          // (its checkpoint may be in that folder)
-        }
-        try {
-            ckpt_verify(args->checkpoint);  // read in a child first: a damaged file may crash the HDF5 library
-            before = ckpt_config(args->checkpoint);
-            readable = true;
-        } catch (const std::exception&) {
-            // a checkpoint that cannot be read: train_resume says so, with its hint about checkpoint.prev.h5
-        }
-        std::optional<RunDirLock> lock;  // as train's: held to the end, the check and any swap included
-        if (readable) lock.emplace(dir, "hinf resume");  // (no lock file beside a file that is not a checkpoint)
-        std::shared_ptr<Selection> best = readable ? selection_begin(before, dir, /*fresh=*/false, opt) : nullptr;
-        install_stop_handlers();
-        TrainSummary s = train_resume(args->checkpoint, opt);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);
-        RunConfig after = ckpt_config(args->checkpoint);  // with the keys changed on resume
-        // a run resumed to t_final ends as the same run uninterrupted: a Riccati start held at once trains both storages
-        choose_held_start(&after, &s, &best, dir, args->quiet);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the second storage's run
-        print_summary(s, dir);
-        if (best) std::printf("%s\n", selection_line(after, *best, dir).c_str());
-        if (!args->sets.empty()) {
+        const auto changed_note = [args](const RunConfig&, const TrainSummary& s) {
+            if (args->sets.empty()) return;
             std::string changed;
             for (const auto& v : args->sets) changed += " " + v;
             std::printf("changed on resume at step %lld:%s (recorded as a '# hinf resume' line in the config of the "
                         "checkpoint and trajectory)\n", static_cast<long long>(s.first_step), changed.c_str());
-        }
-        const AcceptanceOutcome a = check_run(&after, &s, &best, dir, /*resumed=*/true, args->quiet);
-        if (s.status != 0) throw CLI::RuntimeError(s.status);  // interrupted in the constant storage's run
-        if (a.ran && !a.pass && after.require_acceptance) {
-            std::fprintf(stderr, "hinf: error: the trained filter failed its acceptance check (%s); "
-                                 "training.require_acceptance is set\n", a.file.c_str());
-            throw CLI::RuntimeError(5);
-        }
+        };
+        exit_as(training_run_resume(args->checkpoint, opt, "hinf resume", printing_hooks(dir, changed_note)));
     });
 }
 
