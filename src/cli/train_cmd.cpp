@@ -202,16 +202,17 @@ void add_train_commands(CLI::App& app) {
         // each value ends as `hinf train` does: the checkpoint selection during training, the acceptance check after
         const bool full_search = *search;
         opt.around = [full_search](const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions o,
-                                   const SweepTrain& train, TrainSummary& s) {
+                                   TrainSummary& s) {
             SweepVerdict v;
-            v.rho = cfg.rho;
             const RunDirLock lock(dir, "hinf sweep");  // the value's directory to the end of its check, as train's
-            const std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/!resumed, o);
-            s = train(o);
-            const AcceptanceOutcome a = acceptance_after(cfg, dir, s, best.get(), resumed, /*quiet=*/true);
-            if (best && best->step >= 0) {  // after the check: it may keep the last checkpoint instead
-                v.best_step = best->step;
-                v.select_score = best->score;
+            const TrainingRun run = resumed ? training_run_resume(dir + "/checkpoint.h5", o, "hinf sweep", {})
+                                            : training_run_fresh(cfg, o, {});
+            s = run.summary;
+            v.rho = run.cfg.rho;
+            const AcceptanceOutcome& a = run.acceptance;
+            if (run.best && run.best->step >= 0) {  // after the check: it may keep the last checkpoint instead
+                v.best_step = run.best->step;
+                v.select_score = run.best->score;
             }
             if (a.ran) {
                 v.acceptance = a.pass ? "pass" : "fail";
@@ -223,7 +224,7 @@ void add_train_commands(CLI::App& app) {
                 v.rms_q_settled_ekf = a.rms_q_settled_ekf;
                 // the level kept: the acceptance's search is short; hinf worst's, on the checkpoint it judged
                 if (full_search) {
-                    const LevelSearch l = level_search(cfg, a.file, dir + "/worst", /*quiet=*/true);
+                    const LevelSearch l = level_search(run.cfg, a.file, dir + "/worst", /*quiet=*/true);
                     v.search_ratio = l.dnn;
                     v.search_ratio_ekf = l.ekf;
                     v.search_ratio_ukf = l.ukf;

@@ -119,7 +119,7 @@ SweepRow train_value(const std::string& config_path, const SweepOptions& opt, co
             readable = true;
         } catch (const std::exception&) {
         }
-        if (opt.around && readable) row.verdict = opt.around(cfg, row.dir, true, to, train, row.summary);
+        if (opt.around && readable) row.verdict = opt.around(cfg, row.dir, true, to, row.summary);
         else row.summary = train(to);
     } else {
         ConfigDoc doc = ConfigDoc::from_file(config_path);
@@ -128,7 +128,7 @@ SweepRow train_value(const std::string& config_path, const SweepOptions& opt, co
         row.how = "trained";
         const RunConfig cfg = load_run_config(std::move(doc));
         const SweepTrain train = [&](const TrainOptions& o) { return train_start(cfg, o); };
-        if (opt.around) row.verdict = opt.around(cfg, row.dir, false, to, train, row.summary);
+        if (opt.around) row.verdict = opt.around(cfg, row.dir, false, to, row.summary);
         else row.summary = train(to);
     }
     write_text_atomic(done, [&](std::ostream& o) { o << kSummaryHeader << '\n' << row_line(row) << '\n'; });

@@ -57,11 +57,12 @@ struct SweepOptions {
     std::vector<std::string> values;  // its values, one training each
     std::vector<std::string> sets;    // --set overrides common to all
     double until = -1;
-    /// Runs around each value's training, in its process group: given the value's config (its checkpoint's when
-    /// resumed), directory and options, it calls train(options) once, returns the summary in `s` and what it
-    /// checked. Empty: the training alone.
+    /// Trains each value in its process group in place of the training alone, with what the caller runs around it
+    /// (the CLI: eval's training_run, as `hinf train` and `hinf resume`): given the value's config (its
+    /// checkpoint's when resumed: DIR/checkpoint.h5, readable), directory and options, it trains (fresh, or resumed
+    /// from DIR/checkpoint.h5), returns the summary in `s` and what it checked. Empty: the training alone.
     std::function<SweepVerdict(const RunConfig& cfg, const std::string& dir, bool resumed, TrainOptions options,
-                               const SweepTrain& train, TrainSummary& s)> around;
+                               TrainSummary& s)> around;
 };
 
 struct SweepRow {

@@ -187,6 +187,17 @@ TEST_CASE("a Riccati start held at once trains both storages and keeps the one t
     auto again = run_hinf("resume " + out + "/checkpoint.h5 --quiet");
     INFO(again.output);
     CHECK(again.status == 0);
+    // a sweep's value ends as hinf train does (eval's training_run): both storages, the same one kept, the same bits
+    // (training.seed = 1 is the default; before, a sweep trained the knots alone)
+    const std::string value = (d / "sweep") + "/training.seed=1";
+    auto sweep = run_hinf("sweep " + (d / "chain.toml") + " --vary training.seed=1 --out " + (d / "sweep"));
+    INFO(sweep.output);
+    REQUIRE(sweep.status == 0);
+    REQUIRE(std::filesystem::exists(value + "/alternative/best.h5"));
+    CHECK(names_constant_storage(value + "/best.h5") == kept_constant);
+    CHECK(hinf::ckpt_read<float>(value + "/best.h5").net.theta == hinf::ckpt_read<float>(out + "/best.h5").net.theta);
+    CHECK(hinf::ckpt_read<float>(value + "/alternative/best.h5").net.theta ==
+          hinf::ckpt_read<float>(out + "/alternative/best.h5").net.theta);
     // a config that names the storage's knots trains one storage, and a fresh run removes the old second one
     const auto named = train_chain(d, "--force --set network.storage_knots=32");
     CHECK(named.output.find("hinf trains it too") == std::string::npos);
