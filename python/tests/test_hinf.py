@@ -249,6 +249,13 @@ def test_callback_exception_stops_training_and_keeps_checkpoint(tmp_path):
     assert report["first_step"] == 4 and report["last_step"] == 10
 
 
+def test_train_names_the_states_the_outputs_do_not_see(tmp_path, capfd):
+    """The library's train says what `hinf train` says before training (the DC motor's current, docs/method.md 16.18)."""
+    cfg = hinf.Config(os.path.join(ROOT, "examples", "systems", "dc_motor.toml"), set=SMALL)
+    hinf.train(cfg, str(tmp_path / "run"), until=0.02)
+    assert "the outputs tell next to nothing about" in capfd.readouterr().err
+
+
 def test_gain_run_reports_its_selection_and_acceptance(tmp_path):
     """A gain run to t_final keeps best.h5 and judges it, as `hinf train` does (docs/method.md 16.5, 16.9)."""
     cfg = hinf.Config(VANDERPOL, set=SMALL + ["filter.t_final=0.3", "training.checkpoint_every=10",

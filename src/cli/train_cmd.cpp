@@ -13,7 +13,6 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "eval/acceptance.hpp"
-#include "eval/observability.hpp"
 #include "eval/training_run.hpp"
 #include "io/progress.hpp"
 #include "io/run_lock.hpp"
@@ -154,10 +153,6 @@ void add_train_commands(CLI::App& app) {
                        "/checkpoint.h5`, or start afresh with --force or another --out");
         opt.until = args->until;
         opt.quiet = args->quiet;
-        if (par_root()) {  // a state the outputs do not see: said before the training's time is spent
-            const std::string note = unseen_states_note(cfg, state_information(cfg));
-            if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
-        }
         const auto mpi_notes = [](const RunConfig& c, const TrainSummary&) {
             if (c.select_every > 0 && par_world_size() > 1 && par_root())
                 std::printf("select: skipped under mpirun (run hinf compare on the checkpoints)\n");

@@ -1,14 +1,17 @@
 // A training run from its first step to its verdict (training_run.hpp).
 #include "eval/training_run.hpp"
 
+#include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <optional>
 #include <utility>
 
+#include "eval/observability.hpp"
 #include "io/checkpoint.hpp"
 #include "io/run_lock.hpp"
 #include "io/run_swap.hpp"
+#include "par/par.hpp"
 
 namespace hinf {
 
@@ -32,6 +35,10 @@ TrainingRun finish(RunConfig cfg, TrainSummary s, std::shared_ptr<Selection> bes
 
 TrainingRun training_run_fresh(RunConfig cfg, TrainOptions opt, const TrainingRunHooks& hooks) {
     const std::string dir = opt.out_dir;
+    if (par_root() && opt.config_notes) {  // a state the outputs do not see: said before the training's time is spent
+        const std::string note = unseen_states_note(cfg, state_information(cfg));
+        if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
+    }
     std::shared_ptr<Selection> best = selection_begin(cfg, dir, /*fresh=*/true, opt);
     if (hooks.before_training) hooks.before_training();
     TrainSummary s = train_start(cfg, opt);

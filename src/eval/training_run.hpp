@@ -32,7 +32,8 @@ struct TrainingRun {
     AcceptanceOutcome acceptance;     // the kept run's check (ran = false where none ran)
 };
 
-/// A fresh run of cfg in opt.out_dir. The caller holds that directory's lock (RunDirLock) and has refused one that
+/// A fresh run of cfg in opt.out_dir; first, where opt.config_notes, the note naming the states the outputs do not see
+/// (eval/observability.hpp), on stderr. The caller holds that directory's lock (RunDirLock) and has refused one that
 /// holds a run unless told to start afresh (the two callers say how to continue in their own words).
 TrainingRun training_run_fresh(RunConfig cfg, TrainOptions opt, const TrainingRunHooks& hooks);
 
