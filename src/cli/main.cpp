@@ -73,6 +73,10 @@ int main(int argc, char** argv) {
 int run(int argc, char** argv) {
     CLI::App app{"hinf: robust nonlinear filters by deep-network solutions of the Hamilton-Jacobi-Isaacs equation"};
     app.set_version_flag("--version", "hinf 0.1.0");
+    app.footer("Seed 000, 001 and 002 in the help and notes are the three papers hinf implements: the H-infinity DNN "
+               "filter (Chen, Wu, Lee, IEEE Access 2021), the mixed H2/H-infinity DNN filter (Chen, Ma, Wu, AI Advances "
+               "2024) and the global-linearization LMI filter (Mao, Deng, Wan, Sci China Inf Sci 2016): README.md, "
+               "docs/method.md.");
     app.require_subcommand(1);
     // argument errors follow the same one-line contract as every other error
     const std::string sub = argc > 1 && argv[1][0] != '-' ? std::string(" ") + argv[1] : "";

@@ -18,6 +18,8 @@ TEST_CASE("hinf --help and subcommand --help", "[cli]") {
     auto r = run_hinf("--help");
     CHECK(r.status == 0);
     CHECK(r.output.find("train") != std::string::npos);
+    // the help's "seed 000" and "seed 002" are named: a user has the papers, not the project's numbering
+    CHECK(r.output.find("Seed 000, 001 and 002 in the help and notes are the three papers") != std::string::npos);
     for (const char* sub : {"train", "resume", "operate"}) {
         auto s = run_hinf(std::string(sub) + " --help");
         CHECK(s.status == 0);
