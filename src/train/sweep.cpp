@@ -10,6 +10,8 @@
 #include "hinf/error.hpp"
 #include "io/atomic.hpp"
 #include "io/checkpoint.hpp"
+#include "io/run_lock.hpp"
+#include "io/run_swap.hpp"
 #include "par/par.hpp"
 
 namespace hinf {
@@ -104,6 +106,13 @@ SweepRow train_value(const std::string& config_path, const SweepOptions& opt, co
         r.how = "done before";
         return r;
     }
+    // a kill during the value's exchange of two runs (another storage or game kept, eval/acceptance.hpp) may have
+    // left its checkpoint in DIR/alternative.swap: the lock of DIR finishes the exchange first, so that the value
+    // resumes from its checkpoint instead of training afresh (the group's other ranks wait for its root)
+    if (par_root() && std::filesystem::exists(row.dir + "/" + kSwapFolder)) {
+        const RunDirLock settle(row.dir, "hinf sweep");
+    }
+    par_barrier();
     TrainOptions to;
     to.out_dir = row.dir;
     to.until = opt.until;

@@ -147,3 +147,31 @@ TEST_CASE("hinf resume after a kill that left the run's checkpoint inside an unf
     CHECK_FALSE(fs::exists(folder));
     CHECK(fs::exists(alt / "checkpoint.h5"));
 }
+
+TEST_CASE("hinf sweep after a kill that left a value's checkpoint inside an unfinished exchange", "[io][swap][cli]") {
+    // a value's runs are exchanged since its values end as hinf train does (another storage or game kept)
+    hinf::test::TempDir d("run-swap-sweep");
+    const std::string cfg = d / "tiny.toml";
+    std::ofstream(cfg) << hinf::test::tiny_missile_config();
+    const std::string sweep = "sweep " + cfg + " --vary training.seed=1 --out " + (d / "sweep");
+    REQUIRE(hinf::test::run_hinf(sweep + " --until 0.02").status == 0);
+    const fs::path dir = fs::path(d / "sweep") / "training.seed=1", alt = dir / "alternative",
+                   folder = dir / hinf::kSwapFolder;
+    fs::remove(dir / "summary.csv");  // a value killed before its end has none
+    fs::create_directories(alt);
+    for (const char* f : {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5"})
+        if (fs::exists(dir / f)) fs::copy_file(dir / f, alt / f);
+    // killed in phase 1 after moving DIR's checkpoint.h5 into the folder: DIR has no checkpoint.h5
+    fs::create_directories(folder);
+    fs::rename(dir / "checkpoint.h5", folder / "checkpoint.h5");
+    std::ofstream(folder / hinf::kSwapJournal) << "phase 1\n" << fs::absolute(alt).string() << "\ncheckpoint.h5\n"
+                                               << "checkpoint.prev.h5\ntrajectory.h5\ntrajectory.ckpt.h5\n";
+    auto r = hinf::test::run_hinf(sweep);
+    INFO(r.output);
+    CHECK(r.status == 0);
+    CHECK(r.output.find("the exchange is finished") != std::string::npos);
+    CHECK(r.output.find("training.seed=1") != std::string::npos);
+    CHECK(r.output.find(" resumed ") != std::string::npos);  // not trained afresh
+    CHECK_FALSE(fs::exists(folder));
+    CHECK(fs::exists(alt / "checkpoint.h5"));
+}
