@@ -383,6 +383,66 @@ PYBIND11_MODULE(_hinf, m) {
         "Writes a trained filter as dependency-free C99, dir/name.h and dir/name.c (as `hinf export`): one checkpoint "
         "path, or a list of gain networks with ensemble=True (their mean gain)");
     m.def(
+        "compare",
+        [](const hinf::Config& cfg, const std::string& out, const std::string& filters, const py::object& network,
+           const std::string& modes, bool ensemble, std::int64_t runs, const std::string& scenario, double until,
+           std::int64_t particles, double roughening, int glf_vertices, bool quiet, int threads) {
+            hinf::CompareSettings st;
+            st.out_dir = out;
+            st.filters = filters;
+            st.networks = filter_options(network, 0.0, py::none(), py::none(), particles, roughening, glf_vertices,
+                                         ensemble, cfg.states())
+                              .networks;
+            st.modes = modes;
+            st.ensemble = ensemble;
+            st.runs = runs;
+            st.scenario = scenario;
+            st.until = until;
+            st.particles = particles;
+            st.roughening = roughening;
+            st.glf_vertices = glf_vertices;
+            st.quiet = quiet;
+            st.threads = threads;
+            hinf::CompareReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::compare(cfg, st);
+            }
+            py::dict d;
+            d["scenario"] = r.scenario;
+            d["file"] = r.file;
+            d["runs"] = r.runs;
+            d["steps"] = r.steps;
+            d["truth_escaped_runs"] = r.truth_escaped_runs;
+            d["streams_identical"] = r.streams_identical;
+            d["wall_seconds"] = r.wall_seconds;
+            py::list rows;
+            for (const hinf::CompareRow& f : r.filters) {
+                py::dict row;
+                row["name"] = f.name;
+                row["mode"] = f.mode;
+                row["diverged_runs"] = f.diverged_runs;
+                row["rmse_position"] = f.rmse_position;
+                row["rmse_position_settled"] = f.rmse_position_settled;
+                row["rmse_velocity"] = f.rmse_velocity;
+                row["rmse_velocity_settled"] = f.rmse_velocity_settled;
+                row["attenuation_ratio"] = f.attenuation_ratio;
+                row["mse_db"] = f.mse_db;
+                row["mse_filtered_db"] = f.mse_filtered_db;
+                row["us_per_step"] = f.us_per_step;
+                row["nees_per_state"] = f.nees_per_state;
+                rows.append(row);
+            }
+            d["filters"] = rows;
+            return d;
+        },
+        py::arg("config"), py::arg("out"), py::arg("filters") = "dnn,ekf,ukf,pf,open_loop",
+        py::arg("network") = py::none(), py::arg("modes") = "oracle,measured", py::arg("ensemble") = false,
+        py::arg("runs") = 50, py::arg("scenario") = "nominal", py::arg("until") = -1.0, py::arg("particles") = 2000,
+        py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8, py::arg("quiet") = true, py::arg("threads") = 0,
+        "Runs `hinf compare` on the config (the same runs, bits and files: out/compare.h5, out/compare.csv); returns "
+        "its table as a dict, one dict per filter in 'filters' (hinf.read(out + '/compare.h5') has the rest)");
+    m.def(
         "train",
         [](const hinf::Config& cfg, const std::string& out, double until, const py::object& progress, bool quiet,
            bool force, int threads) {

@@ -277,4 +277,47 @@ TrainReport train(const Config& cfg, const TrainSettings& settings);
 /// Continues the run of a checkpoint into its directory (as `hinf resume`); settings.out_dir is ignored.
 TrainReport resume(const std::string& checkpoint_path, const TrainSettings& settings);
 
+/// What `hinf compare` runs (docs/compare.md): every filter named, on the same simulated runs of the config's system.
+struct CompareSettings {
+    std::string out_dir;                                ///< required: DIR/compare.h5, DIR/compare.csv
+    std::string filters = "dnn,ekf,ukf,pf,open_loop";   ///< comma list of Filter::names() (`--filters`)
+    std::vector<TrainedNetwork> networks;               ///< the dnn filters' networks, one filter per network and mode
+    std::string modes = "oracle,measured";              ///< the dnn filters' modes, comma list (`--mode`)
+    bool ensemble = false;  ///< one dnn filter with the mean gain of every network (variant gain; `--ensemble`)
+    std::int64_t runs = 50;
+    std::string scenario = "nominal";  ///< what the EKF, UKF and PF are told, or the noise drawn (`--scenario`)
+    double until = -1;                 ///< simulate up to this time [s]; < 0: t_final
+    std::int64_t particles = 2000;     ///< the particle filter's
+    double roughening = 0.0;           ///< the particle filter's roughening constant (0: the plain bootstrap PF)
+    int glf_vertices = 8;              ///< the global-linearization filter's vertex count
+    bool quiet = true;                 ///< no progress lines on stderr
+    int threads = 0;                   ///< OpenMP threads over the runs (0: OpenMP's default); the same results
+};
+
+/// One filter's row of the table `hinf compare` prints (docs/compare.md; the per-state figures are in compare.h5).
+struct CompareRow {
+    std::string name, mode;  ///< mode: "oracle" (reads the true state) or "measured"
+    std::int64_t diverged_runs = 0;
+    /// RMS of the position / velocity errors over the runs that did not diverge, the whole run and after
+    /// [online] settle_time
+    double rmse_position = NAN, rmse_position_settled = NAN, rmse_velocity = NAN, rmse_velocity_settled = NAN;
+    double attenuation_ratio = NAN;  ///< int x~'Q x~ dt / int (v'v + n'n) dt, mean over the runs that did not diverge
+    double mse_db = NAN, mse_filtered_db = NAN;  ///< 10 log10 MSE over all states: one-step prediction / filtered
+    double us_per_step = NAN;                    ///< time inside the filter's step
+    double nees_per_state = NAN;  ///< settled e'P^-1 e / n (about 1 for a consistent filter; NaN: it states no P)
+};
+
+/// What a comparison found.
+struct CompareReport {
+    std::string scenario, file;  ///< file: DIR/compare.h5
+    std::int64_t runs = 0, steps = 0;
+    std::int64_t truth_escaped_runs = 0;  ///< runs whose truth ran away (they count for no filter)
+    bool streams_identical = true;        ///< every filter was fed the same measurements
+    double wall_seconds = 0;
+    std::vector<CompareRow> filters;      ///< in the order `hinf compare` prints them
+};
+
+/// Runs `hinf compare` on cfg (the same runs, the same bits, the same files).
+CompareReport compare(const Config& cfg, const CompareSettings& settings);
+
 }  // namespace hinf

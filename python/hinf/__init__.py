@@ -5,14 +5,15 @@
     hinf.train(cfg, "runs/out/vanderpol", progress=lambda p: print(p.step, p.loss_last))
     dnn = hinf.Filter(cfg, "dnn", network="runs/out/vanderpol/checkpoint.h5")
     trace = dnn.run(t, Y)          # NumPy in, NumPy out: trace.xhat [K x n], trace.innovation [K x m]
+    table = hinf.compare(cfg, "runs/out/vanderpol/compare", network="runs/out/vanderpol/checkpoint.h5")
 
 Errors in the caller's terms raise hinf.Error (a RuntimeError) with hinf's one-line message. docs/python.md.
 """
-from ._hinf import (Config, Error, Filter, FilterTrace, Network, TrainProgress, export_c, filter_names, filters,
-                    resume, train, version)
+from ._hinf import (Config, Error, Filter, FilterTrace, Network, TrainProgress, compare, export_c, filter_names,
+                    filters, resume, train, version)
 
-__all__ = ["Config", "Error", "Filter", "FilterTrace", "Network", "TrainProgress", "export_c", "filter_names",
-           "filters", "read_results", "resume", "train", "version"]
+__all__ = ["Config", "Error", "Filter", "FilterTrace", "Network", "TrainProgress", "compare", "export_c",
+           "filter_names", "filters", "read_results", "resume", "train", "version"]
 
 
 def read_results(path):

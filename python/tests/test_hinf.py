@@ -249,8 +249,49 @@ def test_callback_exception_stops_training_and_keeps_checkpoint(tmp_path):
     assert report["first_step"] == 4 and report["last_step"] == 10
 
 
+def same_results(a, b, path=""):
+    """Two result dicts alike entry by entry (NaN equal), timings and the output directory aside."""
+    assert set(a) == set(b), path
+    for key in a:
+        if key in ("wall_seconds", "us_per_step", "seconds", "rank_seconds", "out_dir", "created"):
+            continue
+        x, y = a[key], b[key]
+        if isinstance(x, dict):
+            same_results(x, y, path + "/" + key)
+        elif isinstance(x, np.ndarray) and x.dtype.kind == "f":
+            assert np.array_equal(x, y, equal_nan=True), path + "/" + key
+        elif isinstance(x, float):
+            assert x == y or (math.isnan(x) and math.isnan(y)), path + "/" + key
+        else:
+            assert np.array_equal(x, y), path + "/" + key
+
+
+def test_compare_is_hinf_compare(trained, tmp_path):
+    """hinf.compare runs `hinf compare`: the same compare.h5, and its table as dicts."""
+    cfg, ckpt, _, _, _ = trained
+    report = hinf.compare(cfg, str(tmp_path / "lib"), filters="dnn,ekf,ukf,open_loop", network=ckpt, modes="measured",
+                          runs=3, scenario="cov_large")
+    args = [hinf_cli(), "compare", VANDERPOL, "--filters", "dnn,ekf,ukf,open_loop", "--network", ckpt, "--mode",
+            "measured", "--runs", "3", "--scenario", "cov_large", "--quiet", "--out", str(tmp_path / "cli")]
+    for s in SMALL:
+        args += ["--set", s]
+    subprocess.run(args, check=True, capture_output=True)
+    assert report["file"] == str(tmp_path / "lib" / "compare.h5") and report["streams_identical"]
+    assert report["scenario"] == "cov_large" and report["runs"] == 3 and report["steps"] == 2000
+    assert [f["name"] for f in report["filters"]] == ["dnn_gain_measured", "ekf", "ukf", "open_loop"]
+    lib, cli = hinf.read_results(report["file"]), hinf.read_results(str(tmp_path / "cli" / "compare.h5"))
+    same_results(lib, cli)
+    for f in report["filters"]:
+        assert f["rmse_position"] == lib[f["name"]]["attrs"]["rmse_position"], f["name"]
+    assert report["filters"][1]["nees_per_state"] > 0 and math.isnan(report["filters"][3]["nees_per_state"])
+    with pytest.raises(hinf.Error, match="runs must be >= 1"):
+        hinf.compare(cfg, str(tmp_path / "bad"), filters="ekf", runs=0)
+    with pytest.raises(hinf.Error, match="kalman"):
+        hinf.compare(cfg, str(tmp_path / "bad"), filters="kalman", runs=1)
+
+
 def test_train_names_the_states_the_outputs_do_not_see(tmp_path, capfd):
-    """The library's train says what `hinf train` says before training (the DC motor's current, docs/method.md 16.18)."""
+    """The library's train says what `hinf train` says first (the DC motor's current, docs/method.md 16.18)."""
     cfg = hinf.Config(os.path.join(ROOT, "examples", "systems", "dc_motor.toml"), set=SMALL)
     hinf.train(cfg, str(tmp_path / "run"), until=0.02)
     assert "the outputs tell next to nothing about" in capfd.readouterr().err

@@ -12,6 +12,7 @@
 #include "config/game_level.hpp"
 #include "config/run_config.hpp"
 #include "eval/acceptance.hpp"
+#include "eval/compare.hpp"
 #include "eval/engine.hpp"
 #include "eval/filter_recorded.hpp"
 #include "eval/observability.hpp"
@@ -464,6 +465,63 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     std::string dir = std::filesystem::path(checkpoint_path).parent_path().string();
     if (dir.empty()) dir = ".";
     return report_of(training_run_resume(checkpoint_path, train_options(settings), "hinf resume (library)", {}), dir);
+}
+
+// ---------------------------------------------------------------------------------------------- compare
+
+CompareReport compare(const Config& cfg, const CompareSettings& settings) {
+    const RunConfig& c = run_config(cfg);
+    HINF_CHECK(!settings.out_dir.empty(),
+               "compare: out_dir is required (the directory for compare.h5 and compare.csv)");
+    HINF_CHECK(settings.runs >= 1, "compare: runs must be >= 1");
+    HINF_CHECK(settings.particles >= 1, "compare: particles must be >= 1");
+    HINF_CHECK(std::isfinite(settings.roughening) && settings.roughening >= 0,
+               "compare: roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
+    HINF_CHECK(settings.threads >= 0 && settings.threads <= 1024,
+               "threads " + std::to_string(settings.threads) + " must be between 0 and 1024");
+    if (settings.threads > 0) omp_set_num_threads(settings.threads);
+    CompareOptions opt;
+    opt.scenario = scenario_named(settings.scenario);
+    opt.runs = settings.runs;
+    opt.until = settings.until;
+    opt.quiet = settings.quiet;
+    opt.out_dir = settings.out_dir;
+    // as compare_cmd.cpp: the Bayesian filters are told the true statistics, or wrong ones by scenario
+    const FilterModel told = scenario_told_model(c, opt.scenario), exact = filter_model(c);
+    std::vector<std::string> paths;
+    for (const TrainedNetwork& n : settings.networks) paths.push_back(network_impl(n).path);
+    const FilterSetArgs args{settings.filters, paths, settings.modes, settings.particles, settings.roughening,
+                             settings.glf_vertices, settings.ensemble};
+    const FilterSet set = build_filter_set(c, args, told, exact);
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    const CompareSummary s = compare_run(c, filters, opt);
+    CompareReport r;
+    r.scenario = s.scenario;
+    r.file = settings.out_dir + "/compare.h5";
+    r.runs = s.runs;
+    r.steps = s.steps;
+    r.truth_escaped_runs = s.truth_escaped_runs;
+    r.wall_seconds = s.wall_seconds;
+    for (const auto& f : s.filters) {
+        r.streams_identical = r.streams_identical && f.stream_hash == s.truth_stream_hash;
+        CompareRow row;
+        row.name = f.name;
+        row.mode = f.mode;
+        row.diverged_runs = f.diverged_runs;
+        row.rmse_position = f.rmse_position;
+        row.rmse_position_settled = f.rmse_position_settled;
+        row.rmse_velocity = f.rmse_velocity;
+        row.rmse_velocity_settled = f.rmse_velocity_settled;
+        row.attenuation_ratio = f.attenuation_ratio;
+        row.mse_db = f.mse_db;
+        row.mse_filtered_db = f.mse_filtered_db;
+        row.us_per_step = f.us_per_step;
+        row.nees_per_state = f.nees_per_state;
+        r.filters.push_back(row);
+    }
+    HINF_CHECK(r.streams_identical, "compare: a filter was fed a different measurement stream (bug)");
+    return r;
 }
 
 // ---------------------------------------------------------------------------------------------- export

@@ -285,3 +285,31 @@ TEST_CASE("library: a Filter is told the P0 hinf filter tells it (options, then 
     CHECK(P[0] == Approx(0.01).epsilon(1e-12));
     CHECK(P[3] == Approx(0.04).epsilon(1e-12));
 }
+
+TEST_CASE("library: compare runs hinf compare's Monte Carlo and returns its table", "[api]") {
+    TempDir d("api-compare");
+    const hinf::Config cfg = hinf::Config::from_text(kTinyMissile, "tiny.toml");
+    hinf::CompareSettings s;
+    s.out_dir = d / "cmp";
+    s.filters = "ekf,ukf,open_loop";
+    s.runs = 2;
+    const hinf::CompareReport r = hinf::compare(cfg, s);
+    CHECK(r.file == d / "cmp/compare.h5");
+    CHECK(std::ifstream(r.file).good());
+    CHECK(r.runs == 2);
+    CHECK(r.steps == 200);
+    CHECK(r.streams_identical);
+    REQUIRE(r.filters.size() == 3u);
+    CHECK(r.filters[0].name == "ekf");
+    CHECK(r.filters[2].name == "open_loop");
+    for (const auto& f : r.filters) CHECK(std::isfinite(f.rmse_position));
+    // told the true statistics, the EKF tracks; the open loop does not
+    CHECK(r.filters[0].rmse_position < r.filters[2].rmse_position);
+    s.runs = 0;
+    CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "runs must be >= 1"));
+    s.runs = 1;
+    s.filters = "kalman";
+    CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "kalman"));
+    s.filters = "dnn";
+    CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "network"));
+}
