@@ -443,6 +443,61 @@ PYBIND11_MODULE(_hinf, m) {
         "Runs `hinf compare` on the config (the same runs, bits and files: out/compare.h5, out/compare.csv); returns "
         "its table as a dict, one dict per filter in 'filters' (hinf.read(out + '/compare.h5') has the rest)");
     m.def(
+        "worst",
+        [](const hinf::Config& cfg, const std::string& out, const std::string& filters, const py::object& network,
+           const std::string& modes, bool ensemble, const py::object& energy, double until, int evals,
+           int random_starts, int linear_pieces, bool keep_initial_error, std::int64_t particles, double roughening,
+           int glf_vertices, bool quiet, int threads) {
+            hinf::WorstSettings st;
+            st.out_dir = out;
+            st.filters = filters;
+            st.networks = filter_options(network, 0.0, py::none(), py::none(), particles, roughening, glf_vertices,
+                                         ensemble, cfg.states())
+                              .networks;
+            st.modes = modes;
+            st.ensemble = ensemble;
+            if (!energy.is_none()) st.energy = energy.cast<double>();
+            st.until = until;
+            st.evals = evals;
+            st.random_starts = random_starts;
+            st.linear_pieces = linear_pieces;
+            st.keep_initial_error = keep_initial_error;
+            st.particles = particles;
+            st.roughening = roughening;
+            st.glf_vertices = glf_vertices;
+            st.quiet = quiet;
+            st.threads = threads;
+            hinf::WorstReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::worst(cfg, st);
+            }
+            py::dict d;
+            d["file"] = r.file;
+            d["energy"] = r.energy;
+            d["steps"] = r.steps;
+            d["wall_seconds"] = r.wall_seconds;
+            py::list rows;
+            for (const hinf::WorstRow& f : r.filters) {
+                py::dict row;
+                row["name"] = f.name;
+                row["ratio"] = f.ratio;
+                row["small_signal"] = f.small_signal;
+                row["diverged"] = f.diverged;
+                row["found_from"] = f.found_from;
+                rows.append(row);
+            }
+            d["filters"] = rows;
+            return d;
+        },
+        py::arg("config"), py::arg("out"), py::arg("filters") = "dnn,ekf,ukf,pf,open_loop",
+        py::arg("network") = py::none(), py::arg("modes") = "oracle,measured", py::arg("ensemble") = false,
+        py::arg("energy") = py::none(), py::arg("until") = -1.0, py::arg("evals") = 200, py::arg("random_starts") = 4,
+        py::arg("linear_pieces") = 20, py::arg("keep_initial_error") = false, py::arg("particles") = 2000,
+        py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8, py::arg("quiet") = true, py::arg("threads") = 0,
+        "Runs `hinf worst`'s search on the config (the same starts, bits and out/worst.h5); returns each filter's worst "
+        "ratio found, its small-signal ratio and where it was found, one dict per filter in 'filters'");
+    m.def(
         "train",
         [](const hinf::Config& cfg, const std::string& out, double until, const py::object& progress, bool quiet,
            bool force, int threads) {

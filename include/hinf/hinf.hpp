@@ -320,4 +320,46 @@ struct CompareReport {
 /// Runs `hinf compare` on cfg (the same runs, the same bits, the same files).
 CompareReport compare(const Config& cfg, const CompareSettings& settings);
 
+/// What `hinf worst` searches (docs/compare.md "Worst case"): each filter's worst disturbance and noise under one
+/// energy budget, from zero initial error, the EKF, UKF and PF told the nominal statistics.
+struct WorstSettings {
+    std::string out_dir;                               ///< required: DIR/worst.h5
+    std::string filters = "dnn,ekf,ukf,pf,open_loop";  ///< comma list of Filter::names() (`--filters`)
+    std::vector<TrainedNetwork> networks;              ///< the dnn filters' networks, one filter per network and mode
+    std::string modes = "oracle,measured";             ///< the dnn filters' modes, comma list (`--mode`)
+    bool ensemble = false;  ///< one dnn filter with the mean gain of every network (variant gain; `--ensemble`)
+    double energy = NAN;    ///< the budget int (v'v + n'n) dt; NaN: the nominal draws' expected energy (`--energy`)
+    double until = -1;      ///< horizon [s]; < 0: t_final
+    int evals = 200;           ///< objective evaluations per restart (`--evals`)
+    int random_starts = 4;     ///< random starts per filter (`--random-starts`)
+    int linear_pieces = 20;    ///< the linear start's pieces a channel; 0: none (`--linear-pieces`)
+    bool keep_initial_error = false;  ///< start the filters at the config's x^0 instead of x0 (`--keep-initial-error`)
+    std::int64_t particles = 2000;    ///< the particle filter's
+    double roughening = 0.0;          ///< the particle filter's roughening constant
+    int glf_vertices = 8;             ///< the global-linearization filter's vertex count
+    bool quiet = true;                ///< no progress lines on stderr
+    int threads = 0;                  ///< OpenMP threads over the restarts (0: OpenMP's default); the same results
+};
+
+/// One filter's worst case found.
+struct WorstRow {
+    std::string name;
+    double ratio = NAN;         ///< the largest attenuation ratio the search found at the budget
+    double small_signal = NAN;  ///< the ratio small signals reach (the linear start; NaN: none)
+    bool diverged = false;      ///< the filter diverged under its own worst signals (frozen there)
+    std::string found_from;     ///< the start the worst was found from ("random:2", "linear", "cross:ekf", ...)
+};
+
+/// What a search found.
+struct WorstReport {
+    std::string file;         ///< DIR/worst.h5 (`hinf worst --replay` runs its signals against any filter set)
+    double energy = 0;        ///< the budget searched at
+    std::int64_t steps = 0;
+    double wall_seconds = 0;
+    std::vector<WorstRow> filters;  ///< in the order `hinf worst` prints them
+};
+
+/// Runs `hinf worst`'s search on cfg (the same starts, bits and worst.h5).
+WorstReport worst(const Config& cfg, const WorstSettings& settings);
+
 }  // namespace hinf

@@ -290,6 +290,29 @@ def test_compare_is_hinf_compare(trained, tmp_path):
         hinf.compare(cfg, str(tmp_path / "bad"), filters="kalman", runs=1)
 
 
+def test_worst_is_hinf_worst(trained, tmp_path):
+    """hinf.worst runs `hinf worst`'s search: the same worst.h5, and each filter's worst as dicts."""
+    cfg, ckpt, _, _, _ = trained
+    report = hinf.worst(cfg, str(tmp_path / "lib"), filters="dnn,ekf", network=ckpt, modes="measured", until=3.0,
+                        evals=12, random_starts=1, linear_pieces=4)
+    args = [hinf_cli(), "worst", VANDERPOL, "--filters", "dnn,ekf", "--network", ckpt, "--mode", "measured",
+            "--until", "3", "--evals", "12", "--random-starts", "1", "--linear-pieces", "4", "--quiet",
+            "--out", str(tmp_path / "cli")]
+    for s in SMALL:
+        args += ["--set", s]
+    subprocess.run(args, check=True, capture_output=True)
+    assert report["file"] == str(tmp_path / "lib" / "worst.h5") and report["steps"] == 300
+    assert [f["name"] for f in report["filters"]] == ["dnn_gain_measured", "ekf"]
+    lib, cli = hinf.read_results(report["file"]), hinf.read_results(str(tmp_path / "cli" / "worst.h5"))
+    same_results(lib, cli)
+    for f in report["filters"]:
+        g = lib["filters"][f["name"]]["attrs"]
+        assert f["ratio"] == g["ratio"] and f["small_signal"] == g["linear_gain"], f["name"]
+        assert f["ratio"] > 0 and not f["diverged"] and f["found_from"]
+    with pytest.raises(hinf.Error, match="energy must be"):
+        hinf.worst(cfg, str(tmp_path / "bad"), filters="ekf", energy=-1.0)
+
+
 def test_train_names_the_states_the_outputs_do_not_see(tmp_path, capfd):
     """The library's train says what `hinf train` says first (the DC motor's current, docs/method.md 16.18)."""
     cfg = hinf.Config(os.path.join(ROOT, "examples", "systems", "dc_motor.toml"), set=SMALL)

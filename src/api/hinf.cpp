@@ -17,6 +17,7 @@
 #include "eval/filter_recorded.hpp"
 #include "eval/observability.hpp"
 #include "eval/training_run.hpp"
+#include "eval/worst.hpp"
 #include "export/export_c.hpp"
 #include "filters/factory.hpp"
 #include "hinf/config.hpp"
@@ -522,6 +523,59 @@ CompareReport compare(const Config& cfg, const CompareSettings& settings) {
     }
     HINF_CHECK(r.streams_identical, "compare: a filter was fed a different measurement stream (bug)");
     return r;
+}
+
+// ---------------------------------------------------------------------------------------------- worst
+
+WorstReport worst(const Config& cfg, const WorstSettings& settings) {
+    const RunConfig& c = run_config(cfg);
+    HINF_CHECK(!settings.out_dir.empty(), "worst: out_dir is required (the directory for worst.h5)");
+    HINF_CHECK(std::isnan(settings.energy) || (std::isfinite(settings.energy) && settings.energy > 0),
+               "worst: energy must be a finite number > 0 (or NaN: the nominal draws' energy)");
+    HINF_CHECK(settings.particles >= 1, "worst: particles must be >= 1");
+    HINF_CHECK(std::isfinite(settings.roughening) && settings.roughening >= 0,
+               "worst: roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
+    HINF_CHECK(settings.threads >= 0 && settings.threads <= 1024,
+               "threads " + std::to_string(settings.threads) + " must be between 0 and 1024");
+    if (settings.threads > 0) omp_set_num_threads(settings.threads);
+    WorstOptions opt;  // hinf worst's defaults but what the settings name
+    if (!std::isnan(settings.energy)) opt.energy = settings.energy;
+    opt.until = settings.until;
+    opt.evals = settings.evals;
+    opt.random_starts = settings.random_starts;
+    opt.linear_pieces = settings.linear_pieces;
+    opt.keep_initial_error = settings.keep_initial_error;
+    opt.quiet = settings.quiet;
+    // as worst_cmd.cpp: the worst signals are found for a budget, so the Bayesian filters are told the nominal statistics
+    const FilterModel exact = filter_model(c), told = scenario_told_model(c, scenario_named("nominal"));
+    std::vector<std::string> paths;
+    for (const TrainedNetwork& n : settings.networks) paths.push_back(network_impl(n).path);
+    const FilterSetArgs args{settings.filters, paths, settings.modes, settings.particles, settings.roughening,
+                             settings.glf_vertices, settings.ensemble};
+    const FilterSet set = build_filter_set(c, args, told, exact);
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    const WorstNetworks wn = worst_networks(filters, paths);
+    const WorstResult r = worst_search(c, filters, wn.games, opt);
+    const RunDirLock lock(settings.out_dir, "hinf worst (library)");
+    worst_write(settings.out_dir + "/worst.h5", worst_config(c, opt), opt, r);
+    WorstReport w;
+    w.file = settings.out_dir + "/worst.h5";
+    w.energy = r.energy;
+    w.steps = r.steps;
+    w.wall_seconds = r.wall_seconds;
+    const std::size_t F = r.filters.size();
+    for (std::size_t i = 0; i < F; ++i) {
+        const WorstFilterResult& f = r.filters[i];
+        WorstRow row;
+        row.name = f.name;
+        row.ratio = f.worst.ratio;
+        row.small_signal = f.linear_gain;
+        row.diverged = r.cross.diverged_at[i * F + i] >= 0;  // row i: the worst set found for filter i
+        row.found_from = f.restarts[std::size_t(f.best)].start;
+        w.filters.push_back(row);
+    }
+    return w;
 }
 
 // ---------------------------------------------------------------------------------------------- export

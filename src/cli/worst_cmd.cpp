@@ -11,7 +11,6 @@
 #include "cli/common.hpp"
 #include "eval/worst.hpp"
 #include "filters/factory.hpp"
-#include "io/checkpoint.hpp"
 #include "io/run_lock.hpp"
 
 namespace hinf::cli {
@@ -161,24 +160,8 @@ void add_worst_command(CLI::App& app) {
         }
 
         // the game's worst case needs each DNN filter's network and rho: dnn_<variant>_<mode> from the network file
-        std::vector<std::unique_ptr<FrozenNetwork>> nets;
-        std::vector<std::string> prefixes;
-        std::vector<double> rhos;
-        for (const std::string& path : a->set.networks) {
-            RunConfig ncfg;
-            nets.push_back(ckpt_frozen_network(path, &ncfg));
-            prefixes.push_back("dnn_" + ncfg.variant + "_");
-            rhos.push_back(ncfg.rho);
-        }
-        std::vector<WorstGame> games(filters.size());
-        for (std::size_t i = 0; i < filters.size(); ++i)
-            for (std::size_t j = 0; j < nets.size(); ++j)
-                // the game start needs dV/dx~ of the network (variants dissipative, paper); the gain variant's
-                // filter is searched from the scenario and random starts
-                if (filters[i]->name().rfind(prefixes[j], 0) == 0 && !nets[j]->step_config().gain.enabled)
-                    games[i] = WorstGame{nets[j].get(), rhos[j]};
-
-        WorstResult r = worst_search(cfg, filters, games, opt);
+        const WorstNetworks wn = worst_networks(filters, a->set.networks);
+        WorstResult r = worst_search(cfg, filters, wn.games, opt);
         const RunDirLock lock(out, "hinf worst");
         worst_write(out + "/worst.h5", worst_config(cfg, opt), opt, r);
         std::printf("worst: %lld steps of %g s, energy budget %.6g, initial error %s, %d parameters per signal pair, "
@@ -218,9 +201,10 @@ void add_worst_command(CLI::App& app) {
         // a gain network's filter: where its worst signals drove the truth far beyond training's region, its gain
         // there is the region's edge's (network.input_box), and the ratio measures that, not what training shaped
         for (std::size_t i = 0; i < filters.size(); ++i)
-            for (std::size_t j = 0; j < nets.size(); ++j) {
-                if (filters[i]->name().rfind(prefixes[j], 0) != 0 || !nets[j]->step_config().gain.enabled) continue;
-                const std::string out_of = worst_truth_outside_training(cfg, nets[j]->step_config().gain,
+            for (std::size_t j = 0; j < wn.nets.size(); ++j) {
+                if (filters[i]->name().rfind(wn.prefixes[j], 0) != 0 || !wn.nets[j]->step_config().gain.enabled)
+                    continue;
+                const std::string out_of = worst_truth_outside_training(cfg, wn.nets[j]->step_config().gain,
                                                                         r.filters[i].worst.signals, r.steps);
                 if (!out_of.empty())
                     std::printf("note: under %s's worst signals the true state left the region training covered (%s, "

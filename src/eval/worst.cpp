@@ -20,6 +20,7 @@
 #include "filters/gain_law.hpp"
 #include "hinf/error.hpp"
 #include "hinf/h5.hpp"
+#include "io/checkpoint.hpp"
 #include "io/atomic.hpp"
 #include "io/progress.hpp"
 #include "models/weighted_system.hpp"
@@ -524,6 +525,22 @@ double worst_small_signal(const RunConfig& cfg_in, const OnlineFilter& f, const 
     return linear_worst_refined(cfg, f, K, opt.linear_pieces, opt.linear_steps, worst_energy(cfg, opt, K), times(cfg, K),
                                 truth_escape_bound(cfg, K), opt.quiet)
         .gain;
+}
+
+WorstNetworks worst_networks(const std::vector<const OnlineFilter*>& filters, const std::vector<std::string>& paths) {
+    WorstNetworks w;
+    for (const std::string& path : paths) {
+        RunConfig ncfg;
+        w.nets.push_back(ckpt_frozen_network(path, &ncfg));
+        w.prefixes.push_back("dnn_" + ncfg.variant + "_");
+        w.rhos.push_back(ncfg.rho);
+    }
+    w.games.resize(filters.size());
+    for (std::size_t i = 0; i < filters.size(); ++i)
+        for (std::size_t j = 0; j < w.nets.size(); ++j)
+            if (filters[i]->name().rfind(w.prefixes[j], 0) == 0 && !w.nets[j]->step_config().gain.enabled)
+                w.games[i] = WorstGame{w.nets[j].get(), w.rhos[j]};
+    return w;
 }
 
 WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const OnlineFilter*>& filters,

@@ -8,6 +8,7 @@
 #pragma once
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -115,6 +116,18 @@ double worst_ratio(const RunConfig& cfg, const OnlineFilter& f, const Signals& s
 /// for up to three rounds. Runs on worst_config(cfg, opt).
 WorstResult worst_search(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt);
+
+/// The DNN filters' networks of a filter set built with the checkpoints `paths` (filters/factory.hpp: a dnn filter is
+/// named dnn_<variant>_<mode>), and the game each filter starts from: the network and level of a DNN filter whose
+/// network gives dV/dx~ (variants dissipative, paper), the game's v* = B'p / (2 rho), n* = -dC; none for the gain
+/// variant's and the other filters (searched from the other starts).
+struct WorstNetworks {
+    std::vector<std::unique_ptr<FrozenNetwork>> nets;  // [paths]
+    std::vector<std::string> prefixes;                 // "dnn_<variant>_" of each network's filters
+    std::vector<double> rhos;                          // each network's level
+    std::vector<WorstGame> games;                      // [filters], for worst_search
+};
+WorstNetworks worst_networks(const std::vector<const OnlineFilter*>& filters, const std::vector<std::string>& paths);
 
 /// The small-signal worst ratio of filter f on worst_config(cfg, opt) over signals of opt.linear_pieces pieces a
 /// channel: the figure the linear start reports (WorstFilterResult::linear_gain; docs/compare.md "The linear start"),

@@ -313,3 +313,31 @@ TEST_CASE("library: compare runs hinf compare's Monte Carlo and returns its tabl
     s.filters = "dnn";
     CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "network"));
 }
+
+TEST_CASE("library: worst runs hinf worst's search and returns each filter's worst", "[api]") {
+    TempDir d("api-worst");
+    const hinf::Config cfg = hinf::Config::from_text(kTinyMissile, "tiny.toml");
+    hinf::WorstSettings s;
+    s.out_dir = d / "worst";
+    s.filters = "ekf,open_loop";
+    s.until = 0.5;
+    s.evals = 6;
+    s.random_starts = 1;
+    s.linear_pieces = 2;
+    const hinf::WorstReport r = hinf::worst(cfg, s);
+    CHECK(r.file == d / "worst/worst.h5");
+    CHECK(std::ifstream(r.file).good());
+    CHECK(r.steps == 50);
+    CHECK(r.energy > 0);
+    REQUIRE(r.filters.size() == 2u);
+    CHECK(r.filters[0].name == "ekf");
+    for (const auto& f : r.filters) {
+        CHECK(f.ratio > 0);
+        CHECK_FALSE(f.found_from.empty());
+    }
+    s.energy = -1;
+    CHECK(one_line_error([&] { hinf::worst(cfg, s); }, "energy must be a finite number > 0"));
+    s.energy = NAN;
+    s.filters = "dnn";
+    CHECK(one_line_error([&] { hinf::worst(cfg, s); }, "network"));
+}
