@@ -121,6 +121,25 @@ py::dict report_dict(const hinf::TrainReport& r) {
     return d;
 }
 
+// compare's and worst's output directory, filter set (as hinf.filters takes it) and threads
+template <class Settings>
+void simulation_settings(Settings& st, const hinf::Config& cfg, const std::string& out, const std::string& filters,
+                         const py::object& network, const std::string& modes, bool ensemble, std::int64_t particles,
+                         double roughening, int glf_vertices, bool quiet, int threads) {
+    st.out_dir = out;
+    st.filters = filters;
+    st.networks = filter_options(network, 0.0, py::none(), py::none(), particles, roughening, glf_vertices, ensemble,
+                                 cfg.states())
+                      .networks;
+    st.modes = modes;
+    st.ensemble = ensemble;
+    st.particles = particles;
+    st.roughening = roughening;
+    st.glf_vertices = glf_vertices;
+    st.quiet = quiet;
+    st.threads = threads;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_hinf, m) {
@@ -388,21 +407,11 @@ PYBIND11_MODULE(_hinf, m) {
            const std::string& modes, bool ensemble, std::int64_t runs, const std::string& scenario, double until,
            std::int64_t particles, double roughening, int glf_vertices, bool quiet, int threads) {
             hinf::CompareSettings st;
-            st.out_dir = out;
-            st.filters = filters;
-            st.networks = filter_options(network, 0.0, py::none(), py::none(), particles, roughening, glf_vertices,
-                                         ensemble, cfg.states())
-                              .networks;
-            st.modes = modes;
-            st.ensemble = ensemble;
+            simulation_settings(st, cfg, out, filters, network, modes, ensemble, particles, roughening, glf_vertices,
+                                quiet, threads);
             st.runs = runs;
             st.scenario = scenario;
             st.until = until;
-            st.particles = particles;
-            st.roughening = roughening;
-            st.glf_vertices = glf_vertices;
-            st.quiet = quiet;
-            st.threads = threads;
             hinf::CompareReport r;
             {
                 py::gil_scoped_release nogil;
@@ -449,24 +458,14 @@ PYBIND11_MODULE(_hinf, m) {
            int random_starts, int linear_pieces, bool keep_initial_error, std::int64_t particles, double roughening,
            int glf_vertices, bool quiet, int threads) {
             hinf::WorstSettings st;
-            st.out_dir = out;
-            st.filters = filters;
-            st.networks = filter_options(network, 0.0, py::none(), py::none(), particles, roughening, glf_vertices,
-                                         ensemble, cfg.states())
-                              .networks;
-            st.modes = modes;
-            st.ensemble = ensemble;
+            simulation_settings(st, cfg, out, filters, network, modes, ensemble, particles, roughening, glf_vertices,
+                                quiet, threads);
             if (!energy.is_none()) st.energy = energy.cast<double>();
             st.until = until;
             st.evals = evals;
             st.random_starts = random_starts;
             st.linear_pieces = linear_pieces;
             st.keep_initial_error = keep_initial_error;
-            st.particles = particles;
-            st.roughening = roughening;
-            st.glf_vertices = glf_vertices;
-            st.quiet = quiet;
-            st.threads = threads;
             hinf::WorstReport r;
             {
                 py::gil_scoped_release nogil;

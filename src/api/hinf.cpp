@@ -468,19 +468,30 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
     return report_of(training_run_resume(checkpoint_path, train_options(settings), "hinf resume (library)", {}), dir);
 }
 
-// ---------------------------------------------------------------------------------------------- compare
+// ---------------------------------------------------------------------------------------------- compare, worst
+
+namespace {
+// compare's and worst's filter set, as the program builds it (`who` names the call in errors): the classical filters
+// told `told`, the others the config's own model; the settings' threads applied; the networks' paths in *paths
+template <class Settings>
+FilterSet simulation_filters(const RunConfig& c, const Settings& s, const char* who, const FilterModel& told,
+                             std::vector<std::string>* paths) {
+    HINF_CHECK(!s.out_dir.empty(), std::string(who) + ": out_dir is required (the directory for its result file)");
+    HINF_CHECK(s.particles >= 1, std::string(who) + ": particles must be >= 1");
+    HINF_CHECK(std::isfinite(s.roughening) && s.roughening >= 0,
+               std::string(who) + ": roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
+    HINF_CHECK(s.threads >= 0 && s.threads <= 1024,
+               "threads " + std::to_string(s.threads) + " must be between 0 and 1024");
+    if (s.threads > 0) omp_set_num_threads(s.threads);
+    for (const TrainedNetwork& n : s.networks) paths->push_back(network_impl(n).path);
+    const FilterSetArgs args{s.filters, *paths, s.modes, s.particles, s.roughening, s.glf_vertices, s.ensemble};
+    return build_filter_set(c, args, told, filter_model(c));
+}
+}  // namespace
 
 CompareReport compare(const Config& cfg, const CompareSettings& settings) {
     const RunConfig& c = run_config(cfg);
-    HINF_CHECK(!settings.out_dir.empty(),
-               "compare: out_dir is required (the directory for compare.h5 and compare.csv)");
     HINF_CHECK(settings.runs >= 1, "compare: runs must be >= 1");
-    HINF_CHECK(settings.particles >= 1, "compare: particles must be >= 1");
-    HINF_CHECK(std::isfinite(settings.roughening) && settings.roughening >= 0,
-               "compare: roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
-    HINF_CHECK(settings.threads >= 0 && settings.threads <= 1024,
-               "threads " + std::to_string(settings.threads) + " must be between 0 and 1024");
-    if (settings.threads > 0) omp_set_num_threads(settings.threads);
     CompareOptions opt;
     opt.scenario = scenario_named(settings.scenario);
     opt.runs = settings.runs;
@@ -488,12 +499,8 @@ CompareReport compare(const Config& cfg, const CompareSettings& settings) {
     opt.quiet = settings.quiet;
     opt.out_dir = settings.out_dir;
     // as compare_cmd.cpp: the Bayesian filters are told the true statistics, or wrong ones by scenario
-    const FilterModel told = scenario_told_model(c, opt.scenario), exact = filter_model(c);
     std::vector<std::string> paths;
-    for (const TrainedNetwork& n : settings.networks) paths.push_back(network_impl(n).path);
-    const FilterSetArgs args{settings.filters, paths, settings.modes, settings.particles, settings.roughening,
-                             settings.glf_vertices, settings.ensemble};
-    const FilterSet set = build_filter_set(c, args, told, exact);
+    const FilterSet set = simulation_filters(c, settings, "compare", scenario_told_model(c, opt.scenario), &paths);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
     const CompareSummary s = compare_run(c, filters, opt);
@@ -529,15 +536,8 @@ CompareReport compare(const Config& cfg, const CompareSettings& settings) {
 
 WorstReport worst(const Config& cfg, const WorstSettings& settings) {
     const RunConfig& c = run_config(cfg);
-    HINF_CHECK(!settings.out_dir.empty(), "worst: out_dir is required (the directory for worst.h5)");
     HINF_CHECK(std::isnan(settings.energy) || (std::isfinite(settings.energy) && settings.energy > 0),
                "worst: energy must be a finite number > 0 (or NaN: the nominal draws' energy)");
-    HINF_CHECK(settings.particles >= 1, "worst: particles must be >= 1");
-    HINF_CHECK(std::isfinite(settings.roughening) && settings.roughening >= 0,
-               "worst: roughening must be a finite number >= 0 (0: the plain bootstrap PF)");
-    HINF_CHECK(settings.threads >= 0 && settings.threads <= 1024,
-               "threads " + std::to_string(settings.threads) + " must be between 0 and 1024");
-    if (settings.threads > 0) omp_set_num_threads(settings.threads);
     WorstOptions opt;  // hinf worst's defaults but what the settings name
     if (!std::isnan(settings.energy)) opt.energy = settings.energy;
     opt.until = settings.until;
@@ -546,13 +546,10 @@ WorstReport worst(const Config& cfg, const WorstSettings& settings) {
     opt.linear_pieces = settings.linear_pieces;
     opt.keep_initial_error = settings.keep_initial_error;
     opt.quiet = settings.quiet;
-    // as worst_cmd.cpp: the worst signals are found for a budget, so the Bayesian filters are told the nominal statistics
-    const FilterModel exact = filter_model(c), told = scenario_told_model(c, scenario_named("nominal"));
+    // as worst_cmd.cpp: the signals are found for a budget, so the Bayesian filters are told the nominal statistics
     std::vector<std::string> paths;
-    for (const TrainedNetwork& n : settings.networks) paths.push_back(network_impl(n).path);
-    const FilterSetArgs args{settings.filters, paths, settings.modes, settings.particles, settings.roughening,
-                             settings.glf_vertices, settings.ensemble};
-    const FilterSet set = build_filter_set(c, args, told, exact);
+    const FilterModel told = scenario_told_model(c, scenario_named("nominal"));
+    const FilterSet set = simulation_filters(c, settings, "worst", told, &paths);
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
     const WorstNetworks wn = worst_networks(filters, paths);
