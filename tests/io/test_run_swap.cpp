@@ -64,6 +64,19 @@ void require_swapped(const fs::path& dir, const fs::path& alt) {
     CHECK_FALSE(fs::exists(dir / hinf::kSwapFolder));
 }
 
+// a copy of the trained run in DIR/alternative, and an exchange killed in phase 1 after moving DIR's checkpoint.h5 into
+// the folder: DIR has no checkpoint.h5
+void kill_in_exchange(const fs::path& dir) {
+    const fs::path alt = dir / "alternative", folder = dir / hinf::kSwapFolder;
+    fs::create_directories(alt);
+    for (const char* f : {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5"})
+        if (fs::exists(dir / f)) fs::copy_file(dir / f, alt / f);
+    fs::create_directories(folder);
+    fs::rename(dir / "checkpoint.h5", folder / "checkpoint.h5");
+    std::ofstream(folder / hinf::kSwapJournal) << "phase 1\n" << fs::absolute(alt).string() << "\ncheckpoint.h5\n"
+                                               << "checkpoint.prev.h5\ntrajectory.h5\ntrajectory.ckpt.h5\n";
+}
+
 }  // namespace
 
 TEST_CASE("an exchange of two runs killed at any point is finished by the next lock of the directory", "[io][swap]") {
@@ -131,14 +144,7 @@ TEST_CASE("hinf resume after a kill that left the run's checkpoint inside an unf
     std::ofstream(cfg) << hinf::test::tiny_missile_config();
     const fs::path dir = d / "run", alt = dir / "alternative", folder = dir / hinf::kSwapFolder;
     REQUIRE(hinf::test::run_hinf("train " + cfg + " --out " + dir.string() + " --until 0.02 --quiet").status == 0);
-    fs::create_directories(alt);
-    for (const char* f : {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5"})
-        if (fs::exists(dir / f)) fs::copy_file(dir / f, alt / f);
-    // killed in phase 1 after moving DIR's checkpoint.h5 into the folder: DIR has no checkpoint.h5
-    fs::create_directories(folder);
-    fs::rename(dir / "checkpoint.h5", folder / "checkpoint.h5");
-    std::ofstream(folder / hinf::kSwapJournal) << "phase 1\n" << fs::absolute(alt).string() << "\ncheckpoint.h5\n"
-                                               << "checkpoint.prev.h5\ntrajectory.h5\ntrajectory.ckpt.h5\n";
+    kill_in_exchange(dir);
     auto r = hinf::test::run_hinf("resume " + (dir / "checkpoint.h5").string() + " --quiet");
     INFO(r.output);
     CHECK(r.status == 0);
@@ -158,14 +164,7 @@ TEST_CASE("hinf sweep after a kill that left a value's checkpoint inside an unfi
     const fs::path dir = fs::path(d / "sweep") / "training.seed=1", alt = dir / "alternative",
                    folder = dir / hinf::kSwapFolder;
     fs::remove(dir / "summary.csv");  // a value killed before its end has none
-    fs::create_directories(alt);
-    for (const char* f : {"checkpoint.h5", "checkpoint.prev.h5", "trajectory.h5", "trajectory.ckpt.h5"})
-        if (fs::exists(dir / f)) fs::copy_file(dir / f, alt / f);
-    // killed in phase 1 after moving DIR's checkpoint.h5 into the folder: DIR has no checkpoint.h5
-    fs::create_directories(folder);
-    fs::rename(dir / "checkpoint.h5", folder / "checkpoint.h5");
-    std::ofstream(folder / hinf::kSwapJournal) << "phase 1\n" << fs::absolute(alt).string() << "\ncheckpoint.h5\n"
-                                               << "checkpoint.prev.h5\ntrajectory.h5\ntrajectory.ckpt.h5\n";
+    kill_in_exchange(dir);
     auto r = hinf::test::run_hinf(sweep);
     INFO(r.output);
     CHECK(r.status == 0);
