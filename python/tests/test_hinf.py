@@ -311,6 +311,13 @@ def test_worst_is_hinf_worst(trained, tmp_path):
         assert f["ratio"] > 0 and not f["diverged"] and f["found_from"]
     with pytest.raises(hinf.Error, match="energy must be"):
         hinf.worst(cfg, str(tmp_path / "bad"), filters="ekf", energy=-1.0)
+    # the checks it shares with the program name the library's arguments, not the program's flags
+    with pytest.raises(hinf.Error, match=r"^evals must be >= 1 \(got 0\)") as err:
+        hinf.worst(cfg, str(tmp_path / "bad"), filters="ekf", evals=0)
+    assert "--" not in str(err.value)
+    with pytest.raises(hinf.Error, match=r"^modes 'bogus' is not one of: oracle, measured") as err:
+        hinf.worst(cfg, str(tmp_path / "bad"), filters="dnn", network=ckpt, modes="bogus")
+    assert "--" not in str(err.value)
 
 
 def test_train_names_the_states_the_outputs_do_not_see(tmp_path, capfd):

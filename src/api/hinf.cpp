@@ -230,7 +230,7 @@ struct Filter::Impl {
         std::vector<std::string> paths;
         for (const TrainedNetwork& n : options.networks) paths.push_back(network_impl(n).path);
         return build_filter_set(c, FilterSetArgs{request, paths, "measured", options.particles, options.roughening,
-                                                 options.glf_vertices, options.ensemble},
+                                                 options.glf_vertices, options.ensemble, Spelling::library},
                                 told, model);
     }
     void reset() {
@@ -484,7 +484,8 @@ FilterSet simulation_filters(const RunConfig& c, const Settings& s, const char* 
                "threads " + std::to_string(s.threads) + " must be between 0 and 1024");
     if (s.threads > 0) omp_set_num_threads(s.threads);
     for (const TrainedNetwork& n : s.networks) paths->push_back(network_impl(n).path);
-    const FilterSetArgs args{s.filters, *paths, s.modes, s.particles, s.roughening, s.glf_vertices, s.ensemble};
+    const FilterSetArgs args{s.filters,      *paths,     s.modes, s.particles, s.roughening,
+                             s.glf_vertices, s.ensemble, Spelling::library};
     return build_filter_set(c, args, told, filter_model(c));
 }
 }  // namespace
@@ -493,7 +494,7 @@ CompareReport compare(const Config& cfg, const CompareSettings& settings) {
     const RunConfig& c = run_config(cfg);
     HINF_CHECK(settings.runs >= 1, "compare: runs must be >= 1");
     CompareOptions opt;
-    opt.scenario = scenario_named(settings.scenario);
+    opt.scenario = scenario_named(settings.scenario, Spelling::library);
     opt.runs = settings.runs;
     opt.until = settings.until;
     opt.quiet = settings.quiet;
@@ -546,6 +547,7 @@ WorstReport worst(const Config& cfg, const WorstSettings& settings) {
     opt.linear_pieces = settings.linear_pieces;
     opt.keep_initial_error = settings.keep_initial_error;
     opt.quiet = settings.quiet;
+    opt.spelling = Spelling::library;
     // as worst_cmd.cpp: the signals are found for a budget, so the Bayesian filters are told the nominal statistics
     std::vector<std::string> paths;
     const FilterModel told = scenario_told_model(c, scenario_named("nominal"));

@@ -46,10 +46,10 @@ const NamedAlgorithm kAlgorithms[] = {
     {"LN_NEWUOA_BOUND", NLOPT_LN_NEWUOA_BOUND},
 };
 
-nlopt_algorithm algorithm_named(const std::string& name) {
+nlopt_algorithm algorithm_named(const std::string& name, Spelling spelling = Spelling::program) {
     for (const NamedAlgorithm& a : kAlgorithms)
         if (name == a.name) return a.algorithm;
-    HINF_FAIL("--algorithm '" + name + "' is not one of: " + worst_algorithms());
+    HINF_FAIL(option_name("--algorithm", spelling) + " '" + name + "' is not one of: " + worst_algorithms());
 }
 
 // v'v + n'n summed over steps, times dt: the energy the truth reports (sim/truth.cpp, TruthRun::energy)
@@ -501,15 +501,16 @@ RunConfig worst_config(const RunConfig& cfg, const WorstOptions& opt) {
 }
 
 double worst_energy(const RunConfig& cfg, const WorstOptions& opt, std::int64_t steps) {
+    const std::string energy = option_name("--energy", opt.spelling);
     if (opt.energy != -1)
         HINF_CHECK(std::isfinite(opt.energy) && opt.energy > 0,
-                   "--energy must be a finite number > 0 (got " + std::to_string(opt.energy) + ")");
+                   energy + " must be a finite number > 0 (got " + std::to_string(opt.energy) + ")");
     const double T = cfg.time_of(steps);
     const double e = opt.energy > 0 ? opt.energy
                                     : (cfg.disturbance_std * cfg.disturbance_std * cfg.nv +
                                        cfg.noise_std * cfg.noise_std * cfg.m) * T;
     HINF_CHECK(std::isfinite(e) && e > 0, "worst: the energy budget is " + std::to_string(e) +
-                                              " ([online] disturbance_std and noise_std are 0?): pass --energy E > 0");
+                                              " ([online] disturbance_std and noise_std are 0?): pass " + energy + " E > 0");
     return e;
 }
 
@@ -546,22 +547,24 @@ WorstNetworks worst_networks(const std::vector<const OnlineFilter*>& filters, co
 WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const OnlineFilter*>& filters,
                          const std::vector<WorstGame>& games, const WorstOptions& opt) {
     const auto wall0 = std::chrono::steady_clock::now();
-    HINF_CHECK(!filters.empty(), "worst: no filters to search (name at least one with --filters)");
+    const auto o = [&](const char* flag) { return option_name(flag, opt.spelling); };
+    HINF_CHECK(!filters.empty(), "worst: no filters to search (name at least one with " + o("--filters") + ")");
     HINF_CHECK(games.empty() || games.size() == filters.size(), "worst: one game per filter (or none)");
     HINF_CHECK(opt.pieces >= 0 && opt.sines >= 0 && opt.pieces + opt.sines >= 1,
-               "--pieces and --sines must be >= 0, and not both 0 (got " + std::to_string(opt.pieces) + ", " +
-                   std::to_string(opt.sines) + ")");
-    HINF_CHECK(opt.pieces <= 1000 && opt.sines <= 100, "--pieces <= 1000 and --sines <= 100");
-    HINF_CHECK(opt.evals >= 1, "--evals must be >= 1 (got " + std::to_string(opt.evals) + ")");
-    HINF_CHECK(opt.random_starts >= 0, "--random-starts must be >= 0");
+               o("--pieces") + " and " + o("--sines") + " must be >= 0, and not both 0 (got " +
+                   std::to_string(opt.pieces) + ", " + std::to_string(opt.sines) + ")");
+    HINF_CHECK(opt.pieces <= 1000 && opt.sines <= 100, o("--pieces") + " <= 1000 and " + o("--sines") + " <= 100");
+    HINF_CHECK(opt.evals >= 1, o("--evals") + " must be >= 1 (got " + std::to_string(opt.evals) + ")");
+    HINF_CHECK(opt.random_starts >= 0, o("--random-starts") + " must be >= 0");
     HINF_CHECK(opt.linear_pieces >= 0 && opt.linear_pieces <= 1000,
-               "--linear-pieces must be in [0, 1000] (0: no linear start; got " + std::to_string(opt.linear_pieces) + ")");
-    algorithm_named(opt.algorithm);
+               o("--linear-pieces") + " must be in [0, 1000] (0: no linear start; got " +
+                   std::to_string(opt.linear_pieces) + ")");
+    algorithm_named(opt.algorithm, opt.spelling);
     const RunConfig cfg = worst_config(cfg_in, opt);
     const std::int64_t K = cfg.steps_until(opt.until);
     HINF_CHECK(K >= 2, "worst: the horizon is shorter than two time steps (dt = " + std::to_string(cfg.dt) +
-                           " s): pass a later --until");
-    HINF_CHECK(opt.pieces <= K, "--pieces " + std::to_string(opt.pieces) + " is more than the " + std::to_string(K) +
+                           " s): pass a later " + o("--until"));
+    HINF_CHECK(opt.pieces <= K, o("--pieces") + " " + std::to_string(opt.pieces) + " is more than the " + std::to_string(K) +
                                     " steps of the horizon");
     const double E = worst_energy(cfg, opt, K);
     const std::vector<double> t = times(cfg, K);
@@ -617,12 +620,12 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
             }
         }
     }
-    HINF_CHECK(!tasks.empty(), "worst: no starts (--random-starts 0 and no --scenario-starts)");
+    HINF_CHECK(!tasks.empty(), "worst: no starts (" + o("--random-starts") + " 0 and no " + o("--scenario-starts") + ")");
     const std::int64_t N = std::int64_t(tasks.size());
     const int ranks = par_size();
     HINF_CHECK(ranks <= N, std::to_string(ranks) + " MPI processes for " + std::to_string(N) +
                                " restart(s): start at most as many processes as restarts (mpirun -np), or add "
-                               "restarts (--random-starts)");
+                               "restarts (" + o("--random-starts") + ")");
 
     WorstResult res;
     res.energy = E;

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/spelling.hpp"
 #include "filters/filter.hpp"
 #include "net/network.hpp"
 #include "sim/truth.hpp"
@@ -36,6 +37,7 @@ struct WorstOptions {
     std::string algorithm = "LN_SBPLX";  // a local derivative-free NLopt algorithm (worst_algorithms())
     bool keep_initial_error = false;     // false: every filter starts at x^0 = x0 (the pure energy gain)
     bool quiet = false;
+    Spelling spelling = Spelling::program;  // how error lines name these knobs (the program's flags or the library's)
 };
 
 /// The game a DNN filter was trained for: its network gives p = dV/dx~ and rho its level (seed 000 eq. (6)).

@@ -156,12 +156,16 @@ std::unique_ptr<FrozenNetwork> network_for(const std::string& path, const RunCon
 }
 
 // --mode's list, each checked.
-std::vector<std::string> dnn_modes(const std::string& modes) {
+std::vector<std::string> dnn_modes(const std::string& modes, Spelling spelling) {
     std::vector<std::string> out = split_list(modes);
     for (const std::string& mode : out)
-        HINF_CHECK(mode == "oracle" || mode == "measured", "--mode '" + mode + "' is not one of: oracle, measured");
+        HINF_CHECK(mode == "oracle" || mode == "measured",
+                   option_name("--mode", spelling) + " '" + mode + "' is not one of: oracle, measured");
     return out;
 }
+
+// how the caller asks for the measured mode only
+std::string measured_mode(Spelling s) { return s == Spelling::program ? "--mode measured" : "modes = \"measured\""; }
 
 bool has_measured(const std::vector<std::string>& modes) {
     return std::find(modes.begin(), modes.end(), "measured") != modes.end();
@@ -170,10 +174,11 @@ bool has_measured(const std::vector<std::string>& modes) {
 // --ensemble: one filter "dnn_gain_ensemble" with the mean of the networks' gains (method.md 16.15)
 std::unique_ptr<OnlineFilter> gain_ensemble(const RunConfig& cfg, const FilterSetArgs& a, const FilterModel& exact,
                                             FilterSet& set) {
-    HINF_CHECK(has_measured(dnn_modes(a.modes)),
-               "--ensemble: gain networks run from measurements only (use --mode measured)");
+    const auto o = [&](const char* flag) { return option_name(flag, a.spelling); };
+    HINF_CHECK(has_measured(dnn_modes(a.modes, a.spelling)),
+               o("--ensemble") + ": gain networks run from measurements only (use " + measured_mode(a.spelling) + ")");
     RunConfig first;
-    std::vector<std::unique_ptr<FrozenNetwork>> loaded = load_gain_ensemble(cfg, a.networks, &first);
+    std::vector<std::unique_ptr<FrozenNetwork>> loaded = load_gain_ensemble(cfg, a.networks, &first, a.spelling);
     set.models.push_back(first.system);
     std::vector<const FrozenNetwork*> nets;
     for (auto& net : loaded) {
@@ -195,22 +200,25 @@ std::unique_ptr<OnlineFilter> outputs_as_trained(std::unique_ptr<OnlineFilter> f
 }
 
 std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
-                                                               RunConfig* first) {
-    HINF_CHECK(paths.size() >= 2, "--ensemble averages the gains of two or more networks: give --network "
-                                  "once per network (" + std::to_string(paths.size()) + " given)");
+                                                               RunConfig* first, Spelling spelling) {
+    const auto o = [&](const char* flag) { return option_name(flag, spelling); };
+    HINF_CHECK(paths.size() >= 2, o("--ensemble") + " averages the gains of two or more networks: give " +
+                                      (spelling == Spelling::program ? "--network once per network"
+                                                                     : "two or more in networks") +
+                                      " (" + std::to_string(paths.size()) + " given)");
     std::vector<std::unique_ptr<FrozenNetwork>> nets;
     for (std::size_t i = 0; i < paths.size(); ++i) {
         const std::string& path = paths[i];
         RunConfig ncfg;
         std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
-        HINF_CHECK(ncfg.variant == "gain", "--ensemble: network '" + path + "' is variant \"" + ncfg.variant +
+        HINF_CHECK(ncfg.variant == "gain", o("--ensemble") + ": network '" + path + "' is variant \"" + ncfg.variant +
                                                "\"; only variant \"gain\" networks (a gain K(x^)) can be averaged");
         if (i == 0) {
             gain_filter_check_time(*net, *cfg.system, "dnn_gain_ensemble");
             *first = ncfg;
         } else {
             HINF_CHECK(same_trained_model(ncfg, *first),
-                       "--ensemble: network '" + path + "' was trained on another model than '" + paths[0] +
+                       o("--ensemble") + ": network '" + path + "' was trained on another model than '" + paths[0] +
                            "' (its [system] table or its noise levels differ); an ensemble averages networks "
                            "trained on one model, e.g. with different training.seed");
         }
@@ -229,6 +237,8 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                            const FilterModel& exact) {
     FilterSet set;
     auto& owned = set.filters;
+    const auto o = [&](const char* flag) { return option_name(flag, a.spelling); };
+    const std::string two_networks = a.spelling == Spelling::program ? "two --network files" : "two networks";
     for (const std::string& name : split_list(a.filters)) {
         const SimpleFilter* simple = nullptr;
         for (const SimpleFilter& f : kSimpleFilters)
@@ -252,15 +262,17 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 char line[240];
                 if (fix > 0)
                     std::snprintf(line, sizeof line, "with [filter] rho = %.4g; these %d vertices allow rho = %.4g: pass "
-                                  "--set filter.rho=%.4g (or another --glf-vertices, or drop glf)",
-                                  cfg.rho, a.glf_vertices, fix, fix);
+                                  "%s filter.rho=%.4g (or another %s, or drop glf)",
+                                  cfg.rho, a.glf_vertices, fix, o("--set").c_str(), fix, o("--glf-vertices").c_str());
                 else
                     std::snprintf(line, sizeof line, "at [filter] rho = %.4g nor at any rho up to 1e12 times it (%d "
-                                  "vertices): try another --glf-vertices, or drop glf", cfg.rho, a.glf_vertices);
-                HINF_FAIL("--filters glf: the LMI design found no gain " + std::string(line) + " (" + g.status + ")");
+                                  "vertices): try another %s, or drop glf", cfg.rho, a.glf_vertices,
+                                  o("--glf-vertices").c_str());
+                HINF_FAIL(o("--filters") + " glf: the LMI design found no gain " + std::string(line) + " (" + g.status +
+                          ")");
             }
-            HINF_CHECK(g.ok, "--filters glf: the LMI design found no gain: " + g.status +
-                                 " (try another --glf-vertices, or drop glf)");
+            HINF_CHECK(g.ok, o("--filters") + " glf: the LMI design found no gain: " + g.status + " (try another " +
+                                 o("--glf-vertices") + ", or drop glf)");
             char note[160];
             std::snprintf(note, sizeof note, "glf: %d vertices at t =", g.vertices);
             std::string line = note;
@@ -272,7 +284,10 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             set.notes.push_back(line + note + g.status);
             owned.push_back(make_glf_filter(exact, g));
         } else if (name == "dnn") {
-            HINF_CHECK(!a.networks.empty(), "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)");
+            HINF_CHECK(!a.networks.empty(), a.spelling == Spelling::program
+                                                ? "--filters dnn needs --network DIR/checkpoint.h5 (repeatable)"
+                                                : "filters dnn needs a trained network in networks (a DIR/checkpoint.h5 "
+                                                  "each)");
             HINF_CHECK(!cfg.retrain, "[online] retrain = true: on-line retraining runs in hinf operate only; here the "
                                      "DNN filter would run its checkpoint as trained (set online.retrain = false, or use "
                                      "hinf operate)");
@@ -283,16 +298,18 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
             for (const std::string& path : a.networks) {
                 RunConfig ncfg;
                 std::unique_ptr<FrozenNetwork> net = network_for(path, cfg, &ncfg);
-                const std::vector<std::string> modes = dnn_modes(a.modes);
+                const std::vector<std::string> modes = dnn_modes(a.modes, a.spelling);
                 if (ncfg.variant == "gain") {  // its gain never sees x~: it runs from measurements only
                     HINF_CHECK(has_measured(modes), "network '" + path + "' is variant \"gain\": its gain K(x^) never "
-                                                    "sees the true error, so --mode oracle is meaningless for it (use "
-                                                    "--mode measured)");
+                                                    "sees the true error, so " + o("--mode") +
+                                                    " oracle is meaningless for it (use " + measured_mode(a.spelling) +
+                                                    ")");
                     std::string label = "dnn_gain_measured";
-                    for (const auto& o : owned)
-                        HINF_CHECK(o->name() != label,
-                                   "two --network files give the filter name '" + label + "' (same variant twice; "
-                                   "--ensemble averages the gains of several gain networks into one filter)");
+                    for (const auto& f : owned)
+                        HINF_CHECK(f->name() != label,
+                                   two_networks + " give the filter name '" + label +
+                                       "' (same variant twice; " + o("--ensemble") +
+                                       " averages the gains of several gain networks into one filter)");
                     // it filters with the model it was trained on (its checkpoint's [system], e.g. a mismatched H),
                     // which the check above ties to this config's system by kind, states and outputs
                     gain_filter_check_time(*net, *cfg.system, label);
@@ -305,9 +322,9 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 }
                 for (const std::string& mode : modes) {
                     std::string label = "dnn_" + ncfg.variant + "_" + mode;
-                    for (const auto& o : owned)
-                        HINF_CHECK(o->name() != label,
-                                   "two --network files give the filter name '" + label + "' (same variant twice)");
+                    for (const auto& f : owned)
+                        HINF_CHECK(f->name() != label,
+                                   two_networks + " give the filter name '" + label + "' (same variant twice)");
                     // the gain uses rho of the network's own training config
                     if (mode == "measured") {
                         const std::string warning = dnn_measured_warning(ncfg.variant, cfg.n, cfg.m);
@@ -318,12 +335,13 @@ FilterSet build_filter_set(const RunConfig& cfg, const FilterSetArgs& a, const F
                 set.networks.push_back(std::move(net));
             }
         } else
-            HINF_FAIL("--filters: unknown filter '" + name + "' (use " + filter_names() + ")");
+            HINF_FAIL(o("--filters") + ": unknown filter '" + name + "' (use " + filter_names() + ")");
     }
-    HINF_CHECK(!owned.empty(), "--filters: no filter named (use " + filter_names() + ")");
+    HINF_CHECK(!owned.empty(), o("--filters") + ": no filter named (use " + filter_names() + ")");
     const std::vector<std::string> names = split_list(a.filters);
     HINF_CHECK(!a.ensemble || std::find(names.begin(), names.end(), "dnn") != names.end(),
-               "--ensemble averages DNN filters: add dnn to --filters (e.g. --filters dnn,ekf)");
+               o("--ensemble") + " averages DNN filters: add dnn to " + o("--filters") +
+                   (a.spelling == Spelling::program ? " (e.g. --filters dnn,ekf)" : " (e.g. \"dnn,ekf\")"));
     return set;
 }
 

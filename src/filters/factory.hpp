@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/spelling.hpp"
 #include "filters/filter.hpp"
 #include "net/network.hpp"
 #include "config/run_config.hpp"
@@ -20,6 +21,7 @@ struct FilterSetArgs {
     double roughening = 0.0;
     int glf_vertices = 8;
     bool ensemble = false;  // dnn: one filter averaging the gains of every network (all variant gain, one model)
+    Spelling spelling = Spelling::program;  // how error lines name these arguments (the program's flags or the library's)
 };
 
 struct FilterSet {
@@ -41,7 +43,7 @@ bool filters_need_level(const std::string& filters);
 /// the noise weights of their checkpoints agree), each for cfg's system and time domain; one line names the network
 /// that differs. `first` gets the first checkpoint's effective config (the model they were trained on).
 std::vector<std::unique_ptr<FrozenNetwork>> load_gain_ensemble(const RunConfig& cfg, const std::vector<std::string>& paths,
-                                                               RunConfig* first);
+                                                               RunConfig* first, Spelling spelling = Spelling::program);
 
 /// A gain network's filter takes y weighted as the config weighs its outputs ([online] noise_std as a list or
 /// noise_cov: each output in units of its own noise; plain numbers: the user's units) and filters with its own model,

@@ -19,7 +19,7 @@ double energy_pulse_span(const RunConfig& cfg, std::int64_t steps) {
     return std::max(0.0, std::min(cfg.time_of(steps), kPulseEnd) - kPulseStart);
 }
 
-Scenario scenario_named(const std::string& name) {
+Scenario scenario_named(const std::string& name, Spelling spelling) {
     Scenario s;
     s.name = name;
     if (name == "nominal") return s;
@@ -35,7 +35,7 @@ Scenario scenario_named(const std::string& name) {
     else {
         std::string all;
         for (const auto& n : scenario_names()) all += (all.empty() ? "" : ", ") + n;
-        HINF_FAIL("--scenario '" + name + "' is not one of: " + all);
+        HINF_FAIL(option_name("--scenario", spelling) + " '" + name + "' is not one of: " + all);
     }
     return s;
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "config/run_config.hpp"
+#include "core/spelling.hpp"
 #include "filters/filter.hpp"
 
 namespace hinf {
@@ -23,8 +24,8 @@ struct Scenario {
     bool energy_pulse = false;             // v = std sqrt(T / 5 s) on [20 s, 25 s), 0 elsewhere (same energy as white v)
 };
 /// nominal, cov_small, cov_large, v_cov_small, v_cov_large, n_cov_small, n_cov_large, student_t, bias,
-/// energy_pulse; throws on anything else.
-Scenario scenario_named(const std::string& name);
+/// energy_pulse; throws on anything else (the line names the option as `spelling` does).
+Scenario scenario_named(const std::string& name, Spelling spelling = Spelling::program);
 std::vector<std::string> scenario_names();
 
 /// energy_pulse's window, fixed in the system's time unit: seed 000's manoeuvre at 20 <= t < 25 s of its 70 s

@@ -18,6 +18,22 @@ using hinf::test::write_file;
 
 namespace {
 
+// the one line a library call's bad argument gives, "" when it gives none; it names the library's argument, never
+// the program's flag (the checks behind compare and worst are shared with the program)
+std::string library_error(const std::function<void()>& call) {
+    try {
+        call();
+    } catch (const hinf::Error& e) {
+        return e.what();
+    }
+    return "";
+}
+bool names_argument(const std::string& what, const std::string& fragment) {
+    INFO(what);
+    return what.find(fragment) != std::string::npos && what.find("--") == std::string::npos &&
+           what.find('\n') == std::string::npos;
+}
+
 const char* kTinyMissile =
     "[system]\nkind = \"missile\"\n[filter]\nt_final = 2.0\n[network]\nhidden = [8]\n[training]\nsamples = 50\n"
     "batch = 20\nadam_steps = 2\ncheckpoint_every = 3\n";
@@ -312,6 +328,16 @@ TEST_CASE("library: compare runs hinf compare's Monte Carlo and returns its tabl
     CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "kalman"));
     s.filters = "dnn";
     CHECK(one_line_error([&] { hinf::compare(cfg, s); }, "network"));
+    // the shared checks name the library's arguments
+    CHECK(names_argument(library_error([&] { hinf::compare(cfg, s); }), "filters dnn needs a trained network in networks"));
+    s.filters = "kalman";
+    CHECK(names_argument(library_error([&] { hinf::compare(cfg, s); }), "filters: unknown filter 'kalman'"));
+    s.filters = "ekf";
+    s.scenario = "storm";
+    CHECK(names_argument(library_error([&] { hinf::compare(cfg, s); }), "scenario 'storm' is not one of"));
+    s.scenario = "nominal";
+    s.ensemble = true;
+    CHECK(names_argument(library_error([&] { hinf::compare(cfg, s); }), "ensemble averages DNN filters: add dnn to filters"));
 }
 
 TEST_CASE("library: worst runs hinf worst's search and returns each filter's worst", "[api]") {
@@ -340,4 +366,17 @@ TEST_CASE("library: worst runs hinf worst's search and returns each filter's wor
     s.energy = NAN;
     s.filters = "dnn";
     CHECK(one_line_error([&] { hinf::worst(cfg, s); }, "network"));
+    // the shared checks name the library's arguments
+    s.filters = "ekf";
+    s.evals = 0;
+    CHECK(names_argument(library_error([&] { hinf::worst(cfg, s); }), "evals must be >= 1 (got 0)"));
+    s.evals = 6;
+    s.random_starts = -1;
+    CHECK(names_argument(library_error([&] { hinf::worst(cfg, s); }), "random_starts must be >= 0"));
+    s.random_starts = 1;
+    s.linear_pieces = -1;
+    CHECK(names_argument(library_error([&] { hinf::worst(cfg, s); }), "linear_pieces must be in [0, 1000]"));
+    s.linear_pieces = 2;
+    s.energy = -1;
+    CHECK(names_argument(library_error([&] { hinf::worst(cfg, s); }), "energy must be a finite number > 0"));
 }
