@@ -497,6 +497,44 @@ PYBIND11_MODULE(_hinf, m) {
         "Runs `hinf worst`'s search on the config (the same starts, bits and out/worst.h5); returns each filter's worst "
         "ratio found, its small-signal ratio and where it was found, one dict per filter in 'filters'");
     m.def(
+        "replay_worst",
+        [](const hinf::Config& cfg, const std::string& worst_file, const std::string& out, const std::string& filters,
+           const py::object& network, const std::string& modes, bool ensemble, std::int64_t particles,
+           double roughening, int glf_vertices, bool quiet, int threads) {
+            hinf::WorstSettings st;
+            simulation_settings(st, cfg, out, filters, network, modes, ensemble, particles, roughening, glf_vertices,
+                                quiet, threads);
+            hinf::ReplayReport r;
+            {
+                py::gil_scoped_release nogil;
+                r = hinf::replay_worst(cfg, worst_file, st);
+            }
+            const py::ssize_t D = py::ssize_t(r.sets.size()), F = py::ssize_t(r.filters.size());
+            py::array_t<double> ratio({D, F});
+            py::array_t<bool> diverged({D, F});
+            for (py::ssize_t i = 0; i < D * F; ++i) {
+                ratio.mutable_data()[i] = r.ratio[std::size_t(i)];
+                diverged.mutable_data()[i] = r.diverged[std::size_t(i)];
+            }
+            py::dict d;
+            d["file"] = r.file;
+            d["steps"] = r.steps;
+            d["keep_initial_error"] = r.keep_initial_error;
+            d["sets"] = r.sets;
+            d["energy"] = r.energy;
+            d["filters"] = r.filters;
+            d["ratio"] = ratio;
+            d["diverged"] = diverged;
+            return d;
+        },
+        py::arg("config"), py::arg("worst_file"), py::arg("out"), py::arg("filters") = "dnn,ekf,ukf,pf,open_loop",
+        py::arg("network") = py::none(), py::arg("modes") = "oracle,measured", py::arg("ensemble") = false,
+        py::arg("particles") = 2000, py::arg("roughening") = 0.0, py::arg("glf_vertices") = 8, py::arg("quiet") = true,
+        py::arg("threads") = 0,
+        "Runs the signal sets a search saved (worst_file: a worst.h5 of hinf.worst or `hinf worst`) against the filters, "
+        "as `hinf worst CONFIG --replay worst_file` (the same bits and out/replay.h5); returns 'sets' [D] (the filter "
+        "each set was found for), 'filters' [F], 'ratio' and 'diverged' [D x F] arrays, 'energy' [D]");
+    m.def(
         "train",
         [](const hinf::Config& cfg, const std::string& out, double until, const py::object& progress, bool quiet,
            bool force, int threads) {

@@ -362,4 +362,22 @@ struct WorstReport {
 /// Runs `hinf worst`'s search on cfg (the same starts, bits and worst.h5).
 WorstReport worst(const Config& cfg, const WorstSettings& settings);
 
+/// What a replay of saved worst signals found: every filter under every set.
+struct ReplayReport {
+    std::string file;                  ///< DIR/replay.h5 (layout: docs/formats.md, as `hinf worst --replay` writes it)
+    std::int64_t steps = 0;            ///< the horizon the sets were found for
+    bool keep_initial_error = false;   ///< how the search scored them, and so this replay
+    std::vector<std::string> sets;     ///< [D] the filter each set was found for
+    std::vector<double> energy;        ///< [D] each set's int (v'v + n'n) dt
+    std::vector<std::string> filters;  ///< [F] the settings' filters, in `hinf worst`'s order
+    std::vector<double> ratio;         ///< [D x F] row d: filter f's attenuation ratio under set d
+    std::vector<bool> diverged;        ///< [D x F] the filter diverged under the set (frozen there)
+};
+
+/// `hinf worst CONFIG --replay worst_file`: the signal sets a search saved (worst.h5, or a replay.h5) run against
+/// the settings' filters, scored as the search scored them (its horizon and initial error: the settings' energy,
+/// until, evals, random_starts, linear_pieces and keep_initial_error are the search's and not used); the same bits
+/// and DIR/replay.h5. The file must be for cfg's system (kind, [system] table, channels, dt).
+ReplayReport replay_worst(const Config& cfg, const std::string& worst_file, const WorstSettings& settings);
+
 }  // namespace hinf

@@ -10,10 +10,10 @@
 Errors in the caller's terms raise hinf.Error (a RuntimeError) with hinf's one-line message. docs/python.md.
 """
 from ._hinf import (Config, Error, Filter, FilterTrace, Network, TrainProgress, compare, export_c, filter_names,
-                    filters, resume, train, version, worst)
+                    filters, replay_worst, resume, train, version, worst)
 
 __all__ = ["Config", "Error", "Filter", "FilterTrace", "Network", "TrainProgress", "compare", "export_c",
-           "filter_names", "filters", "read_results", "resume", "train", "version", "worst"]
+           "filter_names", "filters", "read_results", "replay_worst", "resume", "train", "version", "worst"]
 
 
 def read_results(path):

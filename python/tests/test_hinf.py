@@ -309,6 +309,18 @@ def test_worst_is_hinf_worst(trained, tmp_path):
         g = lib["filters"][f["name"]]["attrs"]
         assert f["ratio"] == g["ratio"] and f["small_signal"] == g["linear_gain"], f["name"]
         assert f["ratio"] > 0 and not f["diverged"] and f["found_from"]
+    # the saved signals against another filter set, as `hinf worst --replay`: the same replay.h5
+    replay = hinf.replay_worst(cfg, report["file"], str(tmp_path / "lib_replay"), filters="ukf,dnn",
+                               network=ckpt, modes="measured")
+    args = [hinf_cli(), "worst", VANDERPOL, "--filters", "ukf,dnn", "--network", ckpt, "--mode", "measured",
+            "--replay", report["file"], "--quiet", "--out", str(tmp_path / "cli_replay")]
+    for s in SMALL:
+        args += ["--set", s]
+    subprocess.run(args, check=True, capture_output=True)
+    same_results(hinf.read_results(replay["file"]), hinf.read_results(str(tmp_path / "cli_replay" / "replay.h5")))
+    assert replay["sets"] == ["dnn_gain_measured", "ekf"] and replay["filters"] == ["ukf", "dnn_gain_measured"]
+    assert replay["ratio"].shape == (2, 2) and replay["diverged"].shape == (2, 2) and replay["steps"] == 300
+    assert replay["ratio"][0, 1] == report["filters"][0]["ratio"]  # the DNN filter under its own worst signals
     with pytest.raises(hinf.Error, match="energy must be"):
         hinf.worst(cfg, str(tmp_path / "bad"), filters="ekf", energy=-1.0)
     # the checks it shares with the program name the library's arguments, not the program's flags

@@ -577,6 +577,31 @@ WorstReport worst(const Config& cfg, const WorstSettings& settings) {
     return w;
 }
 
+ReplayReport replay_worst(const Config& cfg, const std::string& worst_file, const WorstSettings& settings) {
+    const RunConfig& c = run_config(cfg);
+    HINF_CHECK(!worst_file.empty(), "replay_worst: worst_file is required (a worst.h5 of hinf worst or hinf::worst)");
+    WorstOptions opt;
+    opt.quiet = settings.quiet;
+    opt.spelling = Spelling::library;
+    // as worst_cmd.cpp: the signals were found for a budget, so the Bayesian filters are told the nominal statistics
+    std::vector<std::string> paths;
+    const FilterSet set = simulation_filters(c, settings, "replay_worst", scenario_told_model(c, scenario_named("nominal")),
+                                             &paths);
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    const WorstReplayRun run = worst_replay_file(c, filters, worst_file, settings.out_dir, opt, "hinf replay_worst (library)");
+    ReplayReport r;
+    r.file = run.file;
+    r.steps = run.steps;
+    r.keep_initial_error = run.keep_initial_error;
+    r.sets = run.table.sets;
+    r.energy = run.table.signal_energy;
+    r.filters = run.table.filters;
+    r.ratio = run.table.ratio;
+    for (double at : run.table.diverged_at) r.diverged.push_back(at >= 0);
+    return r;
+}
+
 // ---------------------------------------------------------------------------------------------- export
 
 ExportReport export_c99(const std::vector<std::string>& checkpoints, const std::string& dir, const std::string& prefix,

@@ -141,19 +141,11 @@ void add_worst_command(CLI::App& app) {
         for (const auto& o : set.filters) filters.push_back(o.get());
 
         if (!a->replay.empty()) {
-            std::int64_t steps = 0;
-            bool keep = false;
-            std::vector<WorstSignals> sets = worst_read(a->replay, cfg, &steps, &keep);
-            WorstOptions ro = opt;
-            ro.keep_initial_error = keep;
-            const RunConfig rc = worst_config(cfg, ro);
-            WorstReplay r = worst_replay(rc, filters, sets, steps, a->quiet);
-            const RunDirLock lock(out, "hinf worst");
-            worst_write_replay(out + "/replay.h5", rc, a->replay, sets, r, steps, keep);
+            const WorstReplayRun run = worst_replay_file(cfg, filters, a->replay, out, opt, "hinf worst");
             std::printf("worst --replay %s: %zu signal set(s), %lld steps of %g s, energy %.6g, initial error %s\n",
-                        a->replay.c_str(), sets.size(), static_cast<long long>(steps), cfg.dt, r.signal_energy[0],
-                        keep ? "from the config" : "zero");
-            print_cross(r);
+                        a->replay.c_str(), run.sets.size(), static_cast<long long>(run.steps), cfg.dt,
+                        run.table.signal_energy[0], run.keep_initial_error ? "from the config" : "zero");
+            print_cross(run.table);
             std::printf("file: %s/replay.h5\n", out.c_str());
             if (a->plot) plot(out + "/replay.h5", out);
             return;

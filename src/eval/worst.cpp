@@ -23,6 +23,7 @@
 #include "io/checkpoint.hpp"
 #include "io/atomic.hpp"
 #include "io/progress.hpp"
+#include "io/run_lock.hpp"
 #include "models/weighted_system.hpp"
 #include "par/par.hpp"
 #include "random.hpp"
@@ -926,11 +927,27 @@ void worst_write_replay(const std::string& path, const RunConfig& cfg, const std
     file.commit();
 }
 
+WorstReplayRun worst_replay_file(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                                 const std::string& source, const std::string& out_dir, const WorstOptions& opt,
+                                 const std::string& who) {
+    WorstReplayRun run;
+    run.sets = worst_read(source, cfg, &run.steps, &run.keep_initial_error, opt.spelling);
+    WorstOptions ro = opt;
+    ro.keep_initial_error = run.keep_initial_error;
+    const RunConfig rc = worst_config(cfg, ro);
+    run.table = worst_replay(rc, filters, run.sets, run.steps, opt.quiet);
+    const RunDirLock lock(out_dir, who);
+    run.file = out_dir + "/replay.h5";
+    worst_write_replay(run.file, rc, source, run.sets, run.table, run.steps, run.keep_initial_error);
+    return run;
+}
+
 std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& cfg, std::int64_t* steps_out,
-                                     bool* keep_initial_error_out) {
+                                     bool* keep_initial_error_out, Spelling spelling) {
+    check_input_file(path, "worst-case signals");
     h5::Handle file = h5::open_file(path, false);
     const hid_t root = file.get();
-    const std::string where = "--replay " + path + ": ";
+    const std::string where = (spelling == Spelling::program ? "--replay " : "worst_file ") + path + ": ";
     HINF_CHECK(h5::has_attr(root, "format") && (h5::get_attr_string(root, "format") == "hinf-worst" ||
                                                 h5::get_attr_string(root, "format") == "hinf-worst-replay"),
                where + "not a file written by `hinf worst` (no format = hinf-worst)");

@@ -164,9 +164,24 @@ void worst_write_replay(const std::string& path, const RunConfig& cfg, const std
                         bool keep_initial_error);
 
 /// The signal sets of a worst.h5; checks that the file was written for cfg's system (name, dimensions, dt,
-/// horizon) and throws naming the file and the difference. steps_out: the horizon the file was made for;
-/// keep_initial_error_out: how the search scored (a replay scores the same way).
+/// horizon) and throws naming the file (as `spelling` names the option) and the difference. steps_out: the horizon
+/// the file was made for; keep_initial_error_out: how the search scored (a replay scores the same way).
 std::vector<WorstSignals> worst_read(const std::string& path, const RunConfig& cfg, std::int64_t* steps_out,
-                                     bool* keep_initial_error_out);
+                                     bool* keep_initial_error_out, Spelling spelling = Spelling::program);
+
+/// A replay of saved worst signals (`hinf worst --replay`, hinf::replay_worst).
+struct WorstReplayRun {
+    std::vector<WorstSignals> sets;  // the file's sets, in its order
+    WorstReplay table;               // every filter under every set
+    std::int64_t steps = 0;          // the horizon the sets were found for
+    bool keep_initial_error = false; // how the search scored them (and so the replay)
+    std::string file;                // out_dir/replay.h5
+};
+/// The sets of `source` (a worst.h5, or a replay.h5) against `filters`, scored as the search scored them (its
+/// horizon, its initial error; opt gives quiet and spelling), written to out_dir/replay.h5 under out_dir's lock
+/// (`who` names the caller in the lock's line).
+WorstReplayRun worst_replay_file(const RunConfig& cfg, const std::vector<const OnlineFilter*>& filters,
+                                 const std::string& source, const std::string& out_dir, const WorstOptions& opt,
+                                 const std::string& who);
 
 }  // namespace hinf

@@ -361,6 +361,27 @@ TEST_CASE("library: worst runs hinf worst's search and returns each filter's wor
         CHECK(f.ratio > 0);
         CHECK_FALSE(f.found_from.empty());
     }
+    // its signals replayed against another filter set: each set scores its own filter as the search did
+    hinf::WorstSettings rs;
+    rs.out_dir = d / "replay";
+    rs.filters = "ukf,ekf";
+    const hinf::ReplayReport p = hinf::replay_worst(cfg, r.file, rs);
+    CHECK(p.file == d / "replay/replay.h5");
+    CHECK(std::ifstream(p.file).good());
+    CHECK(p.steps == 50);
+    CHECK(p.sets == std::vector<std::string>{"ekf", "open_loop"});
+    CHECK(p.filters == std::vector<std::string>{"ukf", "ekf"});
+    REQUIRE(p.ratio.size() == 4u);
+    REQUIRE(p.diverged.size() == 4u);
+    CHECK(p.ratio[0 * 2 + 1] == r.filters[0].ratio);  // set 0 (found for the EKF), filter 1 (the EKF)
+    for (double e : p.energy) CHECK(e == Approx(r.energy).epsilon(1e-9));
+    CHECK(names_argument(library_error([&] { hinf::replay_worst(cfg, d / "missing.h5", rs); }), "missing.h5"));
+    const hinf::Config coarse = hinf::Config::from_text(kTinyMissile, "tiny.toml", {"filter.dt=0.02"});
+    CHECK(names_argument(library_error([&] { hinf::replay_worst(coarse, r.file, rs); }),
+                         "worst_file " + r.file + ": its signals are sampled at dt"));
+    hinf::WorstSettings none = rs;
+    none.filters = "";
+    CHECK(names_argument(library_error([&] { hinf::replay_worst(cfg, r.file, none); }), "filters: no filter named"));
     s.energy = -1;
     CHECK(one_line_error([&] { hinf::worst(cfg, s); }, "energy must be a finite number > 0"));
     s.energy = NAN;
