@@ -36,13 +36,6 @@ FilterSet dnn_and(const RunConfig& cfg, const std::string& network, const std::s
     return build_filter_set(cfg, FilterSetArgs{"dnn," + others, {network}, "measured", 1, 0.0, 8}, told, exact);
 }
 
-// The game's own worst case as a start for the DNN filter (filters[0]) where its network gives dV/dx~ (not gain)
-std::vector<WorstGame> dnn_game(const FrozenNetwork& net, double rho, std::size_t filters) {
-    std::vector<WorstGame> games(filters);
-    if (!net.step_config().gain.enabled) games[0] = WorstGame{&net, rho};
-    return games;
-}
-
 // The acceptance's worst-case search (issue 14 item 3): a short, bounded eval/worst search of the trained filter
 // (`measured`, as the Monte Carlo) and of the EKF on the same starts and evaluations, under the WorstOptions
 // budget (the nominal draws' expected energy), every filter from x^(0) = x(0). Starts: two random draws, the
@@ -79,9 +72,13 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     const std::int64_t K = cfg.steps_until();
     a.skipped = search_skipped(cfg);
     if (!a.skipped.empty()) return a;
-    RunConfig ncfg;
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
-    const bool game = !net->step_config().gain.enabled;
+    const FilterSet set = dnn_and(cfg, network);
+    std::vector<const OnlineFilter*> filters;
+    for (const auto& f : set.filters) filters.push_back(f.get());
+    // the game's own worst case is a start where the network gives dV/dx~ (not variant gain), as in hinf worst
+    const WorstNetworks wn = worst_networks(filters, {network});
+    const FrozenNetwork& net = *wn.nets[0];
+    const bool game = wn.games[0].network != nullptr;
     WorstOptions wo;
     wo.random_starts = 2;
     // the pulse scenario's signals as a start, unless they carry nothing: on a run that ends before the pulse
@@ -101,10 +98,7 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     const int restarts = wo.random_starts + int(wo.scenario_starts.size()) + (game ? 1 : 0) + 1;  // + the linear start
     wo.evals = int(std::max<std::int64_t>(1, cfg.acceptance_worst_evals / restarts));
     wo.quiet = quiet;
-    const FilterSet set = dnn_and(cfg, network);
-    std::vector<const OnlineFilter*> filters;
-    for (const auto& f : set.filters) filters.push_back(f.get());
-    const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
+    const WorstResult r = worst_search(cfg, filters, wn.games, wo);
     worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
     a.ratio = r.filters[0].worst.ratio;
     a.ekf_ratio = r.filters[1].worst.ratio;
@@ -116,7 +110,7 @@ AcceptanceWorst acceptance_worst(const RunConfig& cfg, const std::string& networ
     a.ekf_small = r.filters[1].linear_gain;
     a.wall_seconds = r.wall_seconds;
     if (!game) {  // where those signals drove the true state (the truth does not depend on the filters' start)
-        a.outside = worst_truth_outside_training(cfg, net->step_config().gain, r.filters[0].worst.signals, K);
+        a.outside = worst_truth_outside_training(cfg, net.step_config().gain, r.filters[0].worst.signals, K);
     }
     return a;
 }
@@ -250,14 +244,13 @@ LevelSearch level_search(const RunConfig& cfg, const std::string& network, const
     LevelSearch l;
     l.skipped = search_skipped(cfg);
     if (!l.skipped.empty()) return l;
-    RunConfig ncfg;
-    std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(network, &ncfg);
     WorstOptions wo;  // hinf worst's defaults
     wo.quiet = quiet;
     const FilterSet set = dnn_and(cfg, network, "ekf,ukf");
     std::vector<const OnlineFilter*> filters;
     for (const auto& f : set.filters) filters.push_back(f.get());
-    const WorstResult r = worst_search(cfg, filters, dnn_game(*net, ncfg.rho, filters.size()), wo);
+    const WorstNetworks wn = worst_networks(filters, {network});  // the game's start where the network gives dV/dx~
+    const WorstResult r = worst_search(cfg, filters, wn.games, wo);
     std::filesystem::create_directories(out_dir);
     worst_write(out_dir + "/worst.h5", worst_config(cfg, wo), wo, r);
     // the worst found at the budget or, where larger, for small signals (the linear start's figure)
