@@ -508,6 +508,8 @@ AcceptanceOutcome acceptance_check(const RunConfig& cfg, const std::string& dir,
     o.worst_ratio = search && w.skipped.empty() ? w.ratio : NAN;
     o.worst_small_signal = search && w.skipped.empty() ? w.small : NAN;
     o.worst_diverged = search && w.skipped.empty() && w.diverged;
+    o.worst_ratio_ekf = search && w.skipped.empty() ? w.ekf_ratio : NAN;
+    o.worst_small_signal_ekf = search && w.skipped.empty() ? w.ekf_small : NAN;
     o.settle_note = vs.settle_note;
     if (pass && search && w.skipped.empty()) {  // the short search's PASS is a lower bound's, method.md 16.12
         char buf[900];
@@ -847,6 +849,24 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
     return choose_storage(cfg, s, best, dir, quiet, kFlatKnots, constant_storage_config(*cfg), kConstant);
 }
 
+namespace {
+// the larger of a search's two figures (at the budget, for small signals), +infinity where the filter diverged under
+// its worst signals, NaN where no search ran
+double larger_worst(double ratio, double small, bool diverged) {
+    if (std::isnan(ratio)) return NAN;
+    if (diverged) return INFINITY;
+    return std::isnan(small) ? ratio : std::max(ratio, small);
+}
+}  // namespace
+
+bool worst_above_ekf(const AcceptanceOutcome& a) {
+    const double dnn = larger_worst(a.worst_ratio, a.worst_small_signal, a.worst_diverged);
+    const double ekf = larger_worst(a.worst_ratio_ekf, a.worst_small_signal_ekf, false);
+    return dnn > ekf;  // false where either is NaN
+}
+
+double far_behind_line(const AcceptanceOutcome& a) { return worst_above_ekf(a) ? kFarBehindRecheck : kFarBehindEkf; }
+
 bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
                                const std::string& dir, bool quiet, const AcceptanceOutcome& a) {
     double behind = std::max(a.rmse_position_settled / a.rmse_position_settled_ekf,
@@ -854,6 +874,11 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
     if (!(a.ran && behind > kFarBehindRecheck && cfg->variant == "gain" && cfg->storage_knots > 0 &&
           storage_was_hinfs(*cfg, *s, *best) && !riccati_start_held_at_once(*cfg)))
         return false;  // (held at once: choose_held_start trained both already)
+    // behind the EKF on both counts (the mean error and the worst case the check found): from kFarBehindRecheck on,
+    // a filter with nothing to pick it for (docs/method.md section 16.7, "Behind on both counts")
+    const double line = far_behind_line(a);
+    const bool both = line < kFarBehindEkf;
+    std::string runs_said = "the acceptance check's runs";  // where `behind` was measured
     if (!(behind > kFarBehindEkf)) {
         // near the line the check's few runs decide poorly (the error ratio is heavy-tailed: a Hodgkin-Huxley
         // neuron's run read 1.89 on the check's 5 runs and 3.02 on 50): more runs, the check's among them, decide
@@ -867,23 +892,43 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
         behind = std::isnan(vs.dnn) ? INFINITY : vs.behind();  // NaN: a run diverged, as far behind as it gets
         std::fprintf(stderr,
                      "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error, "
-                     "near the %g from which hinf tries other storages; on %lld runs (the check's among them): %.3g "
+                     "near the %g from which hinf tries other storages%s; on %lld runs (the check's among them): %.3g "
                      "times (docs/method.md section 16.7, \"Near the line: more runs decide\")\n",
-                     before, kFarBehindEkf, static_cast<long long>(more.acceptance_runs), behind);
-        if (!(behind > kFarBehindEkf)) return false;
+                     before, kFarBehindEkf,
+                     both ? " (from 1.5 where, as here, its worst case found is above the EKF's)" : "",
+                     static_cast<long long>(more.acceptance_runs), behind);
+        if (!(behind > line)) return false;
+        runs_said = "those " + std::to_string(more.acceptance_runs) + " runs";
+    }
+    char worse[240] = "";
+    if (both && !(behind > kFarBehindEkf)) {
+        const double ekf = larger_worst(a.worst_ratio_ekf, a.worst_small_signal_ekf, false);
+        if (a.worst_diverged)
+            std::snprintf(worse, sizeof worse, ", and the check's worst-case search drove it to divergence where the "
+                          "EKF's worst found was %.4g: behind it on both counts (docs/method.md section 16.7, \"Behind on "
+                          "both counts\")", ekf);
+        else
+            std::snprintf(worse, sizeof worse, ", and its worst case found, %.4g, is above the EKF's %.4g: behind it on "
+                          "both counts (docs/method.md section 16.7, \"Behind on both counts\")",
+                          larger_worst(a.worst_ratio, a.worst_small_signal, false), ekf);
     }
     const RunConfig constant = constant_storage_config(*cfg);  // the first run's config: a flat one names its start
-    const double held = cfg->storage_init == "riccati" ? riccati_start_held_later(*cfg) : -1.0;
+    // a run whose start check switched it to flat knots ("A start that diverges": the trainer records storage_init =
+    // "flat" in its checkpoint's config; *cfg is the config as given) is the flat-knots run already: only the constant
+    // storage is tried against it
+    const bool started_flat =
+        cfg->storage_init == "riccati" && ckpt_config(dir + "/checkpoint.h5").storage_init == "flat";
+    const double held = cfg->storage_init == "riccati" && !started_flat ? riccati_start_held_later(*cfg) : -1.0;
     if (held >= 0) {
         std::fprintf(stderr,
-                     "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error. "
+                     "hinf: note: on %s this filter settles at %.3g times the EKF's error%s. "
                      "Its knots started on the game's Riccati solution along the noise-free trajectory, held at the "
                      "storage's floor from t = %.4g s; where the runs drift from that trajectory (a Hodgkin-Huxley "
                      "neuron, its spikes shifted in time) flat knots settled at 1.6 times the EKF where that start "
                      "gave 29, so hinf trains them too, then a constant storage (network.storage_knots = 0), each in %s/alternative, and keeps the "
                      "run whose best checkpoint validates lowest (docs/method.md section 16.7, \"Far behind the EKF, "
                      "held later: flat knots tried\")\n",
-                     behind, held, dir.c_str());
+                     runs_said.c_str(), behind, worse, held, dir.c_str());
         const bool flat =
             choose_storage(cfg, s, best, dir, quiet, kRiccatiStart, flat_start_config(*cfg), kFlatKnots);
         if (s->status != 0) return flat;  // interrupted: the caller stops
@@ -892,15 +937,15 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
         return flat || constant_kept;
     }
     std::fprintf(stderr,
-                 "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error. Its "
+                 "hinf: note: on %s this filter settles at %.3g times the EKF's error%s. Its "
                  "storage S(t) changes with time on knots (started, unless flat, on the game's solution along the "
                  "noise-free trajectory); on a chaotic "
                  "system whose runs leave that trajectory (Lorenz-96) a constant storage settled at 2.5-2.7 times the "
                  "EKF where the knots gave 4.2, and on two others it did worse, so hinf trains it too "
                  "(network.storage_knots = 0, in %s/alternative) and keeps the run whose best checkpoint validates "
                  "lower (docs/method.md section 16.7, \"Far behind the EKF: a constant storage tried\")\n",
-                 behind, dir.c_str());
-    return choose_storage(cfg, s, best, dir, quiet, kKnots, constant, kConstant);
+                 runs_said.c_str(), behind, worse, dir.c_str());
+    return choose_storage(cfg, s, best, dir, quiet, started_flat ? kFlatKnots : kKnots, constant, kConstant);
 }
 
 bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,

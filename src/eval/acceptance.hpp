@@ -109,6 +109,9 @@ struct AcceptanceOutcome {
     // the small-signal worst ratio (docs/compare.md "The linear start"; NaN: no search ran, or not had)
     double worst_small_signal = std::numeric_limits<double>::quiet_NaN();
     bool worst_diverged = false;  // the filter diverged under the search's worst signals
+    // the EKF's two figures from the same search (NaN: no search ran, or not had)
+    double worst_ratio_ekf = std::numeric_limits<double>::quiet_NaN();
+    double worst_small_signal_ekf = std::numeric_limits<double>::quiet_NaN();
     // where best.h5 was an earlier checkpoint than the last and FAILed: what the same check found on the last one,
     // kept as best.h5 where it PASSed (acceptance_after), one line ("acceptance: note: ..."); empty otherwise
     std::string selection_note;
@@ -193,7 +196,9 @@ AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir,
 
 /// Far behind the EKF (docs/method.md section 16.7, "Far behind the EKF: a constant storage tried"): where the
 /// acceptance check `a` of a `gain` run with a time-varying storage (network.storage_knots > 0) found it settled above
-/// kFarBehindEkf times the EKF's error (between kFarBehindRecheck and kFarBehindEkf: on kFarBehindRecheckRuns runs),
+/// kFarBehindEkf times the EKF's error, or above kFarBehindRecheck where its worst case found is above the EKF's too
+/// (worst_above_ekf: "Behind on both counts") (between kFarBehindRecheck and kFarBehindEkf: on kFarBehindRecheckRuns
+/// runs),
 /// the run trained (fresh or resumed) to t_final with a kept best checkpoint on one process, its
 /// config names none of network.storage_knots, network.storage_init and network.knot_ratio, and its start was not
 /// held at once (choose_held_start trained both there), this trains the same config with network.storage_knots = 0
@@ -206,5 +211,13 @@ AcceptanceOutcome acceptance_after(const RunConfig& cfg, const std::string& dir,
 /// the first and sets s->status (128 + signal).
 bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
                                const std::string& dir, bool quiet, const AcceptanceOutcome& a);
+
+/// Whether the check's worst-case search found the DNN filter's worst case above the EKF's (each the larger of its
+/// figure at the budget and for small signals; a DNN filter diverged under its worst signals is above any); false
+/// where no search ran.
+bool worst_above_ekf(const AcceptanceOutcome& a);
+/// The settled error over the EKF's above which choose_storage_far_behind trains other storages for a run whose check
+/// is `a`: kFarBehindRecheck where worst_above_ekf(a), else kFarBehindEkf.
+double far_behind_line(const AcceptanceOutcome& a);
 
 }  // namespace hinf

@@ -313,3 +313,35 @@ TEST_CASE("acceptance advice says when the level is below rho*_on and names a le
     INFO(b);
     CHECK_FALSE(has(b, "rho*_on"));
 }
+
+TEST_CASE("behind the EKF on both counts, other storages are tried from 1.5 times its error", "[acceptance]") {
+    // the line choose_storage_far_behind trains other storages above (docs/method.md section 16.7, "Behind on both
+    // counts"): the Chua circuit's check, 1.99x behind with a worst case 21.6 against the EKF's 13.7
+    AcceptanceOutcome a;
+    a.ran = true;
+    CHECK(far_behind_line(a) == kFarBehindEkf);  // no search ran: the mean error alone
+    a.worst_ratio = 19.7;
+    a.worst_small_signal = 21.64;
+    a.worst_ratio_ekf = 13.74;
+    a.worst_small_signal_ekf = 11.73;
+    CHECK(worst_above_ekf(a));
+    CHECK(far_behind_line(a) == kFarBehindRecheck);
+    // each side's larger figure counts: the EKF's small-signal ratio above the DNN filter's two
+    a.worst_small_signal_ekf = 22.0;
+    CHECK_FALSE(worst_above_ekf(a));
+    CHECK(far_behind_line(a) == kFarBehindEkf);
+    // a filter driven to divergence by its worst signals is above any finite worst case
+    a.worst_diverged = true;
+    CHECK(worst_above_ekf(a));
+    // a small-signal figure not had: the figure at the budget stands alone on either side
+    a.worst_diverged = false;
+    a.worst_small_signal = NAN;
+    a.worst_small_signal_ekf = NAN;
+    CHECK(worst_above_ekf(a));  // 19.7 against 13.74
+    a.worst_ratio = 13.0;
+    CHECK_FALSE(worst_above_ekf(a));
+    // no search for the EKF: no comparison
+    a.worst_ratio = 19.7;
+    a.worst_ratio_ekf = NAN;
+    CHECK_FALSE(worst_above_ekf(a));
+}
