@@ -889,13 +889,15 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
         const AcceptanceVsEkf vs = acceptance_vs_ekf(more, a.file, scratch);
         std::filesystem::remove_all(scratch);
         const double before = behind;
+        const std::string from_line =
+            both ? " (from " + format_g(kFarBehindRecheck) + " where, as here, its worst case found is above the EKF's)"
+                 : "";
         behind = std::isnan(vs.dnn) ? INFINITY : vs.behind();  // NaN: a run diverged, as far behind as it gets
         std::fprintf(stderr,
                      "hinf: note: on the acceptance check's runs this filter settles at %.3g times the EKF's error, "
                      "near the %g from which hinf tries other storages%s; on %lld runs (the check's among them): %.3g "
                      "times (docs/method.md section 16.7, \"Near the line: more runs decide\")\n",
-                     before, kFarBehindEkf,
-                     both ? " (from 1.5 where, as here, its worst case found is above the EKF's)" : "",
+                     before, kFarBehindEkf, from_line.c_str(),
                      static_cast<long long>(more.acceptance_runs), behind);
         if (!(behind > line)) return false;
         runs_said = "those " + std::to_string(more.acceptance_runs) + " runs";
