@@ -114,7 +114,7 @@ TEST_CASE("a Riccati start whose untrained filter diverges in no validation run 
     CHECK(hinf::ckpt_config(d / "run/checkpoint.h5").storage_init == "riccati");
 }
 
-TEST_CASE("behind the EKF on both counts, a knots run tries a constant storage; one started flat is not trained twice",
+TEST_CASE("behind the EKF on both counts, a knots run tries a constant storage, and a flat-started one does so once",
           "[cli][gain][riccati]") {
     // docs/method.md section 16.7, "Behind on both counts": between 1.5 and 2 times the EKF's settled error (on 25
     // runs) with a worst case found above the EKF's, the run trains the other storages too (measured when this test
@@ -123,7 +123,8 @@ TEST_CASE("behind the EKF on both counts, a knots run tries a constant storage; 
     namespace fs = std::filesystem;
     hinf::test::TempDir d("bothcounts");
     const std::string cfg = hinf::test::write_file(d, "r.toml", roessler_config());
-    const std::string opts = " --quiet --threads 1 --set training.acceptance_runs=5 --set training.acceptance_worst_evals=24";
+    const std::string opts =
+        " --quiet --threads 1 --set training.acceptance_runs=5 --set training.acceptance_worst_evals=24";
     SECTION("the knots run behind on both counts trains the constant storage and keeps the lower validation") {
         auto t = run_hinf("train " + cfg + " --out " + (d / "run") + opts + " --set filter.t_final=15");
         INFO(t.output);
