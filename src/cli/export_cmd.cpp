@@ -14,7 +14,8 @@ void add_export_command(CLI::App& app) {
     c->add_option("checkpoint", *checkpoints,
                   "Trained network DIR/best.h5 (or checkpoint.h5); with --ensemble, two or more gain networks")
         ->required();
-    c->add_option("--c", opt->dir, "Directory for PREFIX.h and PREFIX.c")->required();
+    // --out as every other command names its output directory; --c as the export was first written
+    c->add_option("--out,--c", opt->dir, "Directory for PREFIX.h and PREFIX.c")->required();
     c->add_option("--name", opt->prefix, "C identifier prefix and file stem (default hinf_filter)");
     c->add_flag("--ensemble", opt->ensemble,
                 "One filter with the mean gain of the gain networks given (as compare --ensemble; docs/method.md 16.15)");

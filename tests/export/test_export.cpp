@@ -442,4 +442,11 @@ TEST_CASE("hinf export: bad use is one line", "[export][cli]") {
                           "trained on another model");
     expect_one_line_error("export " + gain + " " + (d / "run/checkpoint.h5") + " --ensemble --c " + (d / "c"),
                           "only variant \"gain\" networks");
+    // the output directory is --out, as in every other command (--c, the first name, stays); none given: one line
+    expect_one_line_error("export " + gain, "--out is required");
+    auto out = run_hinf("export " + gain + " --out " + (d / "out"));
+    INFO(out.output);
+    REQUIRE(out.status == 0);
+    REQUIRE(run_hinf("export " + gain + " --c " + (d / "c")).status == 0);
+    CHECK(hinf::test::read_text(d / "out/hinf_filter.c") == hinf::test::read_text(d / "c/hinf_filter.c"));
 }
