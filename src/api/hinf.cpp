@@ -471,11 +471,15 @@ TrainReport resume(const std::string& checkpoint_path, const TrainSettings& sett
 // ---------------------------------------------------------------------------------------------- compare, worst
 
 namespace {
-// compare's and worst's filter set, as the program builds it (`who` names the call in errors): the classical filters
-// told `told`, the others the config's own model; the settings' threads applied; the networks' paths in *paths
+// compare's, worst's and replay_worst's filter set, as the program builds it (`who` names the call in errors): the
+// classical filters told `told`, the others the config's own model; the settings' threads applied
+struct SimulationFilters {
+    FilterSet set;
+    std::vector<const OnlineFilter*> filters;  // set's, in its order
+    std::vector<std::string> paths;            // the networks' checkpoints
+};
 template <class Settings>
-FilterSet simulation_filters(const RunConfig& c, const Settings& s, const char* who, const FilterModel& told,
-                             std::vector<std::string>* paths) {
+SimulationFilters simulation_filters(const RunConfig& c, const Settings& s, const char* who, const FilterModel& told) {
     HINF_CHECK(!s.out_dir.empty(), std::string(who) + ": out_dir is required (the directory for its result file)");
     HINF_CHECK(s.particles >= 1, std::string(who) + ": particles must be >= 1");
     HINF_CHECK(std::isfinite(s.roughening) && s.roughening >= 0,
@@ -483,10 +487,13 @@ FilterSet simulation_filters(const RunConfig& c, const Settings& s, const char* 
     HINF_CHECK(s.threads >= 0 && s.threads <= 1024,
                "threads " + std::to_string(s.threads) + " must be between 0 and 1024");
     if (s.threads > 0) omp_set_num_threads(s.threads);
-    for (const TrainedNetwork& n : s.networks) paths->push_back(network_impl(n).path);
-    const FilterSetArgs args{s.filters,      *paths,     s.modes, s.particles, s.roughening,
+    SimulationFilters out;
+    for (const TrainedNetwork& n : s.networks) out.paths.push_back(network_impl(n).path);
+    const FilterSetArgs args{s.filters,      out.paths,  s.modes, s.particles, s.roughening,
                              s.glf_vertices, s.ensemble, Spelling::library};
-    return build_filter_set(c, args, told, filter_model(c));
+    out.set = build_filter_set(c, args, told, filter_model(c));
+    for (const auto& f : out.set.filters) out.filters.push_back(f.get());  // the pointees stay where they are
+    return out;
 }
 }  // namespace
 
@@ -500,11 +507,8 @@ CompareReport compare(const Config& cfg, const CompareSettings& settings) {
     opt.quiet = settings.quiet;
     opt.out_dir = settings.out_dir;
     // as compare_cmd.cpp: the Bayesian filters are told the true statistics, or wrong ones by scenario
-    std::vector<std::string> paths;
-    const FilterSet set = simulation_filters(c, settings, "compare", scenario_told_model(c, opt.scenario), &paths);
-    std::vector<const OnlineFilter*> filters;
-    for (const auto& f : set.filters) filters.push_back(f.get());
-    const CompareSummary s = compare_run(c, filters, opt);
+    const SimulationFilters sf = simulation_filters(c, settings, "compare", scenario_told_model(c, opt.scenario));
+    const CompareSummary s = compare_run(c, sf.filters, opt);
     CompareReport r;
     r.scenario = s.scenario;
     r.file = settings.out_dir + "/compare.h5";
@@ -549,13 +553,10 @@ WorstReport worst(const Config& cfg, const WorstSettings& settings) {
     opt.quiet = settings.quiet;
     opt.spelling = Spelling::library;
     // as worst_cmd.cpp: the signals are found for a budget, so the Bayesian filters are told the nominal statistics
-    std::vector<std::string> paths;
-    const FilterModel told = scenario_told_model(c, scenario_named("nominal"));
-    const FilterSet set = simulation_filters(c, settings, "worst", told, &paths);
-    std::vector<const OnlineFilter*> filters;
-    for (const auto& f : set.filters) filters.push_back(f.get());
-    const WorstNetworks wn = worst_networks(filters, paths);
-    const WorstResult r = worst_search(c, filters, wn.games, opt);
+    const SimulationFilters sf =
+        simulation_filters(c, settings, "worst", scenario_told_model(c, scenario_named("nominal")));
+    const WorstNetworks wn = worst_networks(sf.filters, sf.paths);
+    const WorstResult r = worst_search(c, sf.filters, wn.games, opt);
     const RunDirLock lock(settings.out_dir, "hinf worst (library)");
     worst_write(settings.out_dir + "/worst.h5", worst_config(c, opt), opt, r);
     WorstReport w;
@@ -584,12 +585,10 @@ ReplayReport replay_worst(const Config& cfg, const std::string& worst_file, cons
     opt.quiet = settings.quiet;
     opt.spelling = Spelling::library;
     // as worst_cmd.cpp: the signals were found for a budget, so the Bayesian filters are told the nominal statistics
-    std::vector<std::string> paths;
-    const FilterSet set = simulation_filters(c, settings, "replay_worst", scenario_told_model(c, scenario_named("nominal")),
-                                             &paths);
-    std::vector<const OnlineFilter*> filters;
-    for (const auto& f : set.filters) filters.push_back(f.get());
-    const WorstReplayRun run = worst_replay_file(c, filters, worst_file, settings.out_dir, opt, "hinf replay_worst (library)");
+    const SimulationFilters sf =
+        simulation_filters(c, settings, "replay_worst", scenario_told_model(c, scenario_named("nominal")));
+    const WorstReplayRun run =
+        worst_replay_file(c, sf.filters, worst_file, settings.out_dir, opt, "hinf replay_worst (library)");
     ReplayReport r;
     r.file = run.file;
     r.steps = run.steps;
