@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <limits>
+#include <sstream>
 
 #include <Eigen/Dense>
 
@@ -335,6 +336,41 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
     const int nv = c.nv;
     for (std::int64_t r = 0; r < rows && !c.disturbance_scale.empty(); ++r)
         lower_solve(c.disturbance_scale, nv, v + r * nv);
+}
+
+namespace {
+constexpr const char* kChosenLine = "# hinf chose:";
+}  // namespace
+
+std::string config_record(const RunConfig& c) {
+    std::string text = c.doc.text();
+    if (c.chosen.empty()) return text;
+    if (!text.empty() && text.back() != '\n') text += '\n';
+    text += kChosenLine;
+    for (const std::string& k : c.chosen) text += " " + k;
+    return text + " (set by hinf, not the config as given: docs/method.md section 16.7)\n";
+}
+
+std::vector<std::string> chosen_keys(const std::string& text) {
+    std::vector<std::string> keys;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind(kChosenLine, 0) != 0) continue;
+        std::istringstream words(line.substr(std::string(kChosenLine).size()));
+        for (std::string w; words >> w && w.front() != '(';) keys.push_back(w);
+    }
+    return keys;
+}
+
+RunConfig config_as_given(const RunConfig& c) {
+    if (c.chosen.empty()) return c;
+    ConfigDoc doc = c.doc;
+    for (const std::string& key : c.chosen) {
+        const std::size_t dot = key.rfind('.');
+        toml::table* section = dot == std::string::npos ? &doc.root() : doc.root().at_path(key.substr(0, dot)).as_table();
+        if (section != nullptr) section->erase(key.substr(dot == std::string::npos ? 0 : dot + 1));
+    }
+    return load_run_config(std::move(doc));
 }
 
 ConfigDoc game_in_noise_units(const RunConfig& c) {

@@ -124,6 +124,9 @@ struct OnlineConfig {
 /// one part takes that part.
 struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
     ConfigDoc doc;  // the effective config (with --set applied)
+    // the keys of doc that hinf set, not the user ("network.storage_init": the start check's flat knots, method.md
+    // 16.7, "A start that diverges"); a run's files carry them in a "# hinf chose:" line (config_record)
+    std::vector<std::string> chosen;
 
     /// Resolved scales (auto values filled from x0, xhat0, rho).
     double resolved_input_scale() const;
@@ -149,6 +152,15 @@ bool same_trained_model(const RunConfig& a, const RunConfig& b);
 /// the default 1.25 rho* (rho_auto), no [filter] rho, so that loading it finds rho* of that game. For a config whose
 /// noise_std and disturbance_std are plain numbers and noise_std > 0 (method.md 16.7, "No validated checkpoint").
 ConfigDoc game_in_noise_units(const RunConfig& c);
+
+/// The text a run's files carry for c: its TOML, then, where hinf set some of its keys (c.chosen), the line
+/// "# hinf chose: KEY KEY ..." (a TOML comment: the text loads as the config the run trained with).
+std::string config_record(const RunConfig& c);
+/// The keys a config text's "# hinf chose:" line names; none where it has no such line.
+std::vector<std::string> chosen_keys(const std::string& text);
+/// c as the user gave it: without the keys hinf chose (c.chosen), loaded again. What a run resumed to t_final decides
+/// its storage from, as the same run uninterrupted does from the config it was given (method.md 16.7).
+RunConfig config_as_given(const RunConfig& c);
 
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
 /// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for

@@ -932,7 +932,7 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
                      "held later: flat knots tried\")\n",
                      runs_said.c_str(), behind, worse, held, dir.c_str());
         const bool flat =
-            choose_storage(cfg, s, best, dir, quiet, kRiccatiStart, flat_start_config(*cfg), kFlatKnots);
+            choose_storage(cfg, s, best, dir, quiet, kRiccatiStart, flat_start_config(*cfg, /*by_hinf=*/false), kFlatKnots);
         if (s->status != 0) return flat;  // interrupted: the caller stops
         const bool constant_kept =
             choose_storage(cfg, s, best, dir, quiet, flat ? kFlatKnots : kRiccatiStart, constant, kConstant);

@@ -73,8 +73,10 @@ TrainingRun training_run_resume(const std::string& checkpoint, TrainOptions opt,
     if (hooks.before_training) hooks.before_training();
     TrainSummary s = train_resume(checkpoint, opt);
     if (s.status != 0) return TrainingRun{std::move(before), s, std::move(best), {}};
-    RunConfig after = ckpt_config(checkpoint);  // with the keys changed on resume
-    // resumed to t_final, it ends as the same run uninterrupted: a Riccati start held at once trains both storages
+    // with the keys changed on resume, without those hinf chose (the start check's flat knots): resumed to t_final,
+    // it ends as the same run uninterrupted, which decides from the config it was given -- a Riccati start held at
+    // once trains both storages, one far behind the EKF the others
+    RunConfig after = config_as_given(ckpt_config(checkpoint));
     choose_held_start(&after, &s, &best, dir, opt.quiet);
     if (s.status != 0) return TrainingRun{std::move(after), s, std::move(best), {}};
     return finish(std::move(after), s, std::move(best), dir, /*resumed=*/true, opt.quiet, hooks);

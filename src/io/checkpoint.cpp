@@ -423,7 +423,9 @@ std::string ckpt_effective_config_text(hid_t file, const std::string& path, std:
 
 RunConfig config_of(hid_t f, const std::string& path) {
     precision_of(f, path);
-    return load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f, path, nullptr), path + ":/config"));
+    RunConfig c = load_run_config(ConfigDoc::from_text(ckpt_effective_config_text(f, path, nullptr), path + ":/config"));
+    c.chosen = chosen_keys(h5::read_string(f, "config"));  // (the effective text of a legacy file keeps no comments)
+    return c;
 }
 
 // ckpt_read on an open file; its config, loaded once, goes to *cfg_out when given

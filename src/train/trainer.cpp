@@ -32,8 +32,10 @@
 
 namespace hinf {
 
-RunConfig flat_start_config(const RunConfig& cfg) {
+RunConfig flat_start_config(const RunConfig& cfg, bool by_hinf) {
     RunConfig flat = cfg;
+    if (by_hinf && !ConfigSection(cfg.doc, "network").has("storage_init")) flat.chosen.push_back("network.storage_init");
+    if (by_hinf && !ConfigSection(cfg.doc, "objective").has("margin")) flat.chosen.push_back("objective.margin");
     flat.storage_init = "flat";
     flat.doc.set("network.storage_init=\"flat\"");
     char margin[64];
@@ -180,7 +182,7 @@ public:
         ck_.state.step = 0;
         ck_.state.x = cfg_.x0;
         ck_.state.xhat = cfg_.xhat0;
-        ck_.config_text = cfg_.doc.text();
+        ck_.config_text = config_record(cfg_);
         std::filesystem::create_directories(dir_);
         if (writer_) std::filesystem::remove_all(dir_ + "/start");  // an earlier run's (train --force)
         if (start_diverged_ && par_size() == 1 && gain_ && cfg_.storage_knots > 0 && cfg_.storage_init == "riccati")
@@ -208,9 +210,9 @@ public:
         ckpt_write(d + "/riccati.h5", probe, cfg_);
         const std::int64_t riccati = start_diverged_(cfg_, d + "/riccati.h5");
         if (riccati == 0) return;
-        RunConfig flat = flat_start_config(cfg_);
+        RunConfig flat = flat_start_config(cfg_, /*by_hinf=*/true);
         std::fill(probe.net.theta.begin() + first, probe.net.theta.begin() + first + count, T(0));  // flat knots
-        probe.config_text = flat.doc.text();
+        probe.config_text = config_record(flat);
         ckpt_write(d + "/flat.h5", probe, flat);
         const std::int64_t flat_diverged = start_diverged_(flat, d + "/flat.h5");
         const bool named = !riccati_start_replaceable(cfg_);
@@ -893,7 +895,7 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                          "diverges\")\n");
     opt.on_restart();
     tr.close_files();  // before trajectory.h5 is created again
-    Trainer<T> flat(flat_start_config(tr.config()), opt.out_dir);
+    Trainer<T> flat(flat_start_config(tr.config(), /*by_hinf=*/true), opt.out_dir);
     flat.start_fresh();
     flat.on_step_ = opt.on_step;
     return flat.run(cfg.steps_until(opt.until), opt.quiet);
@@ -923,10 +925,10 @@ std::string resume_config_text(const std::string& text, const std::vector<std::s
         doc.set(s);
         record += (record.empty() ? "" : " ") + s;
     }
-    std::string history;  // the earlier resumes' lines (a re-serialised config keeps no comments)
+    std::string history;  // the lines hinf recorded (keys it chose, earlier resumes): a re-serialised config keeps no comments
     std::istringstream in(text);
     for (std::string line; std::getline(in, line);)
-        if (line.rfind("# hinf resume", 0) == 0) history += line + "\n";
+        if (line.rfind("# hinf chose:", 0) == 0 || line.rfind("# hinf resume", 0) == 0) history += line + "\n";
     std::string out = doc.text();
     if (!out.empty() && out.back() != '\n') out += '\n';
     return out + history + "# hinf resume at step " + std::to_string(step) + ": --set " + record + "\n";
@@ -941,6 +943,7 @@ TrainSummary resume_typed(const std::string& path, const TrainOptions& opt) {
     if (!opt.sets.empty() || !legacy.empty())
         ck.config_text = resume_config_text(ck.config_text, opt.sets, ck.state.step, path, legacy);
     RunConfig cfg = load_run_config(ConfigDoc::from_text(ck.config_text, path + ":/config"));
+    cfg.chosen = chosen_keys(ck.config_text);
     train_check_game(cfg);
     std::int64_t last = cfg.steps_until(opt.until);
     HINF_CHECK(last > ck.state.step || opt.until < 0 || last == ck.state.step,

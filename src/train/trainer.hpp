@@ -75,7 +75,10 @@ void train_request_stop(int signal);
 
 /// The run's config with the storage's knots started flat instead of on the Riccati solution, recorded in its text,
 /// at the margin the run trains with (a config naming the flat start would read the other default margin).
-RunConfig flat_start_config(const RunConfig& cfg);
+/// by_hinf: the switch is hinf's own (the start check, a start that diverged), and the keys the config as given left
+/// unnamed are recorded as hinf's choice (RunConfig::chosen; a run resumed to t_final then decides as the same run
+/// uninterrupted); false: they read as named (an alternative trained beside the run, kept as the user's choice).
+RunConfig flat_start_config(const RunConfig& cfg, bool by_hinf);
 
 /// Starts a run from the config (creates out_dir/trajectory.h5, out_dir/checkpoint.h5).
 TrainSummary train_start(const RunConfig& cfg, const TrainOptions& opt);

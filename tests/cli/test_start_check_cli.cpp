@@ -137,11 +137,19 @@ TEST_CASE("behind the EKF on both counts, a knots run tries a constant storage, 
         CHECK(t.output.find("with a constant storage: ") != std::string::npos);
         CHECK(fs::exists(d / "run/alternative/best.h5"));
     }
-    SECTION("a run the start check switched to flat knots tries only the constant storage against them") {
-        auto t = run_hinf("train " + cfg + " --out " + (d / "run") + opts + " --set filter.t_final=30");
+    SECTION("a run the start check switched to flat knots tries only the constant storage against them, resumed too") {
+        // interrupted half way and resumed to t_final (with a --set, which writes the config again): it ends as the
+        // same run uninterrupted -- the flat start is hinf's choice ("# hinf chose:"), not a key the user named
+        auto first = run_hinf("train " + cfg + " --out " + (d / "run") + opts + " --set filter.t_final=30 --until 15");
+        INFO(first.output);
+        REQUIRE(first.status == 0);
+        REQUIRE(first.output.find("the run starts flat (recorded in its config)") != std::string::npos);
+        auto t = run_hinf("resume " + (d / "run/checkpoint.h5") + " --quiet --threads 1 --set filter.t_final=30");
         INFO(t.output);
         REQUIRE(t.status == 0);
-        REQUIRE(t.output.find("the run starts flat (recorded in its config)") != std::string::npos);
+        const std::string text = hinf::ckpt_read<float>(d / "run/alternative/checkpoint.h5").config_text;
+        CHECK(text.find("# hinf chose: network.storage_init objective.margin") != std::string::npos);
+        CHECK(text.find("# hinf resume at step 1500") != std::string::npos);
         CHECK(t.output.find("behind it on both counts") != std::string::npos);
         // its Riccati start was replaced before training: no flat knots trained a second time as an alternative
         CHECK(t.output.find("Its knots started on the game's Riccati solution") == std::string::npos);

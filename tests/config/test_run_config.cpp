@@ -7,6 +7,7 @@
 #include "config/run_config.hpp"
 #include "helpers.hpp"
 #include "hinf/config.hpp"
+#include "train/trainer.hpp"
 
 using namespace hinf;
 
@@ -111,4 +112,35 @@ TEST_CASE("a large system of one's own gets a default network it can load and tr
         CHECK(params(n, c.hidden) > 0.7e7);      // shrunk by the smallest steps that fit, not more
         CHECK(std::abs(c.hidden[0] - 2 * c.hidden[1]) <= 10);  // alike (to the rounding of each step)
     }
+}
+
+TEST_CASE("the keys hinf chose travel in a comment line and are left out of the config as given", "[config][resume]") {
+    // docs/method.md section 16.7, "A start that diverges": the start check's flat knots are hinf's choice, not the
+    // user's; a run resumed to t_final decides its storage from the config as given, as the run uninterrupted does
+    const RunConfig given = load_run_config(
+        ConfigDoc::from_file(test::source_path("tests/corpus/good/vanderpol_own_defaults.toml")));
+    REQUIRE(given.variant == "gain");
+    REQUIRE(given.storage_knots > 0);
+    REQUIRE(given.storage_init == "riccati");
+    const RunConfig flat = flat_start_config(given, /*by_hinf=*/true);
+    CHECK(flat.chosen == std::vector<std::string>{"network.storage_init", "objective.margin"});
+    const std::string text = config_record(flat);
+    CHECK(chosen_keys(text) == flat.chosen);
+    const RunConfig read = load_run_config(ConfigDoc::from_text(text, "record.toml"));  // the line is a comment
+    CHECK(read.storage_init == "flat");
+    CHECK(read.margin == given.margin);
+    RunConfig with_keys = read;
+    with_keys.chosen = chosen_keys(text);
+    const RunConfig back = config_as_given(with_keys);
+    CHECK_FALSE(ConfigSection(back.doc, "network").has("storage_init"));  // (an emptied table may stay)
+    CHECK_FALSE(ConfigSection(back.doc, "objective").has("margin"));
+    CHECK(back.storage_init == "riccati");
+    CHECK(back.chosen.empty());
+    // a flat start kept as an alternative reads as named; a config that named a key keeps it as its own
+    CHECK(flat_start_config(given, /*by_hinf=*/false).chosen.empty());
+    CHECK(config_record(flat_start_config(given, false)) == flat_start_config(given, false).doc.text());
+    ConfigDoc named = given.doc;
+    named.set("objective.margin=0.01");
+    CHECK(flat_start_config(load_run_config(named), true).chosen == std::vector<std::string>{"network.storage_init"});
+    CHECK(chosen_keys(given.doc.text()).empty());
 }
