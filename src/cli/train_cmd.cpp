@@ -174,6 +174,7 @@ void add_train_commands(CLI::App& app) {
     sweep->add_option("--until", sw->until, "Stop each training at this simulated time [s]");
     sweep->add_option("--threads", sw->threads, "OpenMP threads per process");
     sweep->add_option("--set", sw->sets, "Override a config key for every value (repeatable)");
+    sweep->add_flag("--quiet", sw->quiet, "No progress lines (neither the line after each value nor the trainings')");
     sweep->add_flag("--worst", *search,
                     "After each value's acceptance check, run hinf worst's full search (its defaults: dnn, ekf, ukf) "
                     "on the checkpoint it judged and say whether the filter keeps that value's rho (e.g. --vary "
@@ -189,6 +190,7 @@ void add_train_commands(CLI::App& app) {
         HINF_CHECK(!opt.values.empty(), "a sweep needs at least one value: --vary " + opt.key + "=V1,V2,...");
         opt.sets = sw->sets;
         opt.until = sw->until;
+        opt.quiet = sw->quiet;
         opt.out_dir = sw->out.empty() ? default_out_dir(sw->config, "sweep") : sw->out;
         const int groups = std::min<int>(int(opt.values.size()), par_world_size());
         std::printf("sweep: %zu value(s) of %s over %d process group(s) of %d process(es)\n", opt.values.size(),

@@ -2,6 +2,8 @@
 // that marks it finished, the table gathered in value order.
 #include "train/sweep.hpp"
 
+#include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -10,6 +12,7 @@
 #include "hinf/error.hpp"
 #include "io/atomic.hpp"
 #include "io/checkpoint.hpp"
+#include "io/progress.hpp"
 #include "io/run_lock.hpp"
 #include "io/run_swap.hpp"
 #include "par/par.hpp"
@@ -116,7 +119,9 @@ SweepRow train_value(const std::string& config_path, const SweepOptions& opt, co
     TrainOptions to;
     to.out_dir = row.dir;
     to.until = opt.until;
-    to.quiet = true;  // several trainings at once: the table at the end says how each went
+    // several trainings at once (process groups): the table at the end says how each went; one after another: each
+    // says its progress as `hinf train` does
+    to.quiet = opt.quiet || par_world_size() > par_size();
     if (std::filesystem::exists(ckpt)) {
         row.how = "resumed";
         const SweepTrain train = [&](const TrainOptions& o) { return train_resume(ckpt, o); };
@@ -172,9 +177,25 @@ std::vector<SweepRow> sweep_run(const std::string& config_path, const SweepOptio
     const int group = par_split(groups);
     const bool group_root = par_root();
     std::vector<std::string> mine;  // "index,line" of the values this group trained (sent by its root)
+    // the values of the world root's group: how many are done and the time left, from the values trained so far (one
+    // finished by an earlier job takes no time and is not counted in the rate)
+    const int of = (V - group + groups - 1) / groups;
+    int done = 0, trained = 0;
+    const auto start = std::chrono::steady_clock::now();
     for (int i = group; i < V; i += groups) {
         SweepRow r = train_value(config_path, opt, opt.values[i]);
         if (group_root) mine.push_back(std::to_string(i) + ',' + row_line(r));
+        ++done;
+        if (r.how != "done before") ++trained;
+        if (opt.quiet || par_world_rank() != 0) continue;
+        const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const std::string left = trained > 0 ? format_duration(elapsed / trained * (of - done)) : "-";
+        std::fprintf(stderr, "sweep: %s=%s %s: status %d, training %s%s; %d/%d values%s done, elapsed %s, ETA %s\n",
+                     opt.key.c_str(), r.value.c_str(), r.how.c_str(), r.summary.status,
+                     format_duration(r.summary.wall_seconds).c_str(),
+                     r.verdict.acceptance == "-" ? "" : (", acceptance " + r.verdict.acceptance).c_str(), done, of,
+                     groups > 1 ? " of this process group" : "", format_duration(elapsed).c_str(), left.c_str());
+        std::fflush(stderr);
     }
     par_unsplit();
     std::string text;

@@ -57,6 +57,9 @@ struct SweepOptions {
     std::vector<std::string> values;  // its values, one training each
     std::vector<std::string> sets;    // --set overrides common to all
     double until = -1;
+    /// false: a line after each value (what it ended with, how many are done, the time left) and, with one process
+    /// group (values trained one after another), each training's and check's own progress lines; true: none
+    bool quiet = false;
     /// Trains each value in its process group in place of the training alone, with what the caller runs around it
     /// (the CLI: eval's training_run, as `hinf train` and `hinf resume`): given the value's config (its
     /// checkpoint's when resumed: DIR/checkpoint.h5, readable), directory and options, it trains (fresh, or resumed

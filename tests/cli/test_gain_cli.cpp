@@ -595,6 +595,9 @@ TEST_CASE("hinf sweep ends each value as hinf train does: best.h5 and the accept
     auto sw = run_hinf("sweep " + cfg + " --vary filter.rho=1e-9,5 --out " + (d / "sweep") + sets);
     INFO(sw.output);
     CHECK(sw.status == 0);  // one value passed
+    // a line after each value: what it ended with, how many are done, the time left
+    CHECK(sw.output.find("sweep: filter.rho=1e-9 trained: status 0, training ") != std::string::npos);
+    CHECK(sw.output.find(", acceptance pass; 2/2 values done, elapsed ") != std::string::npos);
     CHECK(sw.output.find(" fail ") != std::string::npos);
     CHECK(sw.output.find(" pass ") != std::string::npos);
     const auto rows = hinf::test::read_csv_rows(d / "sweep/sweep.csv");
@@ -719,7 +722,9 @@ TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst doe
         return csv[0];
     };
     // without --worst: no search, its columns empty, no level table
-    const auto p = sweep_five("");
+    const auto p = sweep_five(" --quiet");  // (--quiet: no progress lines)
+    CHECK(output.find("sweep: filter.rho=5 trained") == std::string::npos);
+    CHECK(output.find("ETA") == std::string::npos);
     CHECK(p.at("search_ratio") == "nan");
     CHECK(p.at("search_diverged") == "-1");
     CHECK(std::stod(p.at("rho")) == 5);
@@ -734,6 +739,9 @@ TEST_CASE("hinf sweep --worst searches each value's checkpoint as hinf worst doe
            "5,trained,0,0,50,1.5,0.25,0.5,0,0,0.75,40,0.125,pass,0.5,3.5,0.25,0.125,-1,0.375,0.25\n";
     const auto o = sweep_five(" --worst");
     CHECK(o.at("how") == "done before");
+    CHECK(output.find("sweep: filter.rho=5 done before: status 0, training 1.5s, acceptance pass; 1/1 values done, "
+                      "elapsed ") != std::string::npos);
+    CHECK(output.find("ETA -") != std::string::npos);  // (no value trained: no rate)
     CHECK(o.at("acceptance_rms_q_settled") == "0.375");
     CHECK(o.at("rho") == "nan");
     CHECK(o.at("search_diverged") == "-1");
