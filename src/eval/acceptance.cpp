@@ -865,6 +865,27 @@ bool worst_above_ekf(const AcceptanceOutcome& a) {
     return dnn > ekf;  // false where either is NaN
 }
 
+std::string storage_exchange_note(const AcceptanceOutcome& replaced, const AcceptanceOutcome& kept,
+                                  const std::string& dir) {
+    const double was = larger_worst(replaced.worst_ratio, replaced.worst_small_signal, replaced.worst_diverged);
+    const double now = larger_worst(kept.worst_ratio, kept.worst_small_signal, kept.worst_diverged);
+    if (std::isnan(was) || std::isnan(now)) return "";
+    const auto said = [](double w) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.4g", w);
+        return std::isinf(w) ? std::string("divergence") : std::string(b);
+    };
+    const std::string head = "acceptance: note: the kept run validates lower than the one it replaced (" + dir +
+                             "/alternative)";
+    const std::string figures = "its worst case found by its check, " + said(now) + ", is " +
+                                (now <= was ? "not above" : "above") + " that run's " + said(was) + " (the same search)";
+    if (now <= was) return head + ", and " + figures;
+    return head + ", but " + figures + ": the exchange traded the worst case for the mean error. hinf keeps the run "
+           "that validates lower; to choose by the worst case, search both: hinf worst CONFIG --network " + dir +
+           "/best.h5 --network " + dir + "/alternative/best.h5 --filters dnn,ekf --mode measured (docs/method.md "
+           "section 16.7, \"Behind on both counts\")";
+}
+
 double far_behind_line(const AcceptanceOutcome& a) { return worst_above_ekf(a) ? kFarBehindRecheck : kFarBehindEkf; }
 
 bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,

@@ -216,6 +216,13 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
 /// figure at the budget and for small signals; a DNN filter diverged under its worst signals is above any); false
 /// where no search ran.
 bool worst_above_ekf(const AcceptanceOutcome& a);
+/// After choose_storage_far_behind kept another storage: the line that sets the worst case found for the kept run
+/// (`kept`, its own check) beside the replaced run's (`replaced`, the first check; the same search settings), "" where
+/// either search did not run. Where the kept run's is higher, it says the exchange traded the worst case for the
+/// validation's mean error and how to search both (DIR/best.h5, DIR/alternative/best.h5).
+std::string storage_exchange_note(const AcceptanceOutcome& replaced, const AcceptanceOutcome& kept,
+                                  const std::string& dir);
+
 /// The settled error over the EKF's above which choose_storage_far_behind trains other storages for a run whose check
 /// is `a`: kFarBehindRecheck where worst_above_ekf(a), else kFarBehindEkf.
 double far_behind_line(const AcceptanceOutcome& a);

@@ -25,7 +25,10 @@ TrainingRun finish(RunConfig cfg, TrainSummary s, std::shared_ptr<Selection> bes
     if (hooks.checked) hooks.checked(a);
     if (choose_storage_far_behind(&cfg, &s, &best, dir, quiet, a)) {  // the other storage kept: its own check
         if (hooks.trained) hooks.trained(cfg, s, best.get(), /*again=*/true);
+        const AcceptanceOutcome replaced = a;
         a = acceptance_after(cfg, dir, s, best.get(), /*resumed=*/false, quiet);
+        const std::string exchange = storage_exchange_note(replaced, a, dir);  // its worst case beside the first's
+        if (!exchange.empty()) a.selection_note += (a.selection_note.empty() ? "" : "\n") + exchange;
         if (hooks.checked) hooks.checked(a);
     }
     return TrainingRun{std::move(cfg), s, std::move(best), std::move(a)};

@@ -345,3 +345,33 @@ TEST_CASE("behind the EKF on both counts, other storages are tried from 1.5 time
     a.worst_ratio_ekf = NAN;
     CHECK_FALSE(worst_above_ekf(a));
 }
+
+TEST_CASE("after another storage is kept, its worst case is set beside the replaced run's", "[acceptance]") {
+    // storage_exchange_note: the kept run validates lower; whether its check's worst case rose says what it traded
+    AcceptanceOutcome replaced, kept;
+    CHECK(storage_exchange_note(replaced, kept, "run").empty());  // no search ran
+    replaced.worst_ratio = 10.94;
+    replaced.worst_small_signal = 4.225;
+    kept.worst_ratio = 1.779;
+    kept.worst_small_signal = 1.491;
+    const std::string lower = storage_exchange_note(replaced, kept, "run");
+    INFO(lower);
+    CHECK(has(lower, "validates lower than the one it replaced (run/alternative), and its worst case found by its "
+                     "check, 1.779, is not above that run's 10.94"));
+    CHECK_FALSE(has(lower, "traded"));
+    // the Brusselator's constant storage, by hand (docs/method.md section 16.7): lower in the mean, higher worst case
+    replaced.worst_ratio = 6.26;
+    replaced.worst_small_signal = NAN;
+    kept.worst_ratio = 9.76;
+    kept.worst_small_signal = 2.0;
+    const std::string higher = storage_exchange_note(replaced, kept, "run");
+    INFO(higher);
+    CHECK(has(higher, "but its worst case found by its check, 9.76, is above that run's 6.26"));
+    CHECK(has(higher, "traded the worst case for the mean error"));
+    CHECK(has(higher, "--network run/best.h5 --network run/alternative/best.h5"));
+    // driven to divergence by its worst signals: above any finite figure, said in words
+    kept.worst_diverged = true;
+    CHECK(has(storage_exchange_note(replaced, kept, "run"), "its worst case found by its check, divergence, is above"));
+    kept.worst_ratio = NAN;  // the kept run's check had no search
+    CHECK(storage_exchange_note(replaced, kept, "run").empty());
+}
