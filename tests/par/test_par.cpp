@@ -277,7 +277,7 @@ TEST_CASE("hinf sweep: one training per value and process group, each as its own
     INFO(part.output);
     REQUIRE(part.status == 0);
     const std::string launch = have_mpi() ? mpirun(2) + HINF_CLI_PATH : std::string(HINF_CLI_PATH);
-    CommandResult r = hinf::test::run_command(launch + " sweep " + cfg + " --vary training.seed=1,2,3 --threads 1 --out " + d / "sweep");
+    CommandResult r = hinf::test::run_command(launch + " sweep " + cfg + " --vary training.seed=1,2,3 --threads 1 --quiet --out " + d / "sweep");
     INFO(r.output);
     REQUIRE(r.status == 0);
     CHECK(r.output.find("resumed") != std::string::npos);
@@ -300,7 +300,11 @@ TEST_CASE("hinf sweep: one training per value and process group, each as its own
     CommandResult again = hinf::test::run_command(launch + " sweep " + cfg + " --vary training.seed=1,2,3 --threads 1 --out " + d / "sweep");
     INFO(again.output);
     CHECK(again.status == 0);
-    CHECK(std::count(again.output.begin(), again.output.end(), '\n') == 6);
+    // without --quiet: a line after each value of rank 0's group (values 1 and 3 of two groups; all three of one)
+    CHECK(std::count(again.output.begin(), again.output.end(), '\n') == 6 + (have_mpi() ? 2 : 3));
+    CHECK(again.output.find("sweep: training.seed=1 done before: status 0, training ") != std::string::npos);
+    CHECK(again.output.find(have_mpi() ? "2/2 values of this process group done" : "3/3 values done") !=
+          std::string::npos);
     CHECK(again.output.find("done before") != std::string::npos);
     CHECK(again.output.find("trained ") == std::string::npos);
     hinf::test::expect_one_line_error("sweep " + cfg + " --vary training.seed= --out " + d / "bad", "a sweep needs at least one value");
