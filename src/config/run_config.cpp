@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -364,13 +365,41 @@ std::vector<std::string> chosen_keys(const std::string& text) {
 
 RunConfig config_as_given(const RunConfig& c) {
     if (c.chosen.empty()) return c;
+    // the level and Q that hinf chose stay as the run trained with them (a resume may change t_final, and rho* with
+    // it), read as hinf's defaults again; every other key hinf chose is left out
+    bool rho = false, q = false;
     ConfigDoc doc = c.doc;
     for (const std::string& key : c.chosen) {
+        if (key == "filter.rho" || key == "filter.Q") {
+            rho = rho || key == "filter.rho";
+            q = q || key == "filter.Q";
+            continue;
+        }
         const std::size_t dot = key.rfind('.');
         toml::table* section = dot == std::string::npos ? &doc.root() : doc.root().at_path(key.substr(0, dot)).as_table();
         if (section != nullptr) section->erase(key.substr(dot == std::string::npos ? 0 : dot + 1));
     }
-    return load_run_config(std::move(doc));
+    RunConfig g = load_run_config(std::move(doc));
+    if (rho && g.rho > 0) {
+        g.rho_auto = true;
+        g.rho_bound = g.rho / kAutoRhoFactor;
+        g.chosen.push_back("filter.rho");
+    }
+    if (q) {
+        g.q_auto = true;
+        g.chosen.push_back("filter.Q");
+    }
+    return g;
+}
+
+void inherit_chosen(RunConfig* derived, const RunConfig& from) {
+    for (const std::string& key : from.chosen) {
+        if (std::find(derived->chosen.begin(), derived->chosen.end(), key) != derived->chosen.end()) continue;
+        // the derived config kept the value hinf chose (else the key is its own)
+        const auto was = std::as_const(from.doc.root()).at_path(key);
+        const auto is = std::as_const(derived->doc.root()).at_path(key);
+        if (was && is && was == is) derived->chosen.push_back(key);
+    }
 }
 
 ConfigDoc game_in_noise_units(const RunConfig& c) {
@@ -925,12 +954,14 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
         char value[64];
         std::snprintf(value, sizeof value, "filter.rho=%.17g", c.rho);
         doc.set(value);
+        c.chosen.push_back("filter.rho");  // hinf's default, recorded as such (config_record)
     }
     if (expr && !q_given) {
         c.q_auto = true;
         std::string ones = "filter.Q=[";
         for (int i = 0; i < n; ++i) ones += i ? ", 1.0" : "1.0";
         doc.set(ones + "]");
+        c.chosen.push_back("filter.Q");
     }
     c.doc = std::move(doc);
     return c;

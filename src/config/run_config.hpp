@@ -158,9 +158,14 @@ ConfigDoc game_in_noise_units(const RunConfig& c);
 std::string config_record(const RunConfig& c);
 /// The keys a config text's "# hinf chose:" line names; none where it has no such line.
 std::vector<std::string> chosen_keys(const std::string& text);
-/// c as the user gave it: without the keys hinf chose (c.chosen), loaded again. What a run resumed to t_final decides
-/// its storage from, as the same run uninterrupted does from the config it was given (method.md 16.7).
+/// c as the user gave it: without the keys hinf chose (c.chosen), loaded again -- but for the level and Q, which stay
+/// as the run trained with them, read as hinf's defaults (rho_auto, rho_bound = rho / 1.25, q_auto). What a run
+/// resumed to t_final makes its choices from, as the same run uninterrupted does from the config it was given
+/// (method.md 16.7).
 RunConfig config_as_given(const RunConfig& c);
+/// Adds to derived->chosen the keys hinf chose for `from` that derived (a config made from from's effective text, one
+/// key changed: another storage, another game) holds with the same value: they stay hinf's choice in its record.
+void inherit_chosen(RunConfig* derived, const RunConfig& from);
 
 /// Parses and validates; throws hinf::Error naming the file, the key and the fix. need_level = false: a system of
 /// one's own that names no [filter] rho keeps rho = 0 (rho_unset says why) instead of computing rho* (seconds for

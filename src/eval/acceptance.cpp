@@ -823,7 +823,9 @@ bool choose_storage(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>*
 RunConfig constant_storage_config(const RunConfig& cfg) {
     ConfigDoc doc = cfg.doc;
     doc.set("network.storage_knots=0");
-    return load_run_config(doc);
+    RunConfig c = load_run_config(doc);
+    inherit_chosen(&c, cfg);  // the level and Q hinf chose stay its choice in the run's record
+    return c;
 }
 
 // a run that trained up to t_final (fresh, or resumed: as one run uninterrupted) with a kept best checkpoint, on one
@@ -973,7 +975,8 @@ bool choose_storage_far_behind(RunConfig* cfg, TrainSummary* s, std::shared_ptr<
 
 bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selection>* best,
                                 const std::string& dir, bool quiet) {
-    if (!(s->status == 0 && s->first_step == 0 && s->last_step == cfg->steps_until() && *best && (*best)->step < 0 &&
+    if (!(s->status == 0 && s->last_step > s->first_step && s->last_step == cfg->steps_until() && *best &&
+          (*best)->step < 0 &&
           par_size() == 1 && cfg->variant == "gain" && cfg->rho_auto &&
           cfg->output_weight.empty() && cfg->disturbance_scale.empty() && cfg->noise_std > 0))
         return false;
@@ -981,6 +984,7 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
     RunConfig other;
     try {
         other = load_run_config(game_in_noise_units(*cfg));
+        inherit_chosen(&other, *cfg);
     } catch (const Error& e) {  // the first run is complete: it stays, with its check
         std::fprintf(stderr, "hinf: note: the game in units of each channel's noise was not trained: %s\n", e.what());
         return false;

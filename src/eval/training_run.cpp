@@ -76,11 +76,13 @@ TrainingRun training_run_resume(const std::string& checkpoint, TrainOptions opt,
     if (hooks.before_training) hooks.before_training();
     TrainSummary s = train_resume(checkpoint, opt);
     if (s.status != 0) return TrainingRun{std::move(before), s, std::move(best), {}};
-    // with the keys changed on resume, without those hinf chose (the start check's flat knots): resumed to t_final,
-    // it ends as the same run uninterrupted, which decides from the config it was given -- a Riccati start held at
-    // once trains both storages, one far behind the EKF the others
+    // with the keys changed on resume, as given (the keys hinf chose, such as the start check's flat knots, are not
+    // the user's; its default level is read as such): resumed to t_final, it ends as the same run uninterrupted, which
+    // decides from the config it was given -- a Riccati start held at once trains both storages, a run none of whose
+    // checkpoints validated the game in noise units, one far behind the EKF the other storages
     RunConfig after = config_as_given(ckpt_config(checkpoint));
     choose_held_start(&after, &s, &best, dir, opt.quiet);
+    if (s.status == 0) choose_game_in_noise_units(&after, &s, &best, dir, opt.quiet);
     if (s.status != 0) return TrainingRun{std::move(after), s, std::move(best), {}};
     return finish(std::move(after), s, std::move(best), dir, /*resumed=*/true, opt.quiet, hooks);
 }

@@ -98,6 +98,30 @@ TEST_CASE("a run with no validated checkpoint trains the game in units of each c
     CHECK(names_noise_list(out + "/best.h5"));
     CHECK_FALSE(names_noise_list(out + "/alternative/checkpoint.h5"));
     CHECK_FALSE(std::filesystem::exists(out + "/alternative/best.h5"));
+    // the level and Q are hinf's defaults, recorded as such (the first run's start check also switched it to flat
+    // knots); the kept game's level is its own default
+    const std::vector<std::string> first_chose = hinf::ckpt_config(out + "/alternative/checkpoint.h5").chosen;
+    REQUIRE(first_chose.size() >= 2u);
+    CHECK(first_chose[0] == "filter.rho");
+    CHECK(first_chose[1] == "filter.Q");
+    const std::vector<std::string> kept_chose = hinf::ckpt_config(out + "/best.h5").chosen;
+    REQUIRE(kept_chose.size() >= 2u);
+    CHECK(kept_chose[0] == "filter.rho");
+    CHECK(kept_chose[1] == "filter.Q");
+
+    // the same run stopped half way and resumed to t_final ends as the run uninterrupted: its default level is read
+    // as a default, so it trains the game in noise units too, and keeps the same network
+    const auto first = run_hinf("train " + (d / "reactor.toml") + " --quiet --until 1.5 --out " + (d / "split"));
+    INFO(first.output);
+    REQUIRE(first.status == 0);
+    CHECK(first.output.find("no checkpoint of this run validated") == std::string::npos);  // (stopped early)
+    const auto rest = run_hinf("resume " + (d / "split/checkpoint.h5") + " --quiet");
+    INFO(rest.output);
+    REQUIRE(rest.status == 0);
+    CHECK(rest.output.find("the game in units of each channel's noise validated") != std::string::npos);
+    REQUIRE(std::filesystem::exists(d / "split/best.h5"));
+    CHECK(names_noise_list(d / "split/best.h5"));
+    CHECK(hinf::ckpt_read<float>(d / "split/best.h5").net.theta == hinf::ckpt_read<float>(out + "/best.h5").net.theta);
 
     // compare converts the plain config's measurements for the weighted network: the same estimates as with the
     // training's list (without the conversion, the plain config's run had a temperature error of 27 K)

@@ -10,6 +10,8 @@
 #include "hinf/config.hpp"
 #include "train/trainer.hpp"
 
+#include <toml++/toml.h>
+
 using namespace hinf;
 
 namespace {
@@ -144,6 +146,34 @@ TEST_CASE("the keys hinf chose travel in a comment line and are left out of the 
     named.set("objective.margin=0.01");
     CHECK(flat_start_config(load_run_config(named), true).chosen == std::vector<std::string>{"network.storage_init"});
     CHECK(chosen_keys(given.doc.text()).empty());
+
+    // a system of one's own that names no level and no Q: hinf's defaults, recorded as its choice; as given, the
+    // level stays the one trained with and reads as the default again
+    ConfigDoc bare = given.doc;
+    bare.root()["filter"].as_table()->erase("rho");
+    bare.root()["filter"].as_table()->erase("Q");
+    const RunConfig defaults = load_run_config(bare);
+    REQUIRE(defaults.rho_auto);
+    CHECK(defaults.chosen == std::vector<std::string>{"filter.rho", "filter.Q"});
+    RunConfig stored = load_run_config(ConfigDoc::from_text(config_record(defaults), "stored.toml"));
+    CHECK_FALSE(stored.rho_auto);  // the text names the level
+    stored.chosen = chosen_keys(config_record(defaults));
+    const RunConfig as_given = config_as_given(stored);
+    CHECK(as_given.rho_auto);
+    CHECK(as_given.q_auto);
+    CHECK(as_given.rho == defaults.rho);
+    CHECK(as_given.rho_bound == Approx(defaults.rho_bound).epsilon(1e-15));
+    CHECK(as_given.chosen == defaults.chosen);
+    // a config made from it with another storage keeps them as hinf's; one that names another level does not
+    ConfigDoc other = stored.doc;
+    other.set("network.storage_knots=0");
+    RunConfig constant = load_run_config(other);
+    inherit_chosen(&constant, stored);
+    CHECK(constant.chosen == std::vector<std::string>{"filter.rho", "filter.Q"});
+    other.set("filter.rho=7");
+    RunConfig named_level = load_run_config(other);
+    inherit_chosen(&named_level, stored);
+    CHECK(named_level.chosen == std::vector<std::string>{"filter.Q"});
 }
 
 TEST_CASE("every example config and every config in runs loads", "[config][examples]") {
