@@ -349,7 +349,7 @@ std::string config_record(const RunConfig& c) {
     if (!text.empty() && text.back() != '\n') text += '\n';
     text += kChosenLine;
     for (const std::string& k : c.chosen) text += " " + k;
-    return text + " (set by hinf, not the config as given: docs/method.md section 16.7)\n";
+    return text + " (hinf's defaults and choices, not the config as given: docs/formats.md, /config)\n";
 }
 
 std::vector<std::string> chosen_keys(const std::string& text) {

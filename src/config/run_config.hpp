@@ -124,8 +124,9 @@ struct OnlineConfig {
 /// one part takes that part.
 struct RunConfig : ProblemConfig, TrainingConfig, OnlineConfig {
     ConfigDoc doc;  // the effective config (with --set applied)
-    // the keys of doc that hinf set, not the user ("network.storage_init": the start check's flat knots, method.md
-    // 16.7, "A start that diverges"); a run's files carry them in a "# hinf chose:" line (config_record)
+    // the keys of doc that hinf set, not the user: the default level and Q of a system of one's own ("filter.rho",
+    // "filter.Q", method.md 16.12), the start check's flat knots ("network.storage_init", "objective.margin", 16.7, "A
+    // start that diverges"); a run's files carry them in a "# hinf chose:" line (config_record)
     std::vector<std::string> chosen;
 
     /// Resolved scales (auto values filled from x0, xhat0, rho).
