@@ -34,6 +34,8 @@ public:
 
     /// Applies "section.key=value"; value is TOML (1e-3, true, "text", [1, 2]) or a bare string.
     void set(const std::string& assignment);
+    /// Removes "section.key" (dotted, as set names it); nothing where it is not there.
+    void unset(const std::string& key);
     std::string text() const;
     /// The TOML text of one top-level table ("system"), "" where the document has none.
     std::string section_text(const std::string& path) const;

@@ -375,9 +375,7 @@ RunConfig config_as_given(const RunConfig& c) {
             q = q || key == "filter.Q";
             continue;
         }
-        const std::size_t dot = key.rfind('.');
-        toml::table* section = dot == std::string::npos ? &doc.root() : doc.root().at_path(key.substr(0, dot)).as_table();
-        if (section != nullptr) section->erase(key.substr(dot == std::string::npos ? 0 : dot + 1));
+        doc.unset(key);
     }
     RunConfig g = load_run_config(std::move(doc));
     if (rho && g.rho > 0) {
@@ -414,8 +412,7 @@ ConfigDoc game_in_noise_units(const RunConfig& c) {
         list += value;
     }
     doc.set(list + "]");
-    if (c.rho_auto)
-        if (toml::table* f = doc.root()["filter"].as_table()) f->erase("rho");
+    if (c.rho_auto) doc.unset("filter.rho");
     return doc;
 }
 

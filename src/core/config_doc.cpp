@@ -135,6 +135,12 @@ ConfigDoc ConfigDoc::from_text(const std::string& text, const std::string& sourc
     return doc;
 }
 
+void ConfigDoc::unset(const std::string& key) {
+    const std::size_t dot = key.rfind('.');
+    toml::table* t = dot == std::string::npos ? root_.get() : root_->at_path(key.substr(0, dot)).as_table();
+    if (t != nullptr) t->erase(key.substr(dot == std::string::npos ? 0 : dot + 1));
+}
+
 void ConfigDoc::set(const std::string& assignment) {
     auto eq = assignment.find('=');
     HINF_CHECK(eq != std::string::npos && eq > 0,

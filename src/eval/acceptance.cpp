@@ -852,6 +852,12 @@ bool choose_held_start(RunConfig* cfg, TrainSummary* s, std::shared_ptr<Selectio
 }
 
 namespace {
+// v as "%.4g"
+std::string g4(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.4g", v);
+    return b;
+}
 // the larger of a search's two figures (at the budget, for small signals), +infinity where the filter diverged under
 // its worst signals, NaN where no search ran
 double larger_worst(double ratio, double small, bool diverged) {
@@ -872,11 +878,7 @@ std::string storage_exchange_note(const AcceptanceOutcome& replaced, const Accep
     const double was = larger_worst(replaced.worst_ratio, replaced.worst_small_signal, replaced.worst_diverged);
     const double now = larger_worst(kept.worst_ratio, kept.worst_small_signal, kept.worst_diverged);
     if (std::isnan(was) || std::isnan(now)) return "";
-    const auto said = [](double w) {
-        char b[32];
-        std::snprintf(b, sizeof b, "%.4g", w);
-        return std::isinf(w) ? std::string("divergence") : std::string(b);
-    };
+    const auto said = [](double w) { return std::isinf(w) ? std::string("divergence") : g4(w); };
     const std::string head = "acceptance: note: the kept run validates lower than the one it replaced (" + dir +
                              "/alternative)";
     const std::string figures = "its worst case found by its check, " + said(now) + ", is " +
@@ -1019,11 +1021,6 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
 }
 
 namespace {
-std::string g4(double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.4g", v);
-    return b;
-}
 // the search's figure, the larger of the ratio at the budget and for small signals ("9.74"; "9.74, diverged"), ""
 // where no search ran
 std::string worst_figure(const AcceptanceOutcome& a) {

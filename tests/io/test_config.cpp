@@ -45,3 +45,14 @@ TEST_CASE("config set() overrides and creates keys", "[io][config]") {
     ConfigSection r(round, "training");
     CHECK(r.get_int("K", 1, 1, 100) == 5);
 }
+
+TEST_CASE("ConfigDoc::unset removes a dotted key and ignores one that is not there", "[config]") {
+    ConfigDoc doc = ConfigDoc::from_text("[filter]\nrho = 2.0\nQ = [1.0]\n", "t.toml");
+    doc.unset("filter.rho");
+    doc.unset("filter.missing");
+    doc.unset("nosection.key");
+    CHECK(doc.text().find("rho") == std::string::npos);
+    CHECK(doc.text().find("Q = ") != std::string::npos);
+    doc.set("filter.rho=3");
+    CHECK(doc.text().find("rho = 3") != std::string::npos);
+}
