@@ -321,9 +321,9 @@ std::string acceptance_advice(const RunConfig& cfg, const std::string& path, con
         const double higher = higher_level(cfg, bound, &label);
         std::snprintf(buf, sizeof buf,
                       " the worst-case search found a ratio of %.4g%s above rho = %.4g: a higher level, a weaker "
-                      "promise, is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5 (kept "
-                      "is not lower: the filter trained at a higher level can reach a higher worst case, as on "
-                      "examples/systems/orbit.toml, 65.2 at 4 rho* against 16.7 at 1.25 rho*);",
+                      "promise, is easier to keep, e.g. --set filter.rho=%.4g (%s), then compare both best.h5 (a "
+                      "level kept is not a lower worst case: the filter trained at a higher level can reach a higher "
+                      "one, as on examples/systems/orbit.toml, 65.2 at 4 rho* against 16.7 at 1.25 rho*);",
                       search.ratio, search.small_signal ? " (for small signals)" : "", cfg.rho, higher, label);
         a += buf;
         if (search.small_signal && cfg.variant == "gain" && (cfg.storage_knots > 0 || cfg.h2_weight > 0)) {

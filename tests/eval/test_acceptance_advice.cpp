@@ -42,6 +42,7 @@ TEST_CASE("acceptance advice names a higher level when the search broke a feasib
     CHECK(a.rfind("acceptance: next:", 0) == 0);
     CHECK(has(a, "the worst-case search found a ratio of 7.5 above rho = 2"));
     CHECK(has(a, "--set filter.rho=4 (twice rho)"));
+    CHECK(has(a, "a level kept is not a lower worst case"));  // the orbit: a higher level trained, a higher worst case
     CHECK_FALSE(has(a, "at or below rho*"));
     CHECK_FALSE(has(a, "Adam updates"));
     CHECK(has(a, "hinf compare CONFIG --network run/best.h5 --filters dnn,ekf,ukf"));
