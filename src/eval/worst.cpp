@@ -622,6 +622,13 @@ WorstResult worst_search(const RunConfig& cfg_in, const std::vector<const Online
         }
     }
     HINF_CHECK(!tasks.empty(), "worst: no starts (" + o("--random-starts") + " 0 and no " + o("--scenario-starts") + ")");
+    for (int i = 0; i < F; ++i) {  // a filter whose only start was its linear one, which found no linear regime
+        bool started = false;
+        for (const Task& task : tasks) started = started || task.filter == i;
+        HINF_CHECK(started, "worst: no start for " + filters[i]->name() + ": its linear start found no linear regime (" +
+                                "a small signal's run ran away, or it does not respond linearly) and there are no "
+                                "other starts; add " + o("--random-starts") + " or " + o("--scenario-starts"));
+    }
     const std::int64_t N = std::int64_t(tasks.size());
     const int ranks = par_size();
     HINF_CHECK(ranks <= N, std::to_string(ranks) + " MPI processes for " + std::to_string(N) +

@@ -76,6 +76,13 @@ TEST_CASE("hinf worst searches, saves, replays and rejects bad input", "[cli][wo
     expect_one_line_error(base + " --particles 0", "--particles must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --evals 0", "--evals must be >= 1");
     expect_one_line_error("worst " + cfg + " --filters ekf --scenario-starts nominal,windy", "is not one of");
+    // a filter whose one start was its linear one, which found no linear regime (the Henon map's UKF over 30 steps,
+    // docs/compare.md "The linear start"; the EKF has one): said for that filter, where a write of its empty worst
+    // signals once failed with "disk full, or a damaged file?"
+    expect_one_line_error("worst " + hinf::test::source_path("examples/systems/henon.toml") +
+                              " --filters ekf,ukf --until 30 --random-starts 0 --scenario-starts none --evals 1 --quiet --out " +
+                              (d / "henon"),
+                          "worst: no start for ukf: its linear start found no linear regime");
     const std::string vdp = hinf::test::source_path("runs/vanderpol.toml");
     expect_one_line_error("worst " + vdp + " --filters ekf --replay " + (d / "w/worst.h5"), "its signals are for system");
     expect_one_line_error("worst " + cfg + " --filters ekf --replay " + (d / "run/trajectory.h5"), "not a file written by");
