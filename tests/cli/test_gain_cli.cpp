@@ -68,6 +68,36 @@ double searched(hid_t filter_group) {
 const std::string kVdp = hinf::test::tiny_vdp_gain_config("0.5");
 }  // namespace
 
+TEST_CASE("the acceptance check's small-signal figure is hinf worst's, pieces and all", "[cli][gain]") {
+    // docs/method.md section 16.9, "Pieces the check cannot resolve": within half its search's steps the check had
+    // stopped at 20 or 40 pieces a channel. Over 3 s (300 steps) the EKF's doubling goes to a piece a step (300).
+    hinf::test::TempDir d("gaincli-linear");
+    const std::string cfg = d / "vdp.toml";
+    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("3");
+    auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    auto lin = run_hinf("worst " + cfg + " --network " + (d / "run/best.h5") + " --filters dnn,ekf --mode measured "
+                        "--random-starts 0 --scenario-starts none --no-game-start --no-cross-starts --evals 1 --quiet "
+                        "--out " + (d / "lin"));
+    INFO(lin.output);
+    REQUIRE(lin.status == 0);
+    hinf::h5::Handle check = hinf::h5::open_file(d / "run/acceptance/worst.h5", false);
+    hinf::h5::Handle full = hinf::h5::open_file(d / "lin/worst.h5", false);
+    for (const char* filter : {"filters/dnn_gain_measured", "filters/ekf"}) {
+        INFO(filter);
+        hinf::h5::Handle c = hinf::h5::open_group(check.get(), filter), f = hinf::h5::open_group(full.get(), filter);
+        CHECK(same_bits(hinf::h5::get_attr_double(c.get(), "linear_gain"), hinf::h5::get_attr_double(f.get(), "linear_gain")));
+        CHECK(hinf::h5::get_attr_int(c.get(), "linear_pieces") == hinf::h5::get_attr_int(f.get(), "linear_pieces"));
+    }
+    hinf::h5::Handle ekf = hinf::h5::open_group(check.get(), "filters/ekf");
+    CHECK(hinf::h5::get_attr_int(ekf.get(), "linear_pieces") > 40);
+    hinf::h5::Handle ck = hinf::h5::open_file(d / "run/best.h5", false);  // the figure the verdict read
+    hinf::h5::Handle dnn = hinf::h5::open_group(check.get(), "filters/dnn_gain_measured");
+    CHECK(same_bits(hinf::h5::get_attr_double(ck.get(), "acceptance_worst_small_signal"),
+                    hinf::h5::get_attr_double(dnn.get(), "linear_gain")));
+}
+
 TEST_CASE("gain variant: train, operate, compare, filter and worst run it in measured mode only", "[cli][gain]") {
     hinf::test::TempDir d("gaincli");
     const std::string cfg = d / "vdp.toml", net = d / "run/checkpoint.h5";
