@@ -70,10 +70,10 @@ const std::string kVdp = hinf::test::tiny_vdp_gain_config("0.5");
 
 TEST_CASE("the acceptance check's small-signal figure is hinf worst's, pieces and all", "[cli][gain]") {
     // docs/method.md section 16.9, "Pieces the check cannot resolve": within half its search's steps the check had
-    // stopped at 20 or 40 pieces a channel. Over 3 s (300 steps) the EKF's doubling goes to a piece a step (300).
+    // stopped at 20 or 40 pieces a channel (40 here). Over 2 s (200 steps) the EKF's doubling goes further.
     hinf::test::TempDir d("gaincli-linear");
     const std::string cfg = d / "vdp.toml";
-    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("3");
+    std::ofstream(cfg) << hinf::test::tiny_vdp_gain_config("2");
     auto t = run_hinf("train " + cfg + " --out " + (d / "run") + " --quiet");
     INFO(t.output);
     REQUIRE(t.status == 0);
