@@ -551,12 +551,13 @@ void gain_kalman_backward(T* d_o, const double* gK, const T* o, const double* Fx
 }
 
 namespace {
-// rows first .. first + B of the network input: the estimate of sample idx[row * G] (G = 1: idx[row])
+// rows first .. first + B of the network input (D0 entries a row, GainSpec::input_count): the estimate of sample
+// idx[row * G] (G = 1: idx[row])
 template <typename T>
-void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int n, int G = 1) {
+void load_z(T* in, const double* z, const std::int64_t* idx, std::int64_t first, int B, int D0, int G = 1) {
     for (int s = 0; s < B; ++s) {
         const std::int64_t i = idx ? idx[(first + s) * G] : first + s;
-        for (int a = 0; a < n; ++a) in[s * n + a] = T(z[i * n + a]);
+        for (int a = 0; a < D0; ++a) in[s * D0 + a] = T(z[i * D0 + a]);
     }
 }
 }  // namespace
@@ -612,7 +613,7 @@ StepLoss gain_step_gradient(T* grad, const T* theta, const HjieSystemView& sys, 
         const int b0 = c * C, B = std::min(C, R - b0);
         T* in = ws.input.data() + std::int64_t(b0) * D0;
         T* acts = ws.acts.data() + std::int64_t(c) * As;
-        load_z(in, z, idx, b0, B, n, G);
+        load_z(in, z, idx, b0, B, D0, G);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         for (int s = 0; s < B; ++s) {
@@ -783,7 +784,7 @@ void gain_network_eval(double* K, const T* theta, const double* z, const double*
         const int B = static_cast<int>(std::min<std::int64_t>(C, count - b0));
         T* in = ws.input.data() + b0 * D0;
         T* acts = ws.acts.data() + std::int64_t(c) * step_acts_stride(cfg);
-        load_z<T>(in, z, nullptr, b0, B, n);
+        load_z<T>(in, z, nullptr, b0, B, D0);
         mlp_forward(acts, theta, in, B, sh, wt);
         const T* out = acts + sh.act_offset(sh.layers(), B);
         double S[kMax * kMax];
@@ -969,14 +970,14 @@ StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView&
     const double initial_weight = lp.initial_weight;
     if (tv) lp.initial_weight = 0.0;
     const T* sp = theta + P;
-    std::vector<T> acts(static_cast<std::size_t>(sh.act_per_sample())), in(static_cast<std::size_t>(n));
+    std::vector<T> acts(static_cast<std::size_t>(sh.act_per_sample())), in(static_cast<std::size_t>(sh.inputs()));
     std::vector<T> dout(static_cast<std::size_t>(O)), gtheta(static_cast<std::size_t>(P), T(0));
     double Sc[kMax * kMax];
     if (!tv) storage_forward(Sc, sp, gs.dx.data(), n, gs.storage_scale, gs.eps);
     // the sample's K, S and dS/dt, from scratch each time it is needed
     auto sample = [&](int s, double* K, double* S, double* Sd) {
         const std::int64_t i = idx[s];
-        for (int a = 0; a < n; ++a) in[a] = T(z[i * n + a]);
+        for (int a = 0; a < sh.inputs(); ++a) in[a] = T(z[i * sh.inputs() + a]);
         mlp_forward_naive(acts.data(), theta, in.data(), 1, sh);
         const T* o = acts.data() + sh.act_offset(sh.layers(), 1);
         if (tv) {

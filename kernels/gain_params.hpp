@@ -37,6 +37,29 @@ struct GainSpec {
         const double z = (xhat - shift[a]) / spread[a];
         return zlo.empty() ? z : std::min(zhi[a], std::max(zlo[a], z));
     }
+    // network.angle_inputs = "periodic" (docs/method.md section 16.19): the states that are angles ([system]
+    // angle_states) as flags [n] (empty: none). The network sees an angle state as the pair (cos x^_a, sin x^_a) in
+    // its place, never held, so K(x^) is the same a turn on and the network's input has n + (angles) entries.
+    std::vector<int> periodic;
+    bool is_periodic(int a) const { return !periodic.empty() && periodic[a] != 0; }
+    /// Entries of the network's input for n states.
+    int input_count(int n) const {
+        int c = n;
+        for (int a = 0; a < n; ++a) c += is_periodic(a) ? 1 : 0;
+        return c;
+    }
+    /// z [input_count(n)]: the network's input at the estimate x^ [n]; `held`: the filter's (input(a, .) per state,
+    /// in the box where one is drawn), else training's (standardised, never held).
+    void input_row(double* z, const double* xhat, int n, bool held) const {
+        for (int a = 0, c = 0; a < n; ++a) {
+            if (is_periodic(a)) {
+                z[c++] = std::cos(xhat[a]);
+                z[c++] = std::sin(xhat[a]);
+            } else {
+                z[c++] = held ? input(a, xhat[a]) : (xhat[a] - shift[a]) / spread[a];
+            }
+        }
+    }
     std::vector<double> xt0;         // [n]
     double rate = 1.0;               // K = rate * diag(dx) o diag(dy)^-1  [1/s]
     double storage_scale = 1.0;      // S = c D^-1 (M M' + eps I) D^-1

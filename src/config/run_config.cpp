@@ -719,6 +719,9 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     if (net.has("storage_init") && (c.variant != "gain" || c.storage_knots == 0))
         net.reject("storage_init", "initialises a time-varying storage: it needs [filter] variant = \"gain\" and "
                                    "network.storage_knots > 0 (remove the key)");
+    c.angle_inputs = net.get_string("angle_inputs", c.angle_inputs, {"periodic", "raw"});
+    if (net.has("angle_inputs") && c.variant != "gain")
+        net.reject("angle_inputs", "shapes the input of [filter] variant = \"gain\"'s network only (remove the key)");
     c.input_box = net.get_double("input_box", c.variant == "gain" ? c.input_box : 0.0, 0.0, 0.49);
     if (net.has("input_box") && c.variant != "gain")
         net.reject("input_box", "holds the input of [filter] variant = \"gain\"'s network only (remove the key)");

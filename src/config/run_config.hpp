@@ -56,6 +56,7 @@ struct TrainingConfig {
     std::int64_t storage_knots = 0;  // variant gain: 0 = constant S; J > 0 = S(t) on J + 1 knots (§16.7); default 32 (gain, continuous), else 0
     double knot_ratio = 1.0;  // variant gain with S(t): the last knot interval over the first (1: evenly spaced; §16.7 "Graded knots")
     double eps = 0.0;  // 0: auto from max_step_correction
+    std::string angle_inputs = "periodic";  // variant gain: the network sees an angle state ([system] angle_states) as (cos, sin) ("periodic", §16.19) or standardised as any state ("raw", before 2026-12-07)
     double input_box = 0.005;  // variant gain: the filter holds the network's input inside the box of all but this share of the training estimates on each side of each state (0: not held, §16.10)
     int chunk = 100;
     std::string gemm = "auto";  // GEMM kernels: "auto" (own where built, else openblas), "own", "openblas", "eigen"

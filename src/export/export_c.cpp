@@ -560,13 +560,30 @@ LawC gain_matrix_c(const kern::StepConfig& sc, const std::string& P, const std::
       << (member || !g.mask.empty() ? "static " : "") << "void " << P
       << (g.mask.empty() ? "_gain_matrix" : "_gain_matrix_unmasked") << "(double* k, const double* xhat, double t) {\n"
       << "    " << P << "_real buf[2][" << P << "_WIDEST];\n"
-      << "    double z[" << n << "];\n"
+      << "    double z[" << g.input_count(n) << "];\n"
       << "    const " << P << "_real* o;\n"
-      << "    int a, q;\n"
-      << "    for (a = 0; a < " << n << "; ++a) z[a] = (xhat[a] - " << P << "_shift[a]) / " << P << "_spread[a];\n";
-    if (held)
-        c << "    for (a = 0; a < " << n << "; ++a) z[a] = z[a] > " << P << "_zhi[a] ? " << P << "_zhi[a] : z[a] < " << P
-          << "_zlo[a] ? " << P << "_zlo[a] : z[a];\n";
+      << "    int a, q;\n";
+    if (g.periodic.empty()) {
+        c << "    for (a = 0; a < " << n << "; ++a) z[a] = (xhat[a] - " << P << "_shift[a]) / " << P << "_spread[a];\n";
+        if (held)
+            c << "    for (a = 0; a < " << n << "; ++a) z[a] = z[a] > " << P << "_zhi[a] ? " << P
+              << "_zhi[a] : z[a] < " << P << "_zlo[a] ? " << P << "_zlo[a] : z[a];\n";
+    } else {  // an angle state as (cos, sin) in its place (network.angle_inputs, docs/method.md 16.19)
+        for (int a = 0, k = 0; a < n; ++a) {
+            if (g.is_periodic(a)) {
+                c << "    z[" << k << "] = cos(xhat[" << a << "]);\n    z[" << k + 1 << "] = sin(xhat[" << a << "]);\n";
+                k += 2;
+                continue;
+            }
+            c << "    z[" << k << "] = (xhat[" << a << "] - " << P << "_shift[" << a << "]) / " << P << "_spread[" << a
+              << "];\n";
+            if (held)
+                c << "    z[" << k << "] = z[" << k << "] > " << P << "_zhi[" << a << "] ? " << P << "_zhi[" << a
+                  << "] : z[" << k << "] < " << P << "_zlo[" << a << "] ? " << P << "_zlo[" << a << "] : z[" << k
+                  << "];\n";
+            ++k;
+        }
+    }
     c << "    o = " << P << "_forward(buf, z);\n";
     if (g.kalman) {
         // kernels/gain.cpp gain_kalman_forward, operation for operation (its storage_forward with d = 1 / dx, chol,

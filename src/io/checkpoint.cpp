@@ -238,6 +238,7 @@ void ckpt_write(const std::string& path, const Checkpoint<T>& ck, const RunConfi
             h5::set_attr(net.get(), "storage_knots", std::int64_t(sc.gain.knots));
             h5::set_attr(net.get(), "gain_head", std::string(sc.gain.kalman ? "kalman" : "direct"));
             h5::set_attr(net.get(), "gain_structure", cfg.gain_structure);  // since 2026-11-28 (method.md 16.17)
+            h5::set_attr(net.get(), "angle_inputs", cfg.angle_inputs);      // since 2026-12-07 (method.md 16.19)
             h5::set_attr(net.get(), "input_shift", sc.gain.shift);
             h5::set_attr(net.get(), "input_spread", sc.gain.spread);
             h5::set_attr(net.get(), "error_scale", sc.gain.dx);
@@ -373,6 +374,9 @@ std::vector<std::string> ckpt_as_trained_sets(hid_t file, const ConfigDoc& doc) 
         if (!h5::has_attr(net.get(), "input_low")) as_trained("network", "input_box", "0");
         // written before the gain had structural zeros (docs/method.md section 16.17): every entry learned
         if (!h5::has_attr(net.get(), "gain_structure")) as_trained("network", "gain_structure", "\"full\"");
+        // written before an angle state was seen as (cos, sin) (docs/method.md section 16.19): standardised
+        if (!h5::has_attr(net.get(), "angle_inputs") && doc.root()["system"]["angle_states"].as_array() != nullptr)
+            as_trained("network", "angle_inputs", "\"raw\"");
     }
     const std::string kind = ConfigSection(doc, "system").get_string("kind", "missile");
     // written before a system of one's own that names no rho got 1.25 times its linearised game's level

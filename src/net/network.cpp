@@ -109,6 +109,16 @@ std::vector<double> gain_component_mask(const RunConfig& cfg, std::vector<int>* 
 
 namespace {
 
+// network.angle_inputs = "periodic" (docs/method.md section 16.19): 1 for each state of [system] angle_states [n];
+// empty where none is an angle or the inputs are "raw"
+std::vector<int> angle_input_flags(const RunConfig& cfg) {
+    const std::vector<int>& angles = cfg.system->angle_states();
+    if (cfg.angle_inputs != "periodic" || angles.empty()) return {};
+    std::vector<int> flags(static_cast<std::size_t>(cfg.n), 0);
+    for (int a : angles) flags[static_cast<std::size_t>(a)] = 1;
+    return flags;
+}
+
 // The gain variant's fixed scales (docs/method.md section 14.4), all from the config: the error scale
 // dx_j = |x0_j - x^0_j| + error_floor_j, the innovation scale dy = |H(x^0) diag(dx)| row norms, the input
 // standardisation from the noise-free trajectory from x0 over [0, t_final], the gain rate 10 / t_final and the
@@ -119,6 +129,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     kern::GainSpec g;
     g.enabled = true;
     g.m = m;
+    g.periodic = angle_input_flags(cfg);
     g.group = int(cfg.errors_per_estimate);
     g.dx.resize(n);
     g.xt0.resize(n);
@@ -263,7 +274,9 @@ kern::StepConfig network_step_config(const RunConfig& cfg) {
     // gradient head: p = c s_in o, so o ~ z = x~/s_in when dV/dx~ ~ c x~; quadratic head: P = c (M M^T + eps I)
     sc.head.scale = paper ? cfg.resolved_output_scale() * sc.input_scale : cfg.resolved_output_scale();
     sc.head.eps = cfg.resolved_eps();
-    sc.shape.sizes.push_back(cfg.n);
+    int inputs = cfg.n;  // a gain network sees each angle state as (cos, sin): one entry more each
+    for (int f : gain ? angle_input_flags(cfg) : std::vector<int>{}) inputs += f;
+    sc.shape.sizes.push_back(inputs);
     for (int h : cfg.hidden) sc.shape.sizes.push_back(h);
     const bool kalman = gain && cfg.gain_head == "kalman";  // P(x^): n(n+1)/2 outputs (section 16.16)
     sc.shape.sizes.push_back(kalman ? cfg.n * (cfg.n + 1) / 2
@@ -550,6 +563,7 @@ Network<T> network_create(const RunConfig& cfg) {
 void BoxExcursion::see(const kern::GainSpec& g, const double* x, std::int64_t count, int n, double t0, double dt) {
     if (g.zlo.empty()) return;
     for (int i = 0; i < n && i < int(g.zlo.size()); ++i) {
+        if (g.is_periodic(i)) continue;  // seen as (cos, sin): a turn on is inside the region
         const double a = g.shift[i] + g.spread[i] * g.zlo[i], b = g.shift[i] + g.spread[i] * g.zhi[i];
         const double w = b - a;
         if (!(w > 0)) continue;
@@ -639,9 +653,9 @@ public:
         const int n = net_.step.head.n;
         const kern::GainSpec& g = net_.step.gain;
         const std::int64_t c = std::max<std::int64_t>(count, 0);
-        z_.resize(static_cast<std::size_t>(c * n));
-        for (std::int64_t i = 0; i < count; ++i)
-            for (int a = 0; a < n; ++a) z_[i * n + a] = g.input(a, xhat[i * n + a]);
+        const int D0 = g.input_count(n);
+        z_.resize(static_cast<std::size_t>(c * D0));
+        for (std::int64_t i = 0; i < count; ++i) g.input_row(z_.data() + i * D0, xhat + i * n, n, true);
         if (g.knots > 0 || g.kalman) {  // the Riccati- and Kalman-form heads: the output Jacobian at each estimate
             hx_.resize(static_cast<std::size_t>(c * g.m * n));
             tt_.assign(static_cast<std::size_t>(c), t);

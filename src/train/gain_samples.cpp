@@ -65,7 +65,7 @@ void resize(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, std::
     s->Bm.resize(N * n * nv);
     s->dC.resize(N * m);
     s->q.resize(N);
-    s->z.resize(N * n);
+    s->z.resize(N * g.input_count(n));
     s->xhat.resize(N * n);
     s->x.resize(N * n);
     s->t.resize(N);
@@ -91,7 +91,7 @@ void constants(GainSamples* s, const RunConfig& cfg, const kern::GainSpec& g, st
         for (int j = 0; j < n; ++j) s->dA[i * n + j] -= ah[j];
         sys.output_difference(s->dC.data() + i * m, s->dC.data() + i * m, ch);  // an angle output's wrapped
         s->q[i] = quadratic_form(cfg.Q.data(), s->xt.data() + i * n, n);
-        for (int j = 0; j < n; ++j) s->z[i * n + j] = held ? g.input(j, xh[j]) : (xh[j] - g.shift[j]) / g.spread[j];
+        g.input_row(s->z.data() + i * g.input_count(n), xh, n, held);
         if (g.knots > 0 || g.kalman) sys.measurement_jacobian(s->Hx.data() + i * m * n, xh, s->t[i]);
         if (g.kalman) sys.drift_jacobian(s->Fx.data() + i * n * n, xh, s->t[i]);
     }
@@ -225,9 +225,11 @@ std::vector<SignCrossing> gain_sign_crossings(const RunConfig& cfg, const GainPo
         }
     const std::int64_t N = kInputBoxEstimates;
     const std::vector<double> xh = draw_estimates(cfg, g, pool, N, kInputBoxCounter);
+    const std::vector<int>& angles = cfg.system->angle_states();
     for (int j = 0; j < n; ++j) {
         const bool above = lo[j] >= 0 && hi[j] > 0, below = hi[j] <= 0 && lo[j] < 0;
         if (!above && !below) continue;
+        if (std::find(angles.begin(), angles.end(), j) != angles.end()) continue;  // an angle's sign means nothing
         std::int64_t crossed = 0;
         for (std::int64_t i = 0; i < N; ++i) crossed += above ? xh[i * n + j] < 0 : xh[i * n + j] > 0;
         const double share = double(crossed) / double(N);

@@ -31,7 +31,8 @@ std::string gain_pool_note(const RunConfig& cfg, const GainPool& pool);
 
 struct GainSamples {
     int n = 0, nv = 0, m = 0;
-    std::vector<double> xt, dA, Bm, dC, q, z, xhat, x, t;  // [N x n] ... z: standardised x^ (network input)
+    std::vector<double> xt, dA, Bm, dC, q, z, xhat, x, t;  // [N x n] ... z [N x D0]: the network's input at x^
+                                                            // (GainSpec::input_row, D0 = input_count(n))
     std::vector<double> Hx;  // [N x m x n] output Jacobian at x^ (the Riccati- and Kalman-form heads only)
     std::vector<double> Fx;  // [N x n x n] the map's Jacobian at x^ (the Kalman-form head only)
     kern::HjieSystemView view() const;

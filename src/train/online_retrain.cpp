@@ -164,8 +164,8 @@ private:
     void eval(double* K, double* S, double* Sdot, double t) {
         const int n = cfg_->n, m = cfg_->m;
         const kern::GainSpec& g = net_.step.gain;
-        z_.resize(n);
-        for (int a = 0; a < n; ++a) z_[a] = g.input(a, xhat_[a]);
+        z_.resize(g.input_count(n));
+        g.input_row(z_.data(), xhat_.data(), n, true);
         hx_.resize(std::size_t(m) * n);
         fx_.resize(std::size_t(n) * n);
         if (g.knots > 0 || g.kalman) cfg_->system->measurement_jacobian(hx_.data(), xhat_.data(), t);

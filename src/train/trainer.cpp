@@ -449,10 +449,8 @@ private:
         x.assign(run.x.begin() + step * n, run.x.begin() + (step + 1) * n);
         std::vector<double> K(n * m), xt(n), s(n), ah(n), ch(m), e(m), y(run.y.begin() + step * m,
                                                                          run.y.begin() + (step + 1) * m);
-        std::vector<double> z(n), B(n * nv);
-        for (int j = 0; j < n; ++j) {
-            z[j] = g.input(j, xhat[j]);  // the filter's input, held in the box (method.md 16.10)
-        }
+        std::vector<double> z(g.input_count(n)), B(n * nv);
+        g.input_row(z.data(), xhat.data(), n, true);  // the filter's input, held in the box (method.md 16.10)
         sys.state_difference(xt.data(), x.data(), xhat.data());  // an angle state's wrapped
         std::vector<double> Hx(static_cast<std::size_t>(m) * n), Fx(static_cast<std::size_t>(n) * n);
         if (g.knots > 0 || g.kalman) sys.measurement_jacobian(Hx.data(), xhat.data(), t);

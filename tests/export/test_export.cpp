@@ -376,6 +376,30 @@ TEST_CASE("exported C filter with an angle output matches hinf filter across the
     }
 }
 
+TEST_CASE("exported C filter of a gain network that sees an angle as (cos, sin) matches hinf filter",
+          "[export][gain][angles]") {
+    // a phase-locked loop whose phase winds past training's estimates (network.angle_inputs = "periodic", the
+    // default; the frequency's input held in its box): the C forms the same input row as hinf
+    TempDir d("export-angle-inputs");
+    const std::string cfg = write_file(
+        d, "pll.toml",
+        "[system]\nkind = \"expr\"\nstates = [\"phi\", \"w\"]\ndisturbances = 2\nmeasurements = 1\n"
+        "f = [\"w\", \"0\"]\ng = [[\"1\", \"0\"], [\"0\", \"1\"]]\nh = [\"sin(phi)\"]\nangle_states = [1]\n"
+        "[filter]\nrho = 0.5\nx0 = [0.0, 6.0]\nxhat0 = [0.4, 5.5]\ndt = 0.01\nt_final = 2.0\n"
+        "[network]\nhidden = [8, 8]\nprecision = \"double\"\n[training]\nsamples = 64\nbatch = 32\n"
+        "adam_steps = 3\ncheckpoint_every = 50\nacceptance_runs = 0\nselect_every = 0\n"
+        "[online]\ndisturbance_std = [0.05, 0.3]\nnoise_std = 0.1\n");
+    Compared c = export_and_compare(d, cfg, "--until 0.5", "dnn_gain_measured");
+    INFO("max |C - hinf| " << c.max_abs << " over states up to " << c.scale);
+    CHECK(c.rows == 201);
+    CHECK(c.compared == 201);
+    CHECK(c.max_abs <= 1e-11 * c.scale);
+    const std::string code = hinf::test::read_text(d / "c/hinf_filter.c");
+    CHECK(code.find("z[0] = cos(xhat[0]);") != std::string::npos);
+    CHECK(code.find("z[1] = sin(xhat[0]);") != std::string::npos);
+    CHECK(code.find("_zhi[1]") != std::string::npos);  // the frequency, held in its box, is the third entry
+}
+
 TEST_CASE("exported C ensemble of gain networks matches hinf filter --ensemble to double round-off",
           "[export][gain][ensemble]") {
     // two and three members of one model (training seeds 1, 2, 3): the C's mean gain is filters/dnn.cpp's

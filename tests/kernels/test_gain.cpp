@@ -415,14 +415,18 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         int group;
         bool masked = false;
         double ratio = 1.0;  // network.knot_ratio: graded knots
+        int angles = 0;      // network.angle_inputs: that many states seen as (cos, sin), the input n + angles wide
     };
     for (const Case cs : {Case{0, false, false, 1}, Case{0, true, false, 1}, Case{35, false, false, 1},
                           Case{35, false, true, 1}, Case{0, false, false, 4}, Case{0, true, false, 4},
                           Case{35, false, true, 4}, Case{35, false, true, 4, true}, Case{0, true, false, 1, true},
-                          Case{35, false, true, 4, false, 30.0}}) {
+                          Case{35, false, true, 4, false, 30.0}, Case{0, false, false, 1, false, 1.0, 1},
+                          Case{35, false, true, 4, false, 1.0, 2}}) {
         INFO("knots " << cs.knots << " discrete " << cs.discrete << " per-state scale " << cs.output_scale << " group "
-                      << cs.group << " masked " << cs.masked << " ratio " << cs.ratio);
+                      << cs.group << " masked " << cs.masked << " ratio " << cs.ratio << " angles " << cs.angles);
         StepConfig sc = paper_gain_config();
+        const int D0 = n + cs.angles;
+        sc.shape.sizes.front() = D0;
         sc.gain.loss.rho = 0.03;
         sc.gain.loss.margin = 0.02;
         sc.gain.loss.horizon = 70.0;
@@ -448,7 +452,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
             for (int e = 0; e < n * m; ++e) sc.gain.corr[e] = 0.5 + 0.01 * e;
         }
         const std::int64_t P = sc.shape.param_count() + sc.gain.storage_params(n);
-        std::vector<double> theta(P), xt(N * n), dA(N * n), B(N * n * nv), dC(N * m), q(N), z(N * n), t(N);
+        std::vector<double> theta(P), xt(N * n), dA(N * n), B(N * n * nv), dC(N * m), q(N), z(N * D0), t(N);
         std::vector<double> Hx(N * m * n);
         rng_normal(theta.data(), P, 9, RNG_STREAM_INIT, 0, 0);
         for (std::int64_t k = 0; k < P; ++k) theta[k] *= k < sc.shape.param_count() ? 0.05 : 0.3;
@@ -456,7 +460,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         rng_normal(dA.data(), N * n, 9, RNG_STREAM_SAMPLES, 1, 0);
         rng_normal(B.data(), N * n * nv, 9, RNG_STREAM_SAMPLES, 2, 0);
         rng_normal(dC.data(), N * m, 9, RNG_STREAM_SAMPLES, 3, 0);
-        rng_normal(z.data(), N * n, 9, RNG_STREAM_SAMPLES, 4, 0);
+        rng_normal(z.data(), N * D0, 9, RNG_STREAM_SAMPLES, 4, 0);
         rng_normal(Hx.data(), N * m * n, 9, RNG_STREAM_SAMPLES, 5, 0);
         for (int i = 0; i < N; ++i) {
             for (int a = 0; a < n; ++a) {
@@ -472,7 +476,7 @@ TEST_CASE("gain variant: the minibatch gradient equals its naive twin at the pap
         const int G = cs.group;
         for (int i = 0; i < N; ++i) {  // a group's samples share their leader's estimate and time
             const int lead = i - i % G;
-            for (int a = 0; a < n; ++a) z[i * n + a] = z[lead * n + a];
+            for (int a = 0; a < D0; ++a) z[i * D0 + a] = z[lead * D0 + a];
             for (int e = 0; e < m * n; ++e) Hx[i * m * n + e] = Hx[lead * m * n + e];
             t[i] = t[lead];
         }
