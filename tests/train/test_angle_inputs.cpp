@@ -100,6 +100,16 @@ TEST_CASE("angle inputs: a trained gain is the same a turn on, where the raw inp
             else
                 CHECK(change > 1e-3);
         }
+        // filtering six times training's horizon: the raw phase leaves training's region (and its gain is the box
+        // edge's, which hinf says); (cos, sin) does not
+        const std::string file = test::write_file(d, std::string(inputs) + ".toml",
+                                                  pll_config(periodic ? "" : "angle_inputs = \"raw\"\n"));
+        const auto r = test::run_hinf("compare " + file + " --network " + d / (std::string(inputs) + "/checkpoint.h5") +
+                                      " --filters dnn --runs 2 --set filter.t_final=3 --quiet --out " +
+                                      d / (std::string(inputs) + "-long"));
+        INFO(r.output);
+        CHECK(r.status == 0);
+        CHECK((r.output.find("went far beyond the region") != std::string::npos) == !periodic);
     }
 }
 
