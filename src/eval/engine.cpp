@@ -78,6 +78,9 @@ std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& sta
         // range to leave: any estimate of it would count, the DNN gain's first nudge included (docs/compare.md)
         bound[i] = s > 0 ? kPlausibleFactor * s : std::numeric_limits<double>::infinity();
     }
+    // an angle winds (a phase turns on for as long as the record runs): its value is no scale, so only a non-finite
+    // estimate of it counts (|x^| <= the largest double)
+    for (int i : cfg.system->angle_states()) bound[std::size_t(i)] = std::numeric_limits<double>::max();
     return bound;
 }
 

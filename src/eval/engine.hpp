@@ -34,7 +34,8 @@ constexpr double kPlausibleFactor = 1000.0;
 /// The physically plausible range of each state, from the system's own scales: bound_i = kPlausibleFactor *
 /// max(|x0_i|, |x^0_i|, sd0_i, max_k |x_i(t_k)| of the truth (x_true [K x n], may be nullptr), the largest |y|
 /// of the measurements y [K x m] (recorded data, where no truth gives the states' scale; may be nullptr)); +infinity
-/// for a state where all of these are 0 (no scale to judge its estimate by).
+/// for a state where all of these are 0 (no scale to judge its estimate by); the largest double for an angle state
+/// ([system] angle_states: it winds, so only a non-finite estimate of it leaves the range).
 /// docs/compare.md "Divergence".
 std::vector<double> plausible_bound(const RunConfig& cfg, const FilterStart& start, const double* x_true,
                                     const double* y, std::int64_t K);

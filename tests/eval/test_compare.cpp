@@ -232,6 +232,71 @@ TEST_CASE("an estimate that leaves the plausible range is reported as diverged",
 }
 
 namespace {
+// A filter whose first state winds on by 10 a step (a phase on a long record), then, from step `bad`, is `last`.
+class WindingFilter final : public OnlineFilter {
+public:
+    WindingFilter(std::int64_t bad, double last) : bad_(bad), last_(last) {}
+    std::string name() const override { return "winding"; }
+    void reset(const FilterStart& s) override { xhat_ = s.xhat0; }
+    FilterStatus step(const FilterInput& in) override {
+        xhat_[0] = in.step + 1 >= bad_ ? last_ : xhat_[0] + 10.0;
+        return FILTER_OK;
+    }
+    const double* estimate() const override { return xhat_.data(); }
+    std::unique_ptr<OnlineFilter> clone() const override { return std::make_unique<WindingFilter>(*this); }
+
+private:
+    std::int64_t bad_;
+    double last_;
+    std::vector<double> xhat_;
+};
+}  // namespace
+
+TEST_CASE("an angle state has no plausible range: a phase that winds far is not frozen, a non-finite one is",
+          "[eval][compare][divergence][angle]") {
+    const std::string text = R"cfg([system]
+kind = "expr"
+states = ["phi", "w"]
+disturbances = 2
+measurements = 1
+f = ["w", "0"]
+g = [["1", "0"], ["0", "1"]]
+h = ["sin(phi)"]
+angle_states = [1]
+[filter]
+x0 = [0.0, 6.0]
+xhat0 = [0.4, 5.5]
+dt = 0.01
+t_final = 20
+[online]
+disturbance_std = [0.05, 0.3]
+noise_std = 0.1
+)cfg";
+    const std::int64_t K = 2000;  // the phase estimate reaches 2e4, 2e4 / 6 = 3300 times the largest scale
+    const std::vector<double> y(K, 0.5), t(K, 0.0);
+    std::string plain = text;
+    plain.replace(plain.find("angle_states = [1]\n"), 19, "");
+    for (const bool angle : {true, false}) {
+        INFO("angle_states " << angle);
+        const RunConfig cfg = test::config_from_text(angle ? text : plain);
+        const FilterStart start = engine_filter_start(cfg, 0);
+        const std::vector<double> bound = plausible_bound(cfg, start, nullptr, y.data(), K);  // hinf filter's
+        CHECK(std::isfinite(bound[1]));
+        CHECK((bound[0] == std::numeric_limits<double>::max()) == angle);
+        for (const double last : {std::nan(""), double(INFINITY), -double(INFINITY)}) {
+            WindingFilter winding(K, 0.0), broken(K / 2, last);
+            winding.reset(start);
+            broken.reset(start);
+            const auto none = [](std::int64_t, const double*, bool) {};
+            const StreamResult w = filter_stream(winding, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
+            const StreamResult b = filter_stream(broken, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
+            CHECK((w.diverged_at < 0) == angle);  // without the key the winding phase leaves its range
+            CHECK(b.stepped <= K / 2);            // a non-finite phase is caught either way
+        }
+    }
+}
+
+namespace {
 // A filter whose estimate sits a little off its start in every state, as a gain's first correction puts it.
 class NudgedFilter final : public OnlineFilter {
 public:
