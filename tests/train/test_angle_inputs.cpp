@@ -10,6 +10,7 @@
 
 #include "config/run_config.hpp"
 #include "helpers.hpp"
+#include "hinf/h5.hpp"
 #include "io/checkpoint.hpp"
 #include "net/network.hpp"
 #include "train/trainer.hpp"
@@ -145,6 +146,36 @@ TEST_CASE("angle inputs: a gain network without angle states, or of another vari
     dissipative.replace(dissipative.find("variant = \"gain\""), 16, "variant = \"dissipative\"");
     CHECK_THROWS_WITH(test::config_from_text(dissipative),
                       Catch::Contains("angle_inputs") && Catch::Contains("variant = \"gain\""));
+}
+
+TEST_CASE("angle inputs: the on-line check and retraining run on the (cos, sin) row, the same bits twice",
+          "[train][gain][angle][cli]") {
+    // hinf operate's on-line check samples errors around x^ and its retraining takes Adam steps on them: both form the
+    // network's input as training does (its n + 1 entries here), over a phase that winds past training's estimates
+    test::TempDir d("angle-online");
+    const std::string cfg = test::write_file(d, "pll.toml", pll_config());
+    const auto t = test::run_hinf("train " + cfg + " --quiet --out " + d / "run");
+    INFO(t.output);
+    REQUIRE(t.status == 0);
+    std::string first;
+    for (const char* out : {"op1", "op2"}) {
+        const auto r = test::run_hinf("operate " + cfg + " --network " + d / "run/checkpoint.h5" +
+                                      " --set online.retrain=true --set online.retrain_delta=0 --set filter.t_final=2"
+                                      " --runs 1 --quiet --out " + d / out);
+        INFO(r.output);
+        REQUIRE(r.status == 0);
+        h5::Handle f = h5::open_file(d / (std::string(out) + "/operate.h5"), false);
+        const std::vector<double> xhat = h5::read_doubles(f.get(), "xhat");
+        CHECK(r.output.find("on-line retraining (delta 0): 0 trigger") == std::string::npos);
+        CHECK(r.output.find("on-line retraining (delta 0):") != std::string::npos);
+        REQUIRE(xhat.size() == 2 * 200);
+        std::string bits(reinterpret_cast<const char*>(xhat.data()), xhat.size() * sizeof(double));
+        if (first.empty())
+            first = bits;
+        else
+            CHECK(bits == first);
+        for (double v : xhat) REQUIRE(std::isfinite(v));
+    }
 }
 
 TEST_CASE("angle inputs: training says nothing of an angle's sign", "[train][gain][angle][cli]") {
