@@ -96,7 +96,8 @@ template <typename T>
 void gain_head_backward(T* d_o, const double* gK, const double* dx, const double* dy, int n, int m, double rate);
 
 /// grad [P + n(n+1)/2] = dL/dtheta (overwritten), theta = [MLP parameters | storage parameters]; the network input
-/// of sample i is row i of z [. x D0] (D0 = shape.inputs() = gain.input_count(n), GainSpec::input_row). L = sqrt(mean hinge) + eta mean h2 over idx[0..M).
+/// of sample i is row i of z [. x D0] (D0 = shape.inputs() = gain.input_count(n), GainSpec::input_row).
+/// L = sqrt(mean hinge) + eta mean h2 over idx[0..M).
 /// Fixed chunks of cfg.chunk samples, partials summed in chunk order: the bits do not depend on the thread count.
 /// With a split (MPI data parallelism), every process passes the same theta, z, idx and M and gets the same bits
 /// as one process without a split; it works on chunks [step_split_begin(chunks, rank, ranks), ...) of
@@ -116,9 +117,9 @@ template <typename T>
 StepLoss gain_step_gradient_naive(T* grad, const T* theta, const HjieSystemView& sys, const double* z,
                                   const std::int64_t* idx, int M, const StepConfig& cfg);
 
-/// K [count x n x m] at network inputs z [count x D0] (GainSpec::input_row; the Riccati-form head needs the times t [count] and Hx
-/// [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0; the Kalman-form head
-/// needs Hx and Fx [count x n x n], the map's Jacobians). A [count x n x m] (may be null; Kalman-form head only)
+/// K [count x n x m] at network inputs z [count x D0] (GainSpec::input_row; the Riccati-form head needs the times
+/// t [count] and Hx [count x m x n], the output Jacobians at the estimates; both may be null for knots = 0; the
+/// Kalman-form head needs Hx and Fx [count x n x n], the map's Jacobians). A [count x n x m] (may be null; Kalman-form head only)
 /// receives the filtered estimate's gains P H' W^-1. pack: step_pack_weights(theta) or null (then packed here, into
 /// ws.pack: once a call, which a filter evaluating one estimate a step should not pay).
 template <typename T>

@@ -288,8 +288,10 @@ noise_std = 0.1
             winding.reset(start);
             broken.reset(start);
             const auto none = [](std::int64_t, const double*, bool) {};
-            const StreamResult w = filter_stream(winding, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
-            const StreamResult b = filter_stream(broken, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
+            const StreamResult w =
+                filter_stream(winding, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
+            const StreamResult b =
+                filter_stream(broken, y.data(), 1, t.data(), K, nullptr, 2, bound.data(), nullptr, none);
             CHECK((w.diverged_at < 0) == angle);  // without the key the winding phase leaves its range
             CHECK(b.stepped <= K / 2);            // a non-finite phase is caught either way
         }

@@ -2,8 +2,8 @@
 // default) feeds (cos, sin) of the estimate's angle, so the gain K(x^) is the same a turn on, however far the angle
 // has wound beyond training's estimates; "raw" standardises it as any state (every gain network before 2026-12-07,
 // and a checkpoint of that time reads as "raw").
-#include <catch2/catch.hpp>
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -39,7 +39,8 @@ dt = 0.01
 t_final = 0.5
 [network]
 hidden = [8]
-)cfg" + network + R"cfg(
+)cfg" + network +
+           R"cfg(
 [training]
 samples = 64
 batch = 32
@@ -80,14 +81,15 @@ TEST_CASE("angle inputs: a trained gain is the same a turn on, where the raw inp
     for (const char* inputs : {"periodic", "raw"}) {
         INFO(inputs);
         const bool periodic = std::string(inputs) == "periodic";
-        const RunConfig cfg = test::config_from_text(
-            pll_config(periodic ? "" : "angle_inputs = \"raw\"\n"));  // the default is periodic
+        const RunConfig cfg =
+            test::config_from_text(pll_config(periodic ? "" : "angle_inputs = \"raw\"\n"));  // the default is periodic
         TrainOptions opt;
         opt.out_dir = d / inputs;
         opt.quiet = true;
         REQUIRE(train_start(cfg, opt).status == 0);
         RunConfig trained;
-        const std::unique_ptr<FrozenNetwork> net = ckpt_frozen_network(d / (std::string(inputs) + "/checkpoint.h5"), &trained);
+        const std::unique_ptr<FrozenNetwork> net =
+            ckpt_frozen_network(d / (std::string(inputs) + "/checkpoint.h5"), &trained);
         CHECK(trained.angle_inputs == inputs);
         // the angle is two entries of the network's input: (cos, sin)
         CHECK(net->step_config().shape.inputs() == (periodic ? 3 : 2));
@@ -103,8 +105,8 @@ TEST_CASE("angle inputs: a trained gain is the same a turn on, where the raw inp
         }
         // filtering six times training's horizon: the raw phase leaves training's region (and its gain is the box
         // edge's, which hinf says); (cos, sin) does not
-        const std::string file = test::write_file(d, std::string(inputs) + ".toml",
-                                                  pll_config(periodic ? "" : "angle_inputs = \"raw\"\n"));
+        const std::string file =
+            test::write_file(d, std::string(inputs) + ".toml", pll_config(periodic ? "" : "angle_inputs = \"raw\"\n"));
         const auto r = test::run_hinf("compare " + file + " --network " + d / (std::string(inputs) + "/checkpoint.h5") +
                                       " --filters dnn --runs 2 --set filter.t_final=3 --quiet --out " +
                                       d / (std::string(inputs) + "-long"));
@@ -114,7 +116,7 @@ TEST_CASE("angle inputs: a trained gain is the same a turn on, where the raw inp
     }
 }
 
-TEST_CASE("angle inputs: a gain checkpoint written before the key reads, filters and resumes as raw",
+TEST_CASE("angle inputs: a gain checkpoint written before the key reads and filters as raw",
           "[train][gain][angle][legacy]") {
     // written by hinf 42d5451 (before network.angle_inputs) from tests/corpus/legacy/gain_angle_raw.toml
     const std::string path = test::source_path("tests/corpus/legacy/gain_angle_raw_checkpoint.h5");
@@ -161,7 +163,8 @@ TEST_CASE("angle inputs: the on-line check and retraining run on the (cos, sin) 
     for (const char* out : {"op1", "op2"}) {
         const auto r = test::run_hinf("operate " + cfg + " --network " + d / "run/checkpoint.h5" +
                                       " --set online.retrain=true --set online.retrain_delta=0 --set filter.t_final=2"
-                                      " --runs 1 --quiet --out " + d / out);
+                                      " --runs 1 --quiet --out " +
+                                      d / out);
         INFO(r.output);
         REQUIRE(r.status == 0);
         h5::Handle f = h5::open_file(d / (std::string(out) + "/operate.h5"), false);
@@ -189,7 +192,8 @@ TEST_CASE("angle inputs: training says nothing of an angle's sign", "[train][gai
     CHECK(r.output.find("state_bounds") == std::string::npos);
     std::string plain = pll_config();  // the same phase, not named an angle: the note, as before
     plain.replace(plain.find("angle_states = [1]\n"), 19, "");
-    const auto p = test::run_hinf("train " + test::write_file(d, "plain.toml", plain) + " --quiet --out " + d / "plain");
+    const auto p =
+        test::run_hinf("train " + test::write_file(d, "plain.toml", plain) + " --quiet --out " + d / "plain");
     INFO(p.output);
     CHECK(p.status == 0);
     CHECK(p.output.find("keeps phi >= 0") != std::string::npos);
