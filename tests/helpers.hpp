@@ -30,6 +30,21 @@ inline RunConfig config_from_text(const std::string& text, const std::string& se
     return load_run_config(doc);
 }
 
+/// A phase-locked loop's [system] section (the angle tests): the phase and frequency of a sinusoid seen through
+/// y = sin(phi), the phase an angle state that winds.
+inline std::string phase_lock_system() {
+    return R"cfg([system]
+kind = "expr"
+states = ["phi", "w"]
+disturbances = 2
+measurements = 1
+f = ["w", "0"]
+g = [["1", "0"], ["0", "1"]]
+h = ["sin(phi)"]
+angle_states = [1]
+)cfg";
+}
+
 /// The number of newline characters in `s`.
 inline int count_lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 

@@ -254,16 +254,7 @@ private:
 
 TEST_CASE("an angle state has no plausible range: a phase that winds far is not frozen, a non-finite one is",
           "[eval][compare][divergence][angle]") {
-    const std::string text = R"cfg([system]
-kind = "expr"
-states = ["phi", "w"]
-disturbances = 2
-measurements = 1
-f = ["w", "0"]
-g = [["1", "0"], ["0", "1"]]
-h = ["sin(phi)"]
-angle_states = [1]
-[filter]
+    const std::string text = test::phase_lock_system() + R"cfg([filter]
 x0 = [0.0, 6.0]
 xhat0 = [0.4, 5.5]
 dt = 0.01

@@ -21,16 +21,7 @@ namespace {
 
 // a phase-locked loop: phase and frequency of a sinusoid seen through one noisy sample stream (the phase winds)
 std::string pll_config(const std::string& network = "") {
-    return R"cfg([system]
-kind = "expr"
-states = ["phi", "w"]
-disturbances = 2
-measurements = 1
-f = ["w", "0"]
-g = [["1", "0"], ["0", "1"]]
-h = ["sin(phi)"]
-angle_states = [1]
-[filter]
+    return test::phase_lock_system() + R"cfg([filter]
 variant = "gain"
 rho = 0.5
 x0 = [0.0, 6.0]
