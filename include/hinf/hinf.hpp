@@ -234,7 +234,8 @@ struct TrainReport {
     /// DIR/best_average.h5 (docs/method.md 16.9; "acceptance: note: ..."; "" otherwise)
     std::string acceptance_selection_note;
     /// outside the verdict: the check's runs again with the EKF beside the filter, each one's position RMSE after
-    /// settle_time (the whole run where that window is empty); NaN where the check did not run (or, the DNN
+    /// settle_time (where the config names none and the default leaves no step, after t_final / 2; the whole run where
+    /// a named window is empty); NaN where the check did not run (or, the DNN
     /// filter's, where a run diverged)
     double acceptance_rmse_settled = std::numeric_limits<double>::quiet_NaN();
     double acceptance_rmse_settled_ekf = std::numeric_limits<double>::quiet_NaN();

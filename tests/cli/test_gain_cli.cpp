@@ -174,6 +174,15 @@ TEST_CASE("gain variant: train, operate, compare, filter and worst run it in mea
         CHECK(t.output.find("), all states Q-weighted ") != std::string::npos);
         CHECK(hinf::h5::get_attr_double(ck.get(), "acceptance_settle_time") == 0.25);
     }
+    {  // a settle_time the config names is kept, though no step reaches it: the check judges the whole run
+        auto w = run_hinf("train " + cfg + " --out " + (d / "named") + " --quiet --set online.settle_time=5");
+        INFO(w.output);
+        REQUIRE(w.status == 0);
+        CHECK(w.output.find(" against the EKF's ") != std::string::npos);
+        CHECK(w.output.find(" after t = ") == std::string::npos);
+        hinf::h5::Handle ck = hinf::h5::open_file(d / "named/best.h5", false);
+        CHECK(hinf::h5::get_attr_double(ck.get(), "acceptance_settle_time") == 0.0);
+    }
     auto op = run_hinf("operate " + cfg + " --network " + net + " --mode measured --runs 2 --out " + (d / "op"));
     INFO(op.output);
     CHECK(op.status == 0);
