@@ -138,10 +138,10 @@ std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const cha
                                    : "";
     char buf[900];
     std::snprintf(buf, sizeof buf,
-                  "%s: note: the %s's error is still falling after t = %g s, where the default settled window starts (the "
-                  "config names no settle_time): over the first half of the settled window its mean square error is %.3g times the second "
-                  "half's%s. The settled figures hold that transient; name the time this system settles in, e.g. "
-                  "--set online.settle_time=%.3g (docs/compare.md, \"Settled\")",
+                  "%s: note: the %s's error is still falling after t = %g s, where the default settled window starts "
+                  "(the config names no settle_time): over the first half of the settled window its mean square error "
+                  "is %.3g times the second half's%s. The settled figures hold that transient; name the time this "
+                  "system settles in, e.g. --set online.settle_time=%.3g (docs/compare.md, \"Settled\")",
                   who, ref->name == "pf" ? "PF" : ref->name == "ukf" ? "UKF" : "EKF", cfg.settle_time,
                   ref->settle_halves, from.c_str(), known ? ref->settled_after : cfg.t_final / 2);
     return buf;
