@@ -176,7 +176,7 @@ std::string furthest_behind(const RunConfig& cfg, const std::vector<double>& dm,
 // second half it picked worse checkpoints there and on two other short configs.
 RunConfig acceptance_window(const RunConfig& cfg) {
     RunConfig judged = cfg;
-    if (!ConfigSection(cfg.doc, "online").has("settle_time") && !(cfg.settle_time < cfg.t_final))
+    if (!settle_time_named(cfg) && !(cfg.settle_time < cfg.t_final))
         judged.settle_time = 0.5 * cfg.t_final;
     return judged;
 }

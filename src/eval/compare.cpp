@@ -124,8 +124,10 @@ SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>
     return c;
 }
 
+bool settle_time_named(const RunConfig& cfg) { return ConfigSection(cfg.doc, "online").has("settle_time"); }
+
 std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who) {
-    if (ConfigSection(cfg.doc, "online").has("settle_time")) return "";
+    if (settle_time_named(cfg)) return "";
     const CompareFilterResult* ref = nullptr;
     for (const char* name : {"ekf", "ukf", "pf"})
         for (const auto& fr : s.filters)

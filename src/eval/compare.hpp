@@ -83,6 +83,10 @@ SettleCheck settle_check(const std::vector<double>& t, const std::vector<double>
 /// the key to set; "" otherwise. `who` starts the line ("compare", "acceptance").
 std::string settle_note(const RunConfig& cfg, const CompareSummary& s, const char* who);
 
+/// Whether the config names [online] settle_time (else the default window, or none on a short run): the settle note
+/// speaks only of a default, and the acceptance check's window on a short run replaces only a default.
+bool settle_time_named(const RunConfig& cfg);
+
 /// Above this mean NEES per state a filter's covariance() understates its error by more than sqrt(10) = 3.2 times in
 /// RMS: chosen by measurement on 40 systems (docs/compare.md "Consistency": EKF and UKF at 0.87-1.26 where they track,
 /// the PF at 0.93-5.8 where it is at most 1.5 times behind the EKF, the EKF at 18-47 on UNGM, and 307 to 10^42 for
