@@ -50,18 +50,50 @@ void gain_parts(GainParts* g, const double* K, const double* S, const HjieSystem
     }
 }
 
-// relu(dt |D^-1 K dC| / |D^-1 x~| - kappa); dr [n x m] (may be null) gets d(dt |D^-1 K dC| / |D^-1 x~|)/dK
-double step_correction_excess(const double* K, const HjieSystemView& sv, std::int64_t i, const GainLossParams& gp,
-                              double* dr) {
-    if (!(gp.dt > 0) || gp.dx == nullptr) return 0.0;
+// relu(dt |K dC|_W / |x~|_W - kappa) with |z|_W = sqrt(z'Wz): W = D^-2 (the error scales) or, with
+// gp.cap_in_storage, W = S (the storage). drK [n x m] (may be null) gets the ratio's derivative with respect to K;
+// drS [n x n] (may be null; only with cap_in_storage) its derivative with respect to S's entries, as independent
+double step_correction_excess(const double* K, const double* S, const HjieSystemView& sv, std::int64_t i,
+                              const GainLossParams& gp, double* drK, double* drS) {
+    if (!(gp.dt > 0)) return 0.0;
     const int n = sv.n, m = sv.m;
     const double* xt = sv.xt + i * n;
     const double* dC = sv.dC + i * m;
-    double w[kMax], kk = 0, ee = 0;
+    double u[kMax];
     for (int a = 0; a < n; ++a) {
         double t = 0;
         for (int j = 0; j < m; ++j) t += K[a * m + j] * dC[j];
-        w[a] = t / gp.dx[a];
+        u[a] = t;
+    }
+    if (gp.cap_in_storage) {
+        double su[kMax], uu = 0, ee = 0;
+        for (int a = 0; a < n; ++a) {
+            double tu = 0, tx = 0;
+            for (int c = 0; c < n; ++c) {
+                tu += S[a * n + c] * u[c];
+                tx += S[a * n + c] * xt[c];
+            }
+            su[a] = tu;
+            uu += u[a] * tu;
+            ee += xt[a] * tx;
+        }
+        if (!(ee > 0) || !(uu > 0)) return 0.0;
+        const double nu = std::sqrt(uu), ne = std::sqrt(ee);
+        const double r = gp.dt * nu / ne;
+        if (r <= gp.kappa) return 0.0;
+        if (drK != nullptr)  // d|u|_S / du = S u / |u|_S, u = K dC
+            for (int a = 0; a < n; ++a)
+                for (int j = 0; j < m; ++j) drK[a * m + j] = gp.dt / ne * (su[a] / nu) * dC[j];
+        if (drS != nullptr)  // d(z'Sz)/dS_ac = z_a z_c
+            for (int a = 0; a < n; ++a)
+                for (int c = 0; c < n; ++c)
+                    drS[a * n + c] = gp.dt * (u[a] * u[c] / (2.0 * nu * ne) - nu * xt[a] * xt[c] / (2.0 * ee * ne));
+        return r - gp.kappa;
+    }
+    if (gp.dx == nullptr) return 0.0;
+    double w[kMax], kk = 0, ee = 0;
+    for (int a = 0; a < n; ++a) {
+        w[a] = u[a] / gp.dx[a];
         kk += w[a] * w[a];
         ee += (xt[a] / gp.dx[a]) * (xt[a] / gp.dx[a]);
     }
@@ -69,9 +101,11 @@ double step_correction_excess(const double* K, const HjieSystemView& sv, std::in
     const double nk = std::sqrt(kk), ne = std::sqrt(ee);
     const double r = gp.dt * nk / ne;
     if (r <= gp.kappa) return 0.0;
-    if (dr != nullptr)
+    if (drK != nullptr)
         for (int a = 0; a < n; ++a)
-            for (int j = 0; j < m; ++j) dr[a * m + j] = gp.dt / ne * (w[a] / nk) * dC[j] / gp.dx[a];
+            for (int j = 0; j < m; ++j) drK[a * m + j] = gp.dt / ne * (w[a] / nk) * dC[j] / gp.dx[a];
+    if (drS != nullptr)
+        for (int k = 0; k < n * n; ++k) drS[k] = 0.0;
     return r - gp.kappa;
 }
 
@@ -114,7 +148,7 @@ GainSampleValue gain_sample_forward(const double* K, const double* S, const Hjie
     const double r = v.abs_sum > 0 ? v.residual / v.abs_sum : 0.0;
     const double h = std::max(0.0, r + gp.margin);
     v.hinge = h * h;
-    const double c = step_correction_excess(K, sv, i, gp, nullptr);
+    const double c = step_correction_excess(K, S, sv, i, gp, nullptr, nullptr);
     v.hinge += c * c;
     v.h2 = gain_h2_value(S, K, sv.Bm + i * n * nv, n, nv, m, gp);
     return v;
@@ -212,10 +246,13 @@ void gain_sample_backward(double* gK, double* gS, const double* K, const double*
             for (int c = 0; c < n; ++c) gS[a * n + c] += gs[a] * xt[c];
     }
     {  // the sampled-data cap
-        double dr[kMax * kMax];
-        const double c = step_correction_excess(K, sv, i, gp, dr);
-        if (c > 0)
+        double dr[kMax * kMax], drS[kMax * kMax];
+        const double c = step_correction_excess(K, S, sv, i, gp, dr, gp.cap_in_storage ? drS : nullptr);
+        if (c > 0) {
             for (int k = 0; k < n * m; ++k) gK[k] += d_hinge * 2.0 * c * dr[k];
+            if (gp.cap_in_storage)
+                for (int k = 0; k < n * n; ++k) gS[k] += d_hinge * 2.0 * c * drS[k];
+        }
     }
     gain_h2_backward(gK, gS, S, K, B, n, nv, m, gp, d_h2);
 }

@@ -18,6 +18,9 @@ struct GainLossParams {
     // sampled-data cap: dt |D^-1 K dC| <= kappa |D^-1 x~| (the Euler filter's correction per step stays below
     // kappa times the error; a hinge relu(dt |D^-1 K dC| / |D^-1 x~| - kappa)^2 added to the sample's hinge)
     double dt = 0.0, kappa = 0.5;  // dt = 0: no cap
+    // the cap in the storage's metric instead, dt |K dC|_S <= kappa |x~|_S with |z|_S = sqrt(z'Sz): the step as V
+    // measures it, whatever the error scales D (objective.step_cap = "storage"; docs/method.md section 16.2)
+    bool cap_in_storage = false;
     // a discrete-time system: the one-step inequality of gain_discrete.hpp instead (per-step sv2, sn2; T in steps)
     bool discrete = false;
     const double* dx = nullptr;    // [n] D

@@ -852,6 +852,11 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     c.initial_weight = o.get_double("initial_weight", c.storage_knots > 0 ? 1.0 : c.initial_weight, 0.0, 1e12);
     c.max_step_correction = o.get_double("max_step_correction", c.max_step_correction, 0.0, 2.0);
     if (c.max_step_correction <= 0) o.reject("max_step_correction", "must be in (0, 2]");
+    // where the cap measures the step: in the error scales D (the default) or in the storage's own metric S
+    // (docs/method.md section 16.2, "Sampled-data cap")
+    c.step_cap = o.get_string("step_cap", c.step_cap, {"error_scale", "storage"});
+    if (c.step_cap != "error_scale" && c.variant != "gain")
+        o.reject("step_cap", "applies to the gain variant only (filter.variant = \"gain\")");
     o.finish();
 
     ConfigSection on(doc, "online");

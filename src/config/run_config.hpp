@@ -93,6 +93,7 @@ struct TrainingConfig {
     double horizon = 0.0;               // 0: t_final
     double initial_weight = 0.0;        // variant gain: weight of V(x~(0))/T in its H2 objective
     double max_step_correction = 0.5;   // kappa: dt * |k dC| <= kappa |x~| (sets eps when eps = 0)
+    std::string step_cap = "error_scale";  // gain: the cap's norms, |.|_D^-2 ("error_scale") or |.|_S ("storage")
 };
 
 /// What only the on-line phase (operate, compare, filter) reads: the simulated noise and the Monte Carlo.

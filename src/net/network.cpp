@@ -251,6 +251,7 @@ kern::GainSpec gain_spec(const RunConfig& cfg) {
     g.loss.dt = discrete ? 0.0 : cfg.dt;  // the sampled-data cap: continuous time only
     g.loss.discrete = discrete;
     g.loss.kappa = cfg.max_step_correction;
+    g.loss.cap_in_storage = cfg.step_cap == "storage";
     // h2 at S = c D^-2, o = all ones: x~0'S x~0 / T + sv2 tr(B'S B) + sn2 rate^2 c n sum_j dy_j^-2
     std::vector<double> B(static_cast<std::size_t>(n) * cfg.nv);
     sys.disturbance_gain(B.data(), cfg.x0.data(), 0.0, 1);

@@ -135,6 +135,11 @@ TEST_CASE("gain variant: the closed-form sup is convex in K for a fixed S, conti
 }
 
 TEST_CASE("gain variant: per-sample loss gradient equals central differences", "[kernel][gain][grad]") {
+  // the sampled-data cap measured in the error scales D (the default) and in the storage's metric S
+  // (objective.step_cap = "storage": the cap then has a gradient with respect to S too)
+  for (const bool in_storage : {false, true}) {
+    INFO("cap in the storage's metric: " << in_storage);
+    int capped = 0;
     for (unsigned seed = 1; seed <= 6; ++seed) {
         Case c = make_case(seed);
         GainLossParams gp;
@@ -147,7 +152,11 @@ TEST_CASE("gain variant: per-sample loss gradient equals central differences", "
         const double dx[3] = {1.0, 0.5, 2.0};
         gp.dx = dx;
         gp.dt = 0.3;  // the sampled-data cap is active for some seeds
+        gp.cap_in_storage = in_storage;
+        gp.kappa = 1e9;
+        const double uncapped = gain_sample_forward(c.K.data(), c.S.data(), c.view(), 0, gp).hinge;
         gp.kappa = 0.2;
+        if (gain_sample_forward(c.K.data(), c.S.data(), c.view(), 0, gp).hinge != uncapped) ++capped;
         const double dh = 0.8, dh2 = 0.3;
         auto L = [&](const Case& cc) {
             GainSampleValue v = gain_sample_forward(cc.K.data(), cc.S.data(), cc.view(), 0, gp);
@@ -170,6 +179,8 @@ TEST_CASE("gain variant: per-sample loss gradient equals central differences", "
             CHECK(gS[k] == Approx((L(p) - L(m)) / (2 * h)).epsilon(1e-6).margin(1e-9));
         }
     }
+    CHECK(capped > 0);
+  }
 }
 
 TEST_CASE("gain variant: storage S is positive definite, storage and head gradients equal central differences",
@@ -290,16 +301,21 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
   // them) and the Riccati-form head K = rho S(t)^-1 (Hx' + D^-1 o diag(dy))
   // masked: the gain's structural zeros (network.gain_structure, docs/method.md 16.17) on two of the six entries
   // ratio 4: graded knots (network.knot_ratio; t_j = 0, 0.286, 0.857, 2)
+  // in_storage: the sampled-data cap in the storage's metric (objective.step_cap = "storage"), through S(t)'s knots
   struct KnotCase {
     int knots;
     bool masked;
     double ratio;
+    bool in_storage;
   };
-  for (const auto& [knots, masked, ratio] :
-       std::vector<KnotCase>{{0, false, 1.0}, {3, false, 1.0}, {0, true, 1.0}, {3, true, 1.0}, {3, false, 4.0}}) {
-    INFO("knots " << knots << " masked " << masked << " ratio " << ratio);
+  for (const auto& [knots, masked, ratio, in_storage] :
+       std::vector<KnotCase>{{0, false, 1.0, false}, {3, false, 1.0, false}, {0, true, 1.0, false},
+                             {3, true, 1.0, false}, {3, false, 4.0, false}, {0, false, 1.0, true},
+                             {3, false, 1.0, true}}) {
+    INFO("knots " << knots << " masked " << masked << " ratio " << ratio << " cap in the storage " << in_storage);
     const int n = 3, nv = 2, m = 2, N = 11;
     StepConfig sc = small_gain_config(n, m);
+    sc.gain.loss.cap_in_storage = in_storage;
     if (masked) sc.gain.mask = {1, 0, 0, 1, 1, 1};
     sc.gain.knots = knots;
     sc.gain.knot_span = 2.0;
@@ -330,6 +346,13 @@ TEST_CASE("gain variant: minibatch gradient equals central differences, 1 and 2 
     omp_set_num_threads(2);
     CHECK(grad1 == grad);
     CHECK(hinf::test::check_gain_gradient_fd(grad, theta, view, z.data(), idx.data(), M, sc) > 20);
+    if (in_storage) {  // the cap is active on this minibatch (else its gradient would not be checked)
+        StepConfig open = sc;
+        open.gain.loss.kappa = 1e9;
+        StepWorkspace<double> wso;
+        std::vector<double> go(P);
+        CHECK(gain_step_gradient(go.data(), theta.data(), view, z.data(), idx.data(), M, open, wso).hinge < L.hinge);
+    }
     // the evaluation path gives the same K as the training path's head
     std::vector<double> K(N * n * m), S(n * n), Sd(n * n), S2(n * n);
     const std::vector<double> Ktrain(ws.K.begin(), ws.K.begin() + M * n * m);  // K of minibatch row s = sample idx[s]
