@@ -201,6 +201,33 @@ TEST_CASE("acceptance advice far behind the EKF names the EKF before the level",
     CHECK_FALSE(has(b, "times the EKF's error"));
 }
 
+TEST_CASE("far behind the EKF with plain noise numbers, the advice and the note name the game in noise units",
+          "[acceptance]") {
+    // plain disturbance_std and noise_std: the game weighs their units alike, whatever the sensor's precision
+    const RunConfig plain = scalar("2");
+    std::string text = "[system]\nkind = \"expr\"\nstates = [\"x\"]\ndisturbances = 1\nmeasurements = 1\nf = [\"-x\"]\n"
+                       "g = [[\"1\"]]\nh = [\"x\"]\n[filter]\nvariant = \"gain\"\nrho = 2\nQ = [1.0]\nx0 = [1.0]\n"
+                       "xhat0 = [0.0]\ndt = 0.01\nt_final = 2\n[online]\ndisturbance_std = 1\nnoise_std = [0.25]\n";
+    const RunConfig listed = load_run_config(ConfigDoc::from_text(text, "listed.toml"));
+    REQUIRE_FALSE(listed.output_weight.empty());
+    AcceptanceSearch s;
+    s.ran = true;
+    s.ratio = 1.0;
+    s.behind_ekf = 9.68;
+    const std::string units = "train the game in units of each channel's noise too, --set 'online.noise_std=[1]'";
+    CHECK(has(acceptance_advice(plain, "run/best.h5", s), units));
+    CHECK_FALSE(has(acceptance_advice(listed, "run/best.h5", s), "units of each channel's noise"));
+    s.behind_ekf = 1.5;  // not far behind: not said
+    CHECK_FALSE(has(acceptance_advice(plain, "run/best.h5", s), "units of each channel's noise"));
+    // the note after a PASS, likewise, its clauses joined by ';'
+    const std::string note = acceptance_behind_note(plain, "run/best.h5", 2.5, 1.3);
+    INFO(note);
+    CHECK(has(note, "until a training does better; its game weighs a unit of disturbance like a unit of noise"));
+    CHECK(note.back() == ')');
+    CHECK_FALSE(has(acceptance_behind_note(plain, "run/best.h5", 1.3, 1.3), "units of each channel's noise"));
+    CHECK_FALSE(has(acceptance_behind_note(listed, "run/best.h5", 2.5, 1.3), "units of each channel's noise"));
+}
+
 TEST_CASE("acceptance advice offers the Kalman-form head after a divergence on a discrete-time system",
           "[acceptance][kalman]") {
     auto discrete = [](const std::string& head) {
