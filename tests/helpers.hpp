@@ -124,6 +124,12 @@ inline void check_legacy_array(const std::vector<double>& got, const std::vector
     for (std::size_t i = 0; i < got.size(); ++i) CHECK(std::fabs(got[i] - want[i]) <= 1e-6 * scale);
 }
 
+/// The [network] and [training] sections of a training that takes a fraction of a second (an 8-neuron network, 100
+/// samples, 2 Adam steps a time step); lines for [training] may follow.
+inline std::string tiny_network_and_training() {
+    return "[network]\nhidden = [8]\n[training]\nsamples = 100\nbatch = 40\nadam_steps = 2\ncheckpoint_every = 10\n";
+}
+
 /// A Van der Pol config of the `gain` variant (position-only, nonlinear sensor: m < n) that trains in a fraction of
 /// a second; `training_extra` lines go into [training].
 inline std::string tiny_vdp_gain_config(const std::string& t_final = "0.5", const std::string& training_extra = "") {
@@ -143,15 +149,7 @@ Q = [1.0, 1.0]
 x0 = [2.0, 0.0]
 xhat0 = [0.5, 1.0]
 dt = 0.01
-t_final = )" + t_final + R"(
-[network]
-hidden = [8]
-[training]
-samples = 100
-batch = 40
-adam_steps = 2
-checkpoint_every = 10
-)" + training_extra + R"([sampling]
+t_final = )" + t_final + "\n" + tiny_network_and_training() + training_extra + R"([sampling]
 error_floor = [0.2, 0.2]
 trajectories = 3
 [objective]

@@ -39,14 +39,8 @@ xhat0 = [)" + num(0.5 * s) +
            ", " + num(s) + R"(]
 dt = 0.01
 t_final = 0.4
-[network]
-hidden = [8]
-[training]
-samples = 100
-batch = 40
-adam_steps = 2
-checkpoint_every = 10
-acceptance_runs = 0
+)" + hinf::test::tiny_network_and_training() +
+           R"(acceptance_runs = 0
 [online]
 disturbance_std = )" +
            num(0.5 * s) + R"(
