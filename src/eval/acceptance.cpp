@@ -278,7 +278,7 @@ std::string noise_units_advice(const RunConfig& cfg) {
            "disturbance_std and noise_std), whatever the sensor's precision: train the game in units of each "
            "channel's noise too, --set 'online.noise_std=[" +
            list +
-           "]', and compare both (on five systems 2-17 times behind the EKF it came closer on four, 17 to 9.6 times "
+           "]', and compare both (on five systems 2-17 times behind the EKF it came closer on four, 16.7 to 8.9 times "
            "on a saturating sensor, and went from 3.7 to 26 times on FitzHugh-Nagumo: docs/method.md section 16.13, "
            "\"A precise sensor\");";
 }
