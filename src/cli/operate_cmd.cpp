@@ -84,7 +84,7 @@ void add_operate_command(CLI::App& app) {
         // alike (compare and filter convert the measurements instead; docs/method.md section 16.13)
         HINF_CHECK(trained.output_weight == cfg.output_weight && trained.disturbance_scale == cfg.disturbance_scale,
                    "network '" + a->networks[0] + "' was trained with [online] noise_std / disturbance_std " +
-                       (trained.output_weight.empty() && trained.disturbance_scale.empty()
+                       (game_in_config_units(trained)
                             ? std::string("as plain numbers")
                             : std::string("as lists or covariances (each channel in units of its own noise)")) +
                        " and " + a->config + " weighs the channels otherwise: give operate the training's [online] "

@@ -400,18 +400,24 @@ void inherit_chosen(RunConfig* derived, const RunConfig& from) {
     }
 }
 
+bool game_in_config_units(const RunConfig& c) { return c.output_weight.empty() && c.disturbance_scale.empty(); }
+
+std::string noise_std_as_list(const RunConfig& c, int digits) {
+    std::string list = "[";
+    char value[64];
+    for (int j = 0; j < c.m; ++j) {
+        std::snprintf(value, sizeof value, "%s%.*g", j ? ", " : "", digits, c.noise_std);
+        list += value;
+    }
+    return list + "]";
+}
+
 ConfigDoc game_in_noise_units(const RunConfig& c) {
-    HINF_CHECK(c.output_weight.empty() && c.disturbance_scale.empty() && c.noise_std > 0 && c.m >= 1,
+    HINF_CHECK(game_in_config_units(c) && c.noise_std > 0 && c.m >= 1,
                "game_in_noise_units: the config's [online] noise_std and disturbance_std must be plain numbers, "
                "noise_std > 0");
     ConfigDoc doc = c.doc;
-    char value[64];
-    std::string list = "online.noise_std=[";
-    for (int j = 0; j < c.m; ++j) {
-        std::snprintf(value, sizeof value, "%s%.17g", j ? ", " : "", c.noise_std);
-        list += value;
-    }
-    doc.set(list + "]");
+    doc.set("online.noise_std=" + noise_std_as_list(c, 17));
     if (c.rho_auto) doc.unset("filter.rho");
     return doc;
 }
@@ -857,6 +863,9 @@ RunConfig load_run_config(ConfigDoc doc, bool need_level, bool need_run_span) {
     c.step_cap = o.get_string("step_cap", c.step_cap, {"error_scale", "storage"});
     if (c.step_cap != "error_scale" && c.variant != "gain")
         o.reject("step_cap", "applies to the gain variant only (filter.variant = \"gain\")");
+    if (c.step_cap != "error_scale" && c.system != nullptr && c.system->discrete_time())
+        o.reject("step_cap", "a discrete-time system's one-step game has no sampled-data cap (docs/method.md section "
+                             "16.8): remove the key");
     o.finish();
 
     ConfigSection on(doc, "online");

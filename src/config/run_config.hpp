@@ -150,6 +150,13 @@ void disturbances_to_model(const ProblemConfig& c, double* v, std::int64_t rows)
 /// noise weights. What an ensemble's members must share (compare --ensemble, export --ensemble; method.md 16.15).
 bool same_trained_model(const RunConfig& a, const RunConfig& b);
 
+/// Whether c's game weighs the disturbance and the noise in the config's own units: [online] noise_std and
+/// disturbance_std plain numbers, no covariance (method.md 16.13); else each channel is in units of its own noise.
+bool game_in_config_units(const RunConfig& c);
+/// c's plain noise_std as a list of one entry per output, "[s, s]" with `digits` significant digits: the value of
+/// online.noise_std that puts c's game in units of each channel's noise (game_in_noise_units, the acceptance advice).
+std::string noise_std_as_list(const RunConfig& c, int digits);
+
 /// The config of c with the game in units of each channel's noise (method.md 16.13): c's plain [online] noise_std given
 /// as a list of one entry per output (its plain disturbance_std then weighs the inputs alike), and, where c's level was
 /// the default 1.25 rho* (rho_auto), no [filter] rho, so that loading it finds rho* of that game. For a config whose

@@ -266,19 +266,12 @@ std::string advice_config(const RunConfig& cfg) {
 // far behind the EKF can be that game's weighting, not its training: one clause naming the game in units of each
 // channel's noise to train beside it (docs/method.md section 16.13, "A precise sensor"); "" for any other config
 std::string noise_units_advice(const RunConfig& cfg) {
-    if (cfg.variant != "gain" || !cfg.output_weight.empty() || !cfg.disturbance_scale.empty() || !(cfg.noise_std > 0))
-        return "";
-    std::string list;
-    char value[40];
-    for (int j = 0; j < cfg.m; ++j) {
-        std::snprintf(value, sizeof value, "%s%.6g", j ? "," : "", cfg.noise_std);
-        list += value;
-    }
+    if (cfg.variant != "gain" || !game_in_config_units(cfg) || !(cfg.noise_std > 0)) return "";
     return " its game weighs a unit of disturbance like a unit of noise in the config's own units (plain [online] "
            "disturbance_std and noise_std), whatever the sensor's precision: train the game in units of each "
-           "channel's noise too, --set 'online.noise_std=[" +
-           list +
-           "]', and compare both (on five systems 2-17 times behind the EKF it came closer on four, 16.7 to 8.9 times "
+           "channel's noise too, --set 'online.noise_std=" +
+           noise_std_as_list(cfg, 6) +
+           "', and compare both (on five systems 2-17 times behind the EKF it came closer on four, 16.7 to 8.9 times "
            "on a saturating sensor, and went from 3.7 to 26 times on FitzHugh-Nagumo: docs/method.md section 16.13, "
            "\"A precise sensor\");";
 }
@@ -1031,7 +1024,7 @@ bool choose_game_in_noise_units(RunConfig* cfg, TrainSummary* s, std::shared_ptr
     if (!(s->status == 0 && s->last_step > s->first_step && s->last_step == cfg->steps_until() && *best &&
           (*best)->step < 0 &&
           par_size() == 1 && cfg->variant == "gain" && cfg->rho_auto &&
-          cfg->output_weight.empty() && cfg->disturbance_scale.empty() && cfg->noise_std > 0))
+          game_in_config_units(*cfg) && cfg->noise_std > 0))
         return false;
     const std::string alt = dir + "/alternative";
     RunConfig other;

@@ -849,7 +849,7 @@ TrainSummary start_typed(const RunConfig& cfg, const TrainOptions& opt) {
                              "the smallest level any filter can promise for the linearised system (hinf rho %s%s; "
                              "docs/method.md section 16.12)\n",
                      cfg.rho, kAutoRhoFactor, cfg.rho_bound, cfg.doc.source().c_str(),
-                     cfg.output_weight.empty() && cfg.disturbance_scale.empty()
+                     game_in_config_units(cfg)
                          ? ""
                          : " with this run's [online] noise_std and disturbance_std, in units of each channel's noise");
     // a default below rho*_on: kept over [0, t_final] only by a filter that knows when the run ends
